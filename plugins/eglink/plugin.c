@@ -1,0 +1,48 @@
+/* plugin.c
+ * Plugin entry points of the EG-Link dissector, as Wireshark's generated
+ * plugin.c would write them; the version checks keep one source building
+ * against Wireshark 4.0 through 4.6.
+ *
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ */
+#define WS_BUILD_DLL
+#include <wireshark.h>
+#include <epan/proto.h>
+#include <ws_version.h>
+
+#if (WIRESHARK_VERSION_MAJOR > 4) || (WIRESHARK_VERSION_MAJOR == 4 && WIRESHARK_VERSION_MINOR >= 2)
+#include <wsutil/plugins.h>
+#define VRSHARK_HAVE_PLUGIN_DESCRIBE 1
+#endif
+
+#ifndef VERSION
+#define VERSION "0.1.0"
+#endif
+
+WS_DLL_PUBLIC_DEF const char plugin_version[] = VERSION;
+WS_DLL_PUBLIC_DEF const int plugin_want_major = WIRESHARK_VERSION_MAJOR;
+WS_DLL_PUBLIC_DEF const int plugin_want_minor = WIRESHARK_VERSION_MINOR;
+
+WS_DLL_PUBLIC void plugin_register(void);
+#ifdef VRSHARK_HAVE_PLUGIN_DESCRIBE
+WS_DLL_PUBLIC uint32_t plugin_describe(void);
+#endif
+
+void proto_register_eglink(void);
+void proto_reg_handoff_eglink(void);
+
+void plugin_register(void)
+{
+    static proto_plugin plug_eglink;
+
+    plug_eglink.register_protoinfo = proto_register_eglink;
+    plug_eglink.register_handoff = proto_reg_handoff_eglink;
+    proto_register_plugin(&plug_eglink);
+}
+
+#ifdef VRSHARK_HAVE_PLUGIN_DESCRIBE
+uint32_t plugin_describe(void)
+{
+    return WS_PLUGIN_DESC_DISSECTOR;
+}
+#endif

@@ -1,0 +1,153 @@
+"""Fixtures for running tshark with the vrshark plugins, after Wireshark's
+test/fixtures_ws.py: a tshark command, capture paths, a hermetic configuration
+folder, TZ=UTC, and helpers for -T fields / -T json / expert-info assertions.
+
+Every run goes through tools/tshark, so the freshly built C plugin and the Lua
+plugins of this checkout are the ones tested. Runs are cached per session by
+their arguments: many tests look at the same capture.
+"""
+import json
+import os
+import shutil
+import subprocess
+import tempfile
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+CAPTURES = ROOT / "captures"
+SHARED = ROOT.parent / "shared"
+PUBLIC_CAPTURES = SHARED / "captures" / "public"
+
+# Text that must never appear in tshark's output for our captures.
+FORBIDDEN = ("Lua Error", "Dissector bug", "dissector bug", "[Malformed Packet: eglink]")
+
+
+def _world_dir(prefix, mode=0o755):
+    """A temporary folder tshark can use when tools/tshark drops root to nobody."""
+    path = Path(tempfile.mkdtemp(prefix=prefix))
+    path.chmod(mode)
+    return path
+
+
+class Tshark:
+    """tools/tshark with a hermetic environment, and ways to read its output."""
+
+    def __init__(self, conf_dir):
+        self.cmd = str(ROOT / "tools" / "tshark")
+        self.env = dict(os.environ)
+        self.env.update({
+            "TZ": "UTC",
+            "LC_ALL": "C.UTF-8",
+            "WIRESHARK_CONFIG_DIR": str(conf_dir),
+        })
+        self._cache = {}
+
+    @staticmethod
+    def _opts(prefs=None, decode_as=None, two_pass=False, display_filter=None, extra=None):
+        args = []
+        if two_pass:
+            args.append("-2")
+        for name, value in sorted((prefs or {}).items()):
+            args += ["-o", "%s:%s" % (name, value)]
+        for rule in decode_as or ():
+            args += ["-d", rule]
+        if display_filter:
+            args += ["-Y", display_filter]
+        args += list(extra or ())
+        return args
+
+    def run(self, args, check=True, allow_errors=False, cache=True):
+        """Run tools/tshark ARGS; returns the CompletedProcess (text mode).
+
+        Unless allow_errors, a "Lua Error" or dissector bug in the output fails the test.
+        """
+        key = tuple(args)
+        if cache and key in self._cache:
+            proc = self._cache[key]
+        else:
+            proc = subprocess.run([self.cmd] + list(args), env=self.env, capture_output=True,
+                                  text=True, errors="replace", timeout=600)
+            if cache:
+                self._cache[key] = proc
+        if check and proc.returncode != 0:
+            raise AssertionError("tshark %s failed (%d):\n%s" % (" ".join(args), proc.returncode,
+                                                                 proc.stderr[-4000:]))
+        if not allow_errors:
+            for bad in FORBIDDEN:
+                assert bad not in proc.stdout and bad not in proc.stderr, \
+                    "%r in the output of tshark %s" % (bad, " ".join(args))
+        return proc
+
+    def fields(self, capture, fields, sep="\t", occurrence="a", aggregator=",", **kw):
+        """Rows of -T fields output, one list of strings per displayed frame."""
+        args = ["-n", "-r", str(capture)] + self._opts(**kw) + ["-T", "fields"]
+        for f in fields:
+            args += ["-e", f]
+        args += ["-E", "separator=" + sep, "-E", "occurrence=" + occurrence,
+                 "-E", "aggregator=" + aggregator]
+        out = self.run(args).stdout
+        return [line.split(sep) for line in out.splitlines()]
+
+    def field(self, capture, name, **kw):
+        """One field's value per displayed frame (joined with ',' if repeated)."""
+        return [row[0] for row in self.fields(capture, [name], **kw)]
+
+    def json(self, capture, fields=None, **kw):
+        """-T json output (with --no-duplicate-keys: repeated fields become lists)."""
+        args = ["-n", "-r", str(capture)] + self._opts(**kw) + ["-T", "json", "--no-duplicate-keys"]
+        for f in fields or ():
+            args += ["-e", f]
+        return json.loads(self.run(args).stdout or "[]")
+
+    def experts(self, capture, **kw):
+        """{frame number: [expert messages]} for every frame that has expert info."""
+        rows = self.fields(capture, ["frame.number", "_ws.expert.message"], aggregator="\x1f", **kw)
+        return {int(r[0]): r[1].split("\x1f") for r in rows if len(r) > 1 and r[1]}
+
+    def verbose(self, capture, **kw):
+        """The -V text of all displayed frames."""
+        return self.run(["-n", "-r", str(capture)] + self._opts(**kw) + ["-V"]).stdout
+
+
+@pytest.fixture(scope="session")
+def conf_dir():
+    """A hermetic, empty Wireshark configuration folder (readable by nobody)."""
+    path = _world_dir("vrshark-conf-")
+    yield path
+    shutil.rmtree(path, ignore_errors=True)
+
+
+@pytest.fixture(scope="session")
+def tshark(conf_dir):
+    return Tshark(conf_dir)
+
+
+@pytest.fixture(scope="session")
+def capture_file():
+    """capture_file("name.pcap") -> path of a committed capture under captures/."""
+    def resolve(name):
+        path = CAPTURES / name
+        assert path.exists(), "missing capture %s (run tools/gen-captures)" % name
+        return path
+    return resolve
+
+
+@pytest.fixture(scope="session")
+def public_capture():
+    """public_capture("name") -> path under ../shared/captures/public; skips if absent."""
+    def resolve(name):
+        path = PUBLIC_CAPTURES / name
+        if not path.exists():
+            pytest.skip("../shared/captures/public is not here")
+        return path
+    return resolve
+
+
+@pytest.fixture
+def work_dir():
+    """A scratch folder tshark (maybe running as nobody) can read and write."""
+    path = _world_dir("vrshark-work-", 0o777)
+    yield path
+    shutil.rmtree(path, ignore_errors=True)
