@@ -1,0 +1,65 @@
+/* packet-eglink.h
+ * What the EG-Link dissector learned from one packet, handed to the
+ * conversation analysis (eglink-analysis.c): per-BU tracking, command
+ * links, VRPO reassembly and the statistics tap.
+ *
+ * SPDX-License-Identifier: GPL-2.0-or-later
+ */
+#ifndef PACKET_EGLINK_H
+#define PACKET_EGLINK_H
+
+#include <wireshark.h>
+#include <epan/packet.h>
+#include <epan/prefs.h>
+
+typedef enum {
+    EGLINK_TYPE_VRPI,
+    EGLINK_TYPE_VRPO,
+    EGLINK_TYPE_VRCI,
+    EGLINK_TYPE_VRCO,
+    EGLINK_TYPE_VRAI,
+    EGLINK_TYPE_VRAO,
+    EGLINK_TYPE_UNKNOWN     /* "VR??" that TS-0006 does not define */
+} eglink_type_t;
+
+/* Header length: 4-byte ID + 12-byte header; the CRC trails the payload. */
+#define EGLINK_HEADER_LEN   16
+#define EGLINK_CRC_LEN      4
+#define EGLINK_VRPO_FRAGMENT_MAX 488
+
+typedef struct {
+    eglink_type_t type;
+    guint16 revision;
+    guint16 origin;
+    guint16 serial;
+    guint16 size;               /* header Size field */
+    gboolean size_ok;           /* Size matches the UDP payload and the type */
+    gboolean crc_ok;            /* CRC matched (the configured variant) */
+
+    /* VRPI */
+    gboolean has_bu_state;
+    guint8 bu_state;
+
+    /* VRCI, VRCO, VRAI, VRAO */
+    gboolean has_command_id;
+    guint16 command_id;
+
+    /* VRPO: packet number and where its periodic data sits in the tvb */
+    gboolean has_packet_number;
+    guint16 packet_number;
+    int periodic_offset;
+    int periodic_len;
+} eglink_info_t;
+
+/* eglink-analysis.c: called from proto_register_eglink() with the protocol
+ * and its preferences module, so it registers its own fields, expert info,
+ * preferences, reassembly table and tap under "eglink". */
+void eglink_analysis_register(int proto, module_t *prefs);
+
+/* Called once per dissected EG-Link packet (both passes, with or without a
+ * tree) after the packet's own fields; adds the generated analysis fields,
+ * expert info, reassembly and tap data to eglink_tree/ti. */
+void eglink_analysis_dissect(tvbuff_t *tvb, packet_info *pinfo, proto_tree *eglink_tree,
+                             proto_item *eglink_item, const eglink_info_t *info);
+
+#endif /* PACKET_EGLINK_H */
