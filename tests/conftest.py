@@ -16,6 +16,8 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
+# The build tools/tshark uses (tools/matrix gives each Wireshark version its own).
+BUILD = Path(os.environ.get("VRSHARK_BUILD_DIR") or ROOT / "build").resolve()
 CAPTURES = ROOT / "captures"
 SHARED = ROOT.parent / "shared"
 PUBLIC_CAPTURES = SHARED / "captures" / "public"

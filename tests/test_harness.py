@@ -2,7 +2,7 @@
 the generator makes."""
 import subprocess
 
-from conftest import ROOT
+from conftest import BUILD, ROOT
 
 
 def test_eglink_plugin_listed(tshark):
@@ -11,7 +11,7 @@ def test_eglink_plugin_listed(tshark):
     eglink = [r for r in rows if r[0].strip() == "eglink.so"]
     assert eglink, "eglink.so not in tshark -G plugins"
     assert eglink[0][2] == "dissector"
-    assert eglink[0][3].startswith(str(ROOT / "build" / "wsplugins"))
+    assert eglink[0][3].startswith(str(BUILD / "wsplugins"))
 
 
 def test_captures_match_generator():
