@@ -1,20 +1,1107 @@
 /* packet-eglink.c
- * Placeholder: the EG-Link dissector is being written.
+ * Routines for VisionRemote EG-Link (VM-110 UDP EG-Link, TS-0006) dissection.
+ *
+ * Every EG-Link packet is one UDP datagram, all integers little-endian:
+ *
+ *   0   4  Packet ID   "VR" + P/C/A (periodic, command, acknowledge)
+ *                           + I/O (input = BU to machine controller,
+ *                                  output = machine controller to BU)
+ *   4   2  Revision    0 = the layout decoded here
+ *   6   2  Origin      unique ID of the sending BU, 0 from the controller
+ *   8   2  Serial      sequential per sender
+ *  10   2  Size        payload length (= UDP payload length - 20)
+ *  12   4  Spare       0
+ *  16   n  Payload     VRPI 46, VRPO 2..490, VRCI/VRCO 22, VRAI/VRAO 2
+ * 16+n  4  CRC         CRC-32/MPEG-2 over ID + header + payload
+ *
+ * Input port 5825 (configurable), output port = input port + 2,
+ * multicast 239.255.42.20.  Per-BU conversation analysis, command links,
+ * VRPO reassembly and the statistics tap live in eglink-analysis.c.
+ *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
 #include <wireshark.h>
 #include <epan/packet.h>
+#include <epan/expert.h>
+#include <epan/prefs.h>
+#include <epan/unit_strings.h>
+#include <epan/crc32-tvb.h>
+#include <wsutil/crc32.h>
+
+#include "packet-eglink.h"
 
 void proto_register_eglink(void);
 void proto_reg_handoff_eglink(void);
 
+#define EGLINK_DEFAULT_INPUT_PORTS  "5825"
+#define EGLINK_OUTPUT_PORT_OFFSET   2
+#define EGLINK_MIN_LEN              (EGLINK_HEADER_LEN + EGLINK_CRC_LEN)
+
+#define EGLINK_VRPI_LEN             46
+#define EGLINK_VRPO_MIN_LEN         2
+#define EGLINK_VRPO_MAX_LEN         (2 + EGLINK_VRPO_FRAGMENT_MAX)
+#define EGLINK_CMD_LEN              22
+#define EGLINK_ACK_LEN              2
+
+#define EGLINK_BU_STATE_DISARMED    0x10
+#define EGLINK_RU_STATE_STOPPED     4
+#define EGLINK_JOYSTICK_LIMIT       1000
+
 static int proto_eglink = -1;
 
-void proto_register_eglink(void)
+static dissector_handle_t eglink_handle;
+
+/* Header */
+static int hf_eglink_type = -1;
+static int hf_eglink_revision = -1;
+static int hf_eglink_origin = -1;
+static int hf_eglink_serial = -1;
+static int hf_eglink_size = -1;
+static int hf_eglink_spare = -1;
+static int hf_eglink_payload = -1;
+static int hf_eglink_payload_spare = -1;
+static int hf_eglink_extra_payload = -1;
+static int hf_eglink_unknown_payload = -1;
+static int hf_eglink_crc = -1;
+static int hf_eglink_crc_status = -1;
+/* VRPI */
+static int hf_eglink_bu_state = -1;
+static int hf_eglink_relays_open = -1;
+static int hf_eglink_vlaps = -1;
+static int hf_eglink_unarmed_rus = -1;
+static int hf_eglink_eg_link_status = -1;
+static int hf_eglink_ec_link_status = -1;
+static int hf_eglink_c_link_status = -1;
+static int hf_eglink_armed_ru = -1;
+static int hf_eglink_ru_state = -1;
+static int hf_eglink_ru_battery = -1;
+static int hf_eglink_ru_rssi = -1;
+static int hf_eglink_ru_cable = -1;
+static int hf_eglink_ru_docked = -1;
+static int hf_eglink_ru_disabled = -1;
+static int hf_eglink_joystick[4] = { -1, -1, -1, -1 };
+static int hf_eglink_switch[8] = { -1, -1, -1, -1, -1, -1, -1, -1 };
+static int hf_eglink_encoder = -1;
+static int hf_eglink_encoder_switch = -1;
+/* VRPO */
+static int hf_eglink_packet_number = -1;
+static int hf_eglink_periodic_data = -1;
+/* VRCI, VRCO, VRAI, VRAO */
+static int hf_eglink_command_id = -1;
+static int hf_eglink_command_data = -1;
+
+static gint ett_eglink = -1;
+static gint ett_eglink_payload = -1;
+
+static expert_field ei_eglink_too_short = EI_INIT;
+static expert_field ei_eglink_size_mismatch = EI_INIT;
+static expert_field ei_eglink_size_invalid = EI_INIT;
+static expert_field ei_eglink_type_unknown = EI_INIT;
+static expert_field ei_eglink_revision_unknown = EI_INIT;
+static expert_field ei_eglink_origin_nonzero = EI_INIT;
+static expert_field ei_eglink_origin_zero = EI_INIT;
+static expert_field ei_eglink_spare_nonzero = EI_INIT;
+static expert_field ei_eglink_payload_spare_nonzero = EI_INIT;
+static expert_field ei_eglink_crc_bad = EI_INIT;
+static expert_field ei_eglink_crc_variant = EI_INIT;
+static expert_field ei_eglink_relays_open = EI_INIT;
+static expert_field ei_eglink_bu_state_unknown = EI_INIT;
+static expert_field ei_eglink_link_status_unknown = EI_INIT;
+static expert_field ei_eglink_vlaps_range = EI_INIT;
+static expert_field ei_eglink_ru_state_stopped = EI_INIT;
+static expert_field ei_eglink_ru_state_unknown = EI_INIT;
+static expert_field ei_eglink_ru_battery_range = EI_INIT;
+static expert_field ei_eglink_ru_rssi_range = EI_INIT;
+static expert_field ei_eglink_flag_invalid = EI_INIT;
+static expert_field ei_eglink_ru_disabled_unknown = EI_INIT;
+static expert_field ei_eglink_joystick_range = EI_INIT;
+static expert_field ei_eglink_unarmed_data = EI_INIT;
+
+/* Preferences */
+typedef enum {
+    EGLINK_CRC_MPEG2,
+    EGLINK_CRC_BZIP2,
+    EGLINK_CRC_ISO_HDLC,
+    EGLINK_CRC_STM32,
+    EGLINK_CRC_NUM_VARIANTS
+} eglink_crc_variant_t;
+
+typedef enum {
+    EGLINK_CRC_LE,
+    EGLINK_CRC_BE
+} eglink_crc_order_t;
+
+static const enum_val_t eglink_crc_variant_vals[] = {
+    { "mpeg2",    "CRC-32/MPEG-2 (TS-0006)",                 EGLINK_CRC_MPEG2 },
+    { "bzip2",    "CRC-32/BZIP2",                            EGLINK_CRC_BZIP2 },
+    { "iso_hdlc", "CRC-32/ISO-HDLC (Ethernet, zlib)",        EGLINK_CRC_ISO_HDLC },
+    { "stm32",    "STM32 hardware CRC (32-bit words)",       EGLINK_CRC_STM32 },
+    { NULL, NULL, 0 }
+};
+
+static const enum_val_t eglink_crc_order_vals[] = {
+    { "le", "Little-endian (TS-0006)", EGLINK_CRC_LE },
+    { "be", "Big-endian",              EGLINK_CRC_BE },
+    { NULL, NULL, 0 }
+};
+
+/* Names as a field engineer reads them in expert info. */
+static const char *const eglink_crc_variant_names[EGLINK_CRC_NUM_VARIANTS] = {
+    "CRC-32/MPEG-2", "CRC-32/BZIP2", "CRC-32/ISO-HDLC", "STM32 hardware CRC"
+};
+
+static range_t *eglink_input_ports;
+static range_t *eglink_registered_ports;
+static gint eglink_crc_variant = EGLINK_CRC_MPEG2;
+static gint eglink_crc_order = EGLINK_CRC_LE;
+static gboolean eglink_heuristic = TRUE;
+
+/* Value strings */
+static const value_string eglink_type_descr[] = {
+    { EGLINK_TYPE_VRPI, "Periodic Input, BU to controller" },
+    { EGLINK_TYPE_VRPO, "Periodic Output, controller to BU" },
+    { EGLINK_TYPE_VRCI, "Command Input, BU to controller" },
+    { EGLINK_TYPE_VRCO, "Command Output, controller to BU" },
+    { EGLINK_TYPE_VRAI, "Acknowledge Input, BU to controller" },
+    { EGLINK_TYPE_VRAO, "Acknowledge Output, controller to BU" },
+    { EGLINK_TYPE_UNKNOWN, "unknown packet type" },
+    { 0, NULL }
+};
+
+static const value_string eglink_bu_state_vals[] = {
+    { 0x00, "Initial" },
+    { 0x01, "Stopped" },
+    { 0x02, "External link error" },
+    { 0x03, "Blocked" },
+    { 0x04, "Failed" },
+    { 0x10, "Disarmed" },
+    { 0x11, "Armed" },
+    { 0, NULL }
+};
+
+/* Why the ES-Link relays are open, per BU state below Disarmed. */
+static const value_string eglink_bu_state_advice[] = {
+    { 0x00, "the BU is not fully operative yet" },
+    { 0x01, "the armed RU asked the BU to stop" },
+    { 0x02, "monitoring found an error on the EC-Link or EG-Link" },
+    { 0x03, "contact with the armed RU is lost: switch the RU on and arm it again" },
+    { 0x04, "the BU self-test found a fatal internal error" },
+    { 0, NULL }
+};
+
+static const value_string eglink_link_status_vals[] = {
+    { 0, "Unused" },
+    { 1, "Operational" },
+    { 2, "No link" },
+    { 3, "Link error" },
+    { 4, "Interface error" },
+    { 5, "Data error" },
+    { 6, "Passive" },
+    { 0, NULL }
+};
+
+static const value_string eglink_ru_state_vals[] = {
+    { 0, "Initial" },
+    { 1, "Disarmed" },
+    { 2, "Armed" },
+    { 3, "Enabled" },
+    { 4, "Stopped" },
+    { 0, NULL }
+};
+
+static const value_string eglink_ru_cable_vals[] = {
+    { 0, "Wireless" },
+    { 1, "Cable" },
+    { 0, NULL }
+};
+
+static const value_string eglink_ru_docked_vals[] = {
+    { 0, "Not docked" },
+    { 1, "Docked" },
+    { 0, NULL }
+};
+
+static const value_string eglink_ru_disabled_vals[] = {
+    { 0, "Enabled" },
+    { 1, "Disabled (tilted)" },
+    { 2, "Disabled (inactivity)" },
+    { 3, "Disabled (other cause)" },
+    { 0, NULL }
+};
+
+static const value_string eglink_encoder_switch_vals[] = {
+    { 0, "Released" },
+    { 1, "Pushed" },
+    { 0, NULL }
+};
+
+static const true_false_string tfs_eglink_relays = { "Open", "Closed" };
+
+/* Type from the packet ID; "VR" already checked. */
+static eglink_type_t
+eglink_type_from_id(guint8 kind, guint8 dir)
 {
-    proto_eglink = proto_register_protocol("VisionRemote EG-Link", "EG-Link", "eglink");
+    if (dir == 'I') {
+        switch (kind) {
+        case 'P': return EGLINK_TYPE_VRPI;
+        case 'C': return EGLINK_TYPE_VRCI;
+        case 'A': return EGLINK_TYPE_VRAI;
+        default: break;
+        }
+    } else if (dir == 'O') {
+        switch (kind) {
+        case 'P': return EGLINK_TYPE_VRPO;
+        case 'C': return EGLINK_TYPE_VRCO;
+        case 'A': return EGLINK_TYPE_VRAO;
+        default: break;
+        }
+    }
+    return EGLINK_TYPE_UNKNOWN;
 }
 
-void proto_reg_handoff_eglink(void)
+static gboolean
+eglink_is_input(eglink_type_t type)
 {
+    return type == EGLINK_TYPE_VRPI || type == EGLINK_TYPE_VRCI || type == EGLINK_TYPE_VRAI;
+}
+
+/*
+ * CRC over the first len bytes in one of the variants.  MPEG-2, BZIP2 and
+ * ISO-HDLC come from Wireshark's CRC library.  An STM32 CRC unit fed 32-bit
+ * words read from little-endian memory shifts each word in most significant
+ * byte first: that is CRC-32/MPEG-2 over the bytes of every 4-byte group in
+ * reverse order, a trailing partial word padded with zero bytes.
+ */
+static guint32
+eglink_crc_compute(tvbuff_t *tvb, packet_info *pinfo, guint len, eglink_crc_variant_t variant)
+{
+    switch (variant) {
+    case EGLINK_CRC_BZIP2:
+        return ~crc32_mpeg2_tvb_offset(tvb, 0, len);
+    case EGLINK_CRC_ISO_HDLC:
+        return crc32_ccitt_tvb_offset(tvb, 0, len);
+    case EGLINK_CRC_STM32: {
+        guint padded = (len + 3) & ~3u;
+        guint8 *words = (guint8 *)wmem_alloc0(pinfo->pool, padded);
+        guint i;
+
+        tvb_memcpy(tvb, words, 0, len);
+        for (i = 0; i < padded; i += 4) {
+            guint8 b0 = words[i], b1 = words[i + 1];
+            words[i] = words[i + 3];
+            words[i + 1] = words[i + 2];
+            words[i + 2] = b1;
+            words[i + 3] = b0;
+        }
+        return crc32_mpeg2_seed(words, padded, 0xFFFFFFFFU);
+    }
+    case EGLINK_CRC_MPEG2:
+    default:
+        return crc32_mpeg2_tvb_offset(tvb, 0, len);
+    }
+}
+
+/* Decoding state of one packet: payload bounds for "decode what fits". */
+typedef struct {
+    tvbuff_t *tvb;
+    packet_info *pinfo;
+    proto_tree *tree;
+    int base;           /* payload offset in tvb */
+    int len;            /* payload bytes actually present (UDP length - 20) */
+} eglink_payload_t;
+
+/* Adds an unsigned payload field if it fits; FALSE (and *value 0) if not. */
+static gboolean
+eglink_add_uint(eglink_payload_t *p, int hf, int off, int len, guint32 *value, proto_item **item)
+{
+    proto_item *ti;
+
+    *value = 0;
+    if (item)
+        *item = NULL;
+    if (off + len > p->len)
+        return FALSE;
+    ti = proto_tree_add_item_ret_uint(p->tree, hf, p->tvb, p->base + off, len, ENC_LITTLE_ENDIAN, value);
+    if (item)
+        *item = ti;
+    return TRUE;
+}
+
+static gboolean
+eglink_add_int(eglink_payload_t *p, int hf, int off, int len, gint32 *value, proto_item **item)
+{
+    *value = 0;
+    *item = NULL;
+    if (off + len > p->len)
+        return FALSE;
+    *item = proto_tree_add_item_ret_int(p->tree, hf, p->tvb, p->base + off, len, ENC_LITTLE_ENDIAN, value);
+    return TRUE;
+}
+
+/* Adds a byte block (spare, data) with whatever of it is present. */
+static int
+eglink_add_bytes(eglink_payload_t *p, int hf, int off, int len, proto_item **item)
+{
+    if (item)
+        *item = NULL;
+    if (off >= p->len)
+        return 0;
+    if (off + len > p->len)
+        len = p->len - off;
+    if (len <= 0)
+        return 0;
+    if (item)
+        *item = proto_tree_add_item(p->tree, hf, p->tvb, p->base + off, len, ENC_NA);
+    else
+        proto_tree_add_item(p->tree, hf, p->tvb, p->base + off, len, ENC_NA);
+    return len;
+}
+
+static void
+eglink_check_payload_spare(eglink_payload_t *p, int off, int len)
+{
+    proto_item *ti;
+    int present = eglink_add_bytes(p, hf_eglink_payload_spare, off, len, &ti);
+    int i;
+
+    for (i = 0; i < present; i++) {
+        if (tvb_get_guint8(p->tvb, p->base + off + i) != 0) {
+            expert_add_info_format(p->pinfo, ti, &ei_eglink_payload_spare_nonzero,
+                "Payload spare bytes are not 0: reserved for future use, the sender "
+                "may use a newer layout than TS-0006");
+            break;
+        }
+    }
+}
+
+static void
+eglink_check_flag(eglink_payload_t *p, proto_item *ti, const char *name, guint32 value)
+{
+    if (value > 1)
+        expert_add_info_format(p->pinfo, ti, &ei_eglink_flag_invalid,
+            "%s is %u: only 0 and 1 are defined", name, value);
+}
+
+static void
+eglink_check_link_status(eglink_payload_t *p, proto_item *ti, const char *name, guint32 value)
+{
+    if (value > 6)
+        expert_add_info_format(p->pinfo, ti, &ei_eglink_link_status_unknown,
+            "%s %u is not a defined link status (0..6)", name, value);
+}
+
+static void
+eglink_check_percent(eglink_payload_t *p, proto_item *ti, expert_field *ei, const char *name,
+                     guint32 value)
+{
+    if (value > 100)
+        expert_add_info_format(p->pinfo, ti, ei, "%s %u %% is above 100 %%", name, value);
+}
+
+/* VRPI: BU status and the armed RU's controls. */
+static void
+dissect_eglink_vrpi(eglink_payload_t *p, eglink_info_t *info)
+{
+    static const char *const unarmed_names[] = {
+        "RU state", "RU battery", "RU C-Link RSSI", "RU cable", "RU docked", "RU disabled"
+    };
+    proto_item *ti, *bu_ti, *armed_ti;
+    guint32 bu_state, value, armed_ru, ru_state = 0;
+    gint32 svalue;
+    gboolean have_bu, have_armed, have_ru_state;
+    wmem_strbuf_t *unarmed = wmem_strbuf_new(p->pinfo->pool, "");
+    gint32 joysticks[4] = { 0, 0, 0, 0 };
+    char name[16];
+    int i;
+
+    have_bu = eglink_add_uint(p, hf_eglink_bu_state, 0, 1, &bu_state, &bu_ti);
+    if (!have_bu) {
+        col_append_str(p->pinfo->cinfo, COL_INFO, " (truncated)");
+        return;
+    }
+    info->has_bu_state = TRUE;
+    info->bu_state = (guint8)bu_state;
+    col_append_fstr(p->pinfo->cinfo, COL_INFO, " %s",
+                    val_to_str_const(bu_state, eglink_bu_state_vals, "Unknown BU state"));
+    if (try_val_to_str(bu_state, eglink_bu_state_vals) == NULL)
+        expert_add_info_format(p->pinfo, bu_ti, &ei_eglink_bu_state_unknown,
+            "BU state 0x%02x is not defined in TS-0006", bu_state);
+
+    /* ES-Link relays: open below Disarmed or when the armed RU is stopped. */
+    if (p->len >= 9)
+        ru_state = tvb_get_guint8(p->tvb, p->base + 8);
+    ti = proto_tree_add_boolean(p->tree, hf_eglink_relays_open, p->tvb, p->base, 1,
+                                bu_state < EGLINK_BU_STATE_DISARMED ||
+                                ru_state == EGLINK_RU_STATE_STOPPED);
+    proto_item_set_generated(ti);
+    if (bu_state < EGLINK_BU_STATE_DISARMED)
+        expert_add_info_format(p->pinfo, bu_ti, &ei_eglink_relays_open,
+            "ES-Link relays open: BU state %s (0x%02x), %s",
+            val_to_str_const(bu_state, eglink_bu_state_vals, "undefined"), bu_state,
+            val_to_str_const(bu_state, eglink_bu_state_advice, "an undefined state below Disarmed"));
+
+    if (eglink_add_uint(p, hf_eglink_vlaps, 1, 1, &value, &ti) && value > 3)
+        expert_add_info_format(p->pinfo, ti, &ei_eglink_vlaps_range,
+            "%u VLAPs reported: a BU has at most 3", value);
+    if (eglink_add_uint(p, hf_eglink_unarmed_rus, 2, 1, &value, NULL) &&
+        bu_state == EGLINK_BU_STATE_DISARMED)
+        col_append_fstr(p->pinfo->cinfo, COL_INFO, " Unarmed RUs=%u", value);
+    if (eglink_add_uint(p, hf_eglink_eg_link_status, 3, 1, &value, &ti))
+        eglink_check_link_status(p, ti, "EG-Link status", value);
+    if (eglink_add_uint(p, hf_eglink_ec_link_status, 4, 1, &value, &ti))
+        eglink_check_link_status(p, ti, "EC-Link status", value);
+    if (eglink_add_uint(p, hf_eglink_c_link_status, 5, 1, &value, &ti))
+        eglink_check_link_status(p, ti, "C-Link status", value);
+
+    have_armed = eglink_add_uint(p, hf_eglink_armed_ru, 6, 2, &armed_ru, &armed_ti);
+    have_ru_state = eglink_add_uint(p, hf_eglink_ru_state, 8, 1, &ru_state, &ti);
+    if (have_armed && armed_ru != 0) {
+        col_append_fstr(p->pinfo->cinfo, COL_INFO, " RU=0x%04x", armed_ru);
+        if (have_ru_state)
+            col_append_fstr(p->pinfo->cinfo, COL_INFO, " %s",
+                            val_to_str_const(ru_state, eglink_ru_state_vals, "Unknown RU state"));
+    }
+    if (have_ru_state) {
+        if (ru_state == EGLINK_RU_STATE_STOPPED)
+            expert_add_info_format(p->pinfo, ti, &ei_eglink_ru_state_stopped,
+                "RU stopped (stop switch, free-fall/shock sensor or RU fault): ES-Link relays open");
+        else if (try_val_to_str(ru_state, eglink_ru_state_vals) == NULL)
+            expert_add_info_format(p->pinfo, ti, &ei_eglink_ru_state_unknown,
+                "RU state %u is not defined in TS-0006 (0..4)", ru_state);
+    }
+    if (have_ru_state && armed_ru == 0 && ru_state != 0)
+        wmem_strbuf_append(unarmed, unarmed_names[0]);
+
+    if (eglink_add_uint(p, hf_eglink_ru_battery, 9, 1, &value, &ti))
+        eglink_check_percent(p, ti, &ei_eglink_ru_battery_range, "RU battery", value);
+    if (value && armed_ru == 0)
+        wmem_strbuf_append_printf(unarmed, "%s%s", wmem_strbuf_get_len(unarmed) ? ", " : "", unarmed_names[1]);
+    if (eglink_add_uint(p, hf_eglink_ru_rssi, 10, 1, &value, &ti))
+        eglink_check_percent(p, ti, &ei_eglink_ru_rssi_range, "RU C-Link RSSI", value);
+    if (value && armed_ru == 0)
+        wmem_strbuf_append_printf(unarmed, "%s%s", wmem_strbuf_get_len(unarmed) ? ", " : "", unarmed_names[2]);
+    if (eglink_add_uint(p, hf_eglink_ru_cable, 11, 1, &value, &ti))
+        eglink_check_flag(p, ti, "RU cable", value);
+    if (value && armed_ru == 0)
+        wmem_strbuf_append_printf(unarmed, "%s%s", wmem_strbuf_get_len(unarmed) ? ", " : "", unarmed_names[3]);
+    if (eglink_add_uint(p, hf_eglink_ru_docked, 12, 1, &value, &ti))
+        eglink_check_flag(p, ti, "RU docked", value);
+    if (value && armed_ru == 0)
+        wmem_strbuf_append_printf(unarmed, "%s%s", wmem_strbuf_get_len(unarmed) ? ", " : "", unarmed_names[4]);
+    if (eglink_add_uint(p, hf_eglink_ru_disabled, 13, 1, &value, &ti) && value > 3)
+        expert_add_info_format(p->pinfo, ti, &ei_eglink_ru_disabled_unknown,
+            "RU disabled reason %u is not defined (0 enabled, 1 tilted, 2 inactivity, 3 other)", value);
+    if (value && armed_ru == 0)
+        wmem_strbuf_append_printf(unarmed, "%s%s", wmem_strbuf_get_len(unarmed) ? ", " : "", unarmed_names[5]);
+
+    for (i = 0; i < 4; i++) {
+        if (!eglink_add_int(p, hf_eglink_joystick[i], 14 + 2 * i, 2, &svalue, &ti))
+            break;
+        joysticks[i] = svalue;
+        if (svalue < -EGLINK_JOYSTICK_LIMIT || svalue > EGLINK_JOYSTICK_LIMIT)
+            expert_add_info_format(p->pinfo, ti, &ei_eglink_joystick_range,
+                "Joystick %d position %d is outside -1000..+1000", i + 1, svalue);
+        if (svalue && armed_ru == 0)
+            wmem_strbuf_append_printf(unarmed, "%sjoystick %d",
+                                      wmem_strbuf_get_len(unarmed) ? ", " : "", i + 1);
+    }
+    for (i = 0; i < 8; i++) {
+        if (!eglink_add_int(p, hf_eglink_switch[i], 22 + 2 * i, 2, &svalue, &ti))
+            break;
+        if (svalue && armed_ru == 0)
+            wmem_strbuf_append_printf(unarmed, "%sswitch %d",
+                                      wmem_strbuf_get_len(unarmed) ? ", " : "", i + 1);
+    }
+    eglink_add_uint(p, hf_eglink_encoder, 38, 1, &value, NULL);
+    if (value && armed_ru == 0)
+        wmem_strbuf_append_printf(unarmed, "%sencoder", wmem_strbuf_get_len(unarmed) ? ", " : "");
+    if (eglink_add_uint(p, hf_eglink_encoder_switch, 39, 1, &value, &ti))
+        eglink_check_flag(p, ti, "Encoder switch", value);
+    if (value && armed_ru == 0)
+        wmem_strbuf_append_printf(unarmed, "%sencoder switch", wmem_strbuf_get_len(unarmed) ? ", " : "");
+    eglink_check_payload_spare(p, 40, 6);
+
+    if (have_armed && armed_ru == 0 && wmem_strbuf_get_len(unarmed))
+        expert_add_info_format(p->pinfo, armed_ti, &ei_eglink_unarmed_data,
+            "No RU is armed (Armed RU 0) but these RU fields are not 0: %s",
+            wmem_strbuf_get_str(unarmed));
+
+    for (i = 0; i < 4; i++) {
+        snprintf(name, sizeof name, " J%d=%d", i + 1, joysticks[i]);
+        if (joysticks[i])
+            col_append_str(p->pinfo->cinfo, COL_INFO, name);
+    }
+}
+
+/* VRPO: one fragment of the controller's periodic data. */
+static void
+dissect_eglink_vrpo(eglink_payload_t *p, eglink_info_t *info)
+{
+    guint32 pkt;
+    int data_len;
+
+    if (!eglink_add_uint(p, hf_eglink_packet_number, 0, 2, &pkt, NULL)) {
+        col_append_str(p->pinfo->cinfo, COL_INFO, " (truncated)");
+        return;
+    }
+    data_len = eglink_add_bytes(p, hf_eglink_periodic_data, 2, p->len - 2, NULL);
+    info->has_packet_number = TRUE;
+    info->packet_number = (guint16)pkt;
+    info->periodic_offset = p->base + 2;
+    info->periodic_len = data_len;
+    col_append_fstr(p->pinfo->cinfo, COL_INFO, " Pkt=%u %d bytes", pkt, data_len);
+}
+
+/* VRCI/VRCO (with_data) and VRAI/VRAO: command ID first. */
+static void
+dissect_eglink_command(eglink_payload_t *p, eglink_info_t *info, gboolean with_data)
+{
+    guint32 cmd;
+
+    if (!eglink_add_uint(p, hf_eglink_command_id, 0, 2, &cmd, NULL)) {
+        col_append_str(p->pinfo->cinfo, COL_INFO, " (truncated)");
+        return;
+    }
+    info->has_command_id = TRUE;
+    info->command_id = (guint16)cmd;
+    col_append_fstr(p->pinfo->cinfo, COL_INFO, " Cmd=%u", cmd);
+    if (with_data) {
+        eglink_check_payload_spare(p, 2, 4);
+        eglink_add_bytes(p, hf_eglink_command_data, 6, 16, NULL);
+    }
+}
+
+/* Expected payload size per type: [min, max]. */
+static void
+eglink_type_sizes(eglink_type_t type, int *min, int *max)
+{
+    switch (type) {
+    case EGLINK_TYPE_VRPI:
+        *min = *max = EGLINK_VRPI_LEN;
+        break;
+    case EGLINK_TYPE_VRPO:
+        *min = EGLINK_VRPO_MIN_LEN;
+        *max = EGLINK_VRPO_MAX_LEN;
+        break;
+    case EGLINK_TYPE_VRCI:
+    case EGLINK_TYPE_VRCO:
+        *min = *max = EGLINK_CMD_LEN;
+        break;
+    case EGLINK_TYPE_VRAI:
+    case EGLINK_TYPE_VRAO:
+        *min = *max = EGLINK_ACK_LEN;
+        break;
+    case EGLINK_TYPE_UNKNOWN:
+    default:
+        *min = 0;
+        *max = G_MAXINT;
+        break;
+    }
+}
+
+/* CRC: verify with the configured variant; on failure say which one fits. */
+static gboolean
+dissect_eglink_crc(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, int crc_offset)
+{
+    guint32 computed[EGLINK_CRC_NUM_VARIANTS];
+    guint32 stored_le, stored_be;
+    proto_item *ti;
+    int v;
+
+    computed[eglink_crc_variant] = eglink_crc_compute(tvb, pinfo, crc_offset,
+                                                      (eglink_crc_variant_t)eglink_crc_variant);
+    ti = proto_tree_add_checksum(tree, tvb, crc_offset, hf_eglink_crc, hf_eglink_crc_status,
+                                 &ei_eglink_crc_bad, pinfo, computed[eglink_crc_variant],
+                                 eglink_crc_order == EGLINK_CRC_BE ? ENC_BIG_ENDIAN : ENC_LITTLE_ENDIAN,
+                                 PROTO_CHECKSUM_VERIFY);
+    stored_le = tvb_get_letohl(tvb, crc_offset);
+    stored_be = tvb_get_ntohl(tvb, crc_offset);
+    if ((eglink_crc_order == EGLINK_CRC_BE ? stored_be : stored_le) == computed[eglink_crc_variant])
+        return TRUE;
+
+    col_append_str(pinfo->cinfo, COL_INFO, " [bad CRC]");
+    for (v = 0; v < EGLINK_CRC_NUM_VARIANTS; v++) {
+        if (v != eglink_crc_variant)
+            computed[v] = eglink_crc_compute(tvb, pinfo, crc_offset, (eglink_crc_variant_t)v);
+        if (computed[v] == stored_le && (v != eglink_crc_variant || eglink_crc_order != EGLINK_CRC_LE)) {
+            expert_add_info_format(pinfo, ti, &ei_eglink_crc_variant,
+                "CRC matches %s, little-endian: set the preference "
+                "(eglink.crc_variant: %s, eglink.crc_byte_order: le)",
+                eglink_crc_variant_names[v], eglink_crc_variant_vals[v].name);
+            break;
+        }
+        if (computed[v] == stored_be && (v != eglink_crc_variant || eglink_crc_order != EGLINK_CRC_BE)) {
+            expert_add_info_format(pinfo, ti, &ei_eglink_crc_variant,
+                "CRC matches %s, big-endian: set the preference "
+                "(eglink.crc_variant: %s, eglink.crc_byte_order: be)",
+                eglink_crc_variant_names[v], eglink_crc_variant_vals[v].name);
+            break;
+        }
+    }
+    return FALSE;
+}
+
+/* Adds a header field if the packet is long enough for it. */
+static gboolean
+eglink_add_header_uint(proto_tree *tree, tvbuff_t *tvb, int hf, int off, int len, int reported,
+                       guint32 *value, proto_item **item)
+{
+    *value = 0;
+    *item = NULL;
+    if (off + len > reported)
+        return FALSE;
+    *item = proto_tree_add_item_ret_uint(tree, hf, tvb, off, len, ENC_LITTLE_ENDIAN, value);
+    return TRUE;
+}
+
+static int
+dissect_eglink(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data _U_)
+{
+    proto_item *eglink_item, *ti, *size_ti = NULL;
+    proto_tree *eglink_tree;
+    eglink_info_t info;
+    eglink_payload_t p;
+    guint32 value;
+    int reported = (int)tvb_reported_length(tvb);
+    int min_len, max_len;
+    const char *id;
+
+    if (tvb_captured_length(tvb) < 2 || tvb_get_guint8(tvb, 0) != 'V' || tvb_get_guint8(tvb, 1) != 'R')
+        return 0;
+
+    memset(&info, 0, sizeof info);
+    info.type = EGLINK_TYPE_UNKNOWN;
+
+    col_set_str(pinfo->cinfo, COL_PROTOCOL, "EG-Link");
+    col_clear(pinfo->cinfo, COL_INFO);
+
+    eglink_item = proto_tree_add_item(tree, proto_eglink, tvb, 0, -1, ENC_NA);
+    eglink_tree = proto_item_add_subtree(eglink_item, ett_eglink);
+
+    if (reported >= 4) {
+        info.type = eglink_type_from_id(tvb_get_guint8(tvb, 2), tvb_get_guint8(tvb, 3));
+        ti = proto_tree_add_item(eglink_tree, hf_eglink_type, tvb, 0, 4, ENC_ASCII);
+        proto_item_append_text(ti, " (%s)", val_to_str_const(info.type, eglink_type_descr, ""));
+        id = tvb_format_text(pinfo->pool, tvb, 0, 4);
+    } else {
+        id = tvb_format_text(pinfo->pool, tvb, 0, reported);
+    }
+    col_add_str(pinfo->cinfo, COL_INFO, id);
+    proto_item_append_text(eglink_item, ", %s", id);
+    if (info.type == EGLINK_TYPE_UNKNOWN) {
+        col_append_str(pinfo->cinfo, COL_INFO, " (unknown type)");
+        expert_add_info_format(pinfo, eglink_item, &ei_eglink_type_unknown,
+            "Unknown packet type %s: TS-0006 defines VRPI, VRPO, VRCI, VRCO, VRAI and VRAO; "
+            "only the header and CRC are decoded", id);
+    }
+
+    /* Header */
+    if (eglink_add_header_uint(eglink_tree, tvb, hf_eglink_revision, 4, 2, reported, &value, &ti)) {
+        info.revision = (guint16)value;
+        if (value != 0)
+            expert_add_info_format(pinfo, ti, &ei_eglink_revision_unknown,
+                "Revision %u: only revision 0 (the TS-0006 layout) is known, the payload may differ",
+                value);
+    }
+    if (eglink_add_header_uint(eglink_tree, tvb, hf_eglink_origin, 6, 2, reported, &value, &ti)) {
+        info.origin = (guint16)value;
+        if (info.type != EGLINK_TYPE_UNKNOWN && !eglink_is_input(info.type) && value != 0)
+            expert_add_info_format(pinfo, ti, &ei_eglink_origin_nonzero,
+                "Origin is 0x%04x in a %s from the machine controller: it must be 0", value, id);
+        else if (eglink_is_input(info.type) && value == 0)
+            expert_add_info_format(pinfo, ti, &ei_eglink_origin_zero,
+                "Origin is 0 in a %s from the BU: the BU should send its unique ID", id);
+    }
+    if (eglink_add_header_uint(eglink_tree, tvb, hf_eglink_serial, 8, 2, reported, &value, &ti)) {
+        info.serial = (guint16)value;
+        proto_item_append_text(eglink_item, ", Serial %u", value);
+    }
+    if (eglink_add_header_uint(eglink_tree, tvb, hf_eglink_size, 10, 2, reported, &value, &size_ti))
+        info.size = (guint16)value;
+    if (eglink_add_header_uint(eglink_tree, tvb, hf_eglink_spare, 12, 4, reported, &value, &ti) && value != 0)
+        expert_add_info_format(pinfo, ti, &ei_eglink_spare_nonzero,
+            "Header spare is 0x%08x, not 0: reserved for future use, the sender may use a "
+            "newer layout than TS-0006", value);
+
+    if (reported < EGLINK_MIN_LEN) {
+        expert_add_info_format(pinfo, eglink_item, &ei_eglink_too_short,
+            "Packet is %d bytes, too short for packet ID, header and CRC (20 bytes)", reported);
+        col_append_str(pinfo->cinfo, COL_INFO, " (too short)");
+        eglink_analysis_dissect(tvb, pinfo, eglink_tree, eglink_item, &info);
+        return reported;
+    }
+
+    /* Payload: everything between the header and the CRC at the end of the datagram. */
+    p.tvb = tvb;
+    p.pinfo = pinfo;
+    p.base = EGLINK_HEADER_LEN;
+    p.len = reported - EGLINK_MIN_LEN;
+    info.size_ok = TRUE;
+    if (info.size != p.len) {
+        info.size_ok = FALSE;
+        expert_add_info_format(pinfo, size_ti, &ei_eglink_size_mismatch,
+            "Size says %u payload bytes but the UDP payload carries %d (UDP payload length - 20)",
+            info.size, p.len);
+    }
+    eglink_type_sizes(info.type, &min_len, &max_len);
+    if (p.len < min_len || p.len > max_len) {
+        info.size_ok = FALSE;
+        if (min_len == max_len)
+            expert_add_info_format(pinfo, size_ti, &ei_eglink_size_invalid,
+                "A %s payload is %d bytes, this one has %d: decoded as far as it goes",
+                id, min_len, p.len);
+        else
+            expert_add_info_format(pinfo, size_ti, &ei_eglink_size_invalid,
+                "A %s payload is %d to %d bytes (packet number + up to 488 bytes of data), "
+                "this one has %d: decoded as far as it goes", id, min_len, max_len, p.len);
+    }
+
+    ti = proto_tree_add_item(eglink_tree, hf_eglink_payload, tvb, p.base, p.len, ENC_NA);
+    proto_item_append_text(ti, " (%d byte%s)", p.len, p.len == 1 ? "" : "s");
+    p.tree = proto_item_add_subtree(ti, ett_eglink_payload);
+    switch (info.type) {
+    case EGLINK_TYPE_VRPI:
+        dissect_eglink_vrpi(&p, &info);
+        break;
+    case EGLINK_TYPE_VRPO:
+        dissect_eglink_vrpo(&p, &info);
+        break;
+    case EGLINK_TYPE_VRCI:
+    case EGLINK_TYPE_VRCO:
+        dissect_eglink_command(&p, &info, TRUE);
+        break;
+    case EGLINK_TYPE_VRAI:
+    case EGLINK_TYPE_VRAO:
+        dissect_eglink_command(&p, &info, FALSE);
+        break;
+    case EGLINK_TYPE_UNKNOWN:
+    default:
+        eglink_add_bytes(&p, hf_eglink_unknown_payload, 0, p.len, NULL);
+        col_append_fstr(pinfo->cinfo, COL_INFO, " %d bytes", p.len);
+        break;
+    }
+    if (info.type != EGLINK_TYPE_UNKNOWN && p.len > max_len)
+        eglink_add_bytes(&p, hf_eglink_extra_payload, max_len, p.len - max_len, NULL);
+
+    info.crc_ok = dissect_eglink_crc(tvb, pinfo, eglink_tree, reported - EGLINK_CRC_LEN);
+
+    eglink_analysis_dissect(tvb, pinfo, eglink_tree, eglink_item, &info);
+    return reported;
+}
+
+/* Heuristic: "VR", a defined type, and a Size that matches the datagram. */
+static gboolean
+dissect_eglink_heur(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
+{
+    int min_len, max_len;
+    eglink_type_t type;
+    int payload_len;
+
+    if (!eglink_heuristic)
+        return FALSE;
+    if (tvb_captured_length(tvb) < EGLINK_HEADER_LEN || tvb_reported_length(tvb) < EGLINK_MIN_LEN)
+        return FALSE;
+    if (tvb_get_guint8(tvb, 0) != 'V' || tvb_get_guint8(tvb, 1) != 'R')
+        return FALSE;
+    type = eglink_type_from_id(tvb_get_guint8(tvb, 2), tvb_get_guint8(tvb, 3));
+    if (type == EGLINK_TYPE_UNKNOWN)
+        return FALSE;
+    payload_len = (int)tvb_reported_length(tvb) - EGLINK_MIN_LEN;
+    if (tvb_get_letohs(tvb, 10) != payload_len)
+        return FALSE;
+    eglink_type_sizes(type, &min_len, &max_len);
+    if (payload_len < min_len || payload_len > max_len)
+        return FALSE;
+    dissect_eglink(tvb, pinfo, tree, data);
+    return TRUE;
+}
+
+void
+proto_register_eglink(void)
+{
+    static hf_register_info hf[] = {
+        { &hf_eglink_type,
+          { "Packet ID", "eglink.type", FT_STRING, BASE_NONE, NULL, 0x0,
+            "Packet type: VRPI, VRPO, VRCI, VRCO, VRAI or VRAO", HFILL } },
+        { &hf_eglink_revision,
+          { "Revision", "eglink.revision", FT_UINT16, BASE_DEC, NULL, 0x0,
+            "Payload layout revision, 0 for TS-0006", HFILL } },
+        { &hf_eglink_origin,
+          { "Origin", "eglink.origin", FT_UINT16, BASE_HEX, NULL, 0x0,
+            "Unique ID of the sending BU, 0 from the machine controller", HFILL } },
+        { &hf_eglink_serial,
+          { "Serial", "eglink.serial", FT_UINT16, BASE_DEC, NULL, 0x0,
+            "Packet serial number, counted by the sender", HFILL } },
+        { &hf_eglink_size,
+          { "Size", "eglink.size", FT_UINT16, BASE_DEC, NULL, 0x0,
+            "Payload size in bytes", HFILL } },
+        { &hf_eglink_spare,
+          { "Spare", "eglink.spare", FT_UINT32, BASE_HEX, NULL, 0x0,
+            "Header spare, 0", HFILL } },
+        { &hf_eglink_payload,
+          { "Payload", "eglink.payload", FT_NONE, BASE_NONE, NULL, 0x0,
+            NULL, HFILL } },
+        { &hf_eglink_payload_spare,
+          { "Payload spare", "eglink.payload_spare", FT_BYTES, BASE_NONE, NULL, 0x0,
+            "Payload spare bytes, 0", HFILL } },
+        { &hf_eglink_extra_payload,
+          { "Extra payload", "eglink.extra_payload", FT_BYTES, BASE_NONE, NULL, 0x0,
+            "Bytes beyond the payload size of this packet type", HFILL } },
+        { &hf_eglink_unknown_payload,
+          { "Payload data", "eglink.unknown_payload", FT_BYTES, BASE_NONE, NULL, 0x0,
+            "Payload of an unknown packet type", HFILL } },
+        { &hf_eglink_crc,
+          { "CRC", "eglink.crc", FT_UINT32, BASE_HEX, NULL, 0x0,
+            "CRC-32 over packet ID, header and payload", HFILL } },
+        { &hf_eglink_crc_status,
+          { "CRC status", "eglink.crc.status", FT_UINT8, BASE_NONE, VALS(proto_checksum_vals), 0x0,
+            NULL, HFILL } },
+
+        { &hf_eglink_bu_state,
+          { "BU state", "eglink.bu_state", FT_UINT8, BASE_HEX, VALS(eglink_bu_state_vals), 0x0,
+            "State of the BU; below 0x10 the ES-Link relays are open", HFILL } },
+        { &hf_eglink_relays_open,
+          { "ES-Link relays", "eglink.relays_open", FT_BOOLEAN, BASE_NONE, TFS(&tfs_eglink_relays), 0x0,
+            "Open when the BU state is below Disarmed (0x10) or the armed RU is stopped", HFILL } },
+        { &hf_eglink_vlaps,
+          { "VLAPs", "eglink.vlaps", FT_UINT8, BASE_DEC, NULL, 0x0,
+            "Number of VLAPs connected to the BU (0..3)", HFILL } },
+        { &hf_eglink_unarmed_rus,
+          { "Unarmed RUs", "eglink.unarmed_rus", FT_UINT8, BASE_DEC, NULL, 0x0,
+            "Number of unarmed RUs talking to this BU", HFILL } },
+        { &hf_eglink_eg_link_status,
+          { "EG-Link status", "eglink.eg_link_status", FT_UINT8, BASE_DEC, VALS(eglink_link_status_vals), 0x0,
+            NULL, HFILL } },
+        { &hf_eglink_ec_link_status,
+          { "EC-Link status", "eglink.ec_link_status", FT_UINT8, BASE_DEC, VALS(eglink_link_status_vals), 0x0,
+            NULL, HFILL } },
+        { &hf_eglink_c_link_status,
+          { "C-Link status", "eglink.c_link_status", FT_UINT8, BASE_DEC, VALS(eglink_link_status_vals), 0x0,
+            NULL, HFILL } },
+        { &hf_eglink_armed_ru,
+          { "Armed RU", "eglink.armed_ru", FT_UINT16, BASE_HEX, NULL, 0x0,
+            "Unique ID of the armed RU, 0 when none is armed", HFILL } },
+        { &hf_eglink_ru_state,
+          { "RU state", "eglink.ru_state", FT_UINT8, BASE_DEC, VALS(eglink_ru_state_vals), 0x0,
+            "State of the armed RU", HFILL } },
+        { &hf_eglink_ru_battery,
+          { "RU battery", "eglink.ru_battery", FT_UINT8, BASE_DEC | BASE_UNIT_STRING, &units_percent, 0x0,
+            "Battery level of the armed RU (0..100 %)", HFILL } },
+        { &hf_eglink_ru_rssi,
+          { "RU C-Link RSSI", "eglink.ru_rssi", FT_UINT8, BASE_DEC | BASE_UNIT_STRING, &units_percent, 0x0,
+            "C-Link signal level of the armed RU (0..100 %)", HFILL } },
+        { &hf_eglink_ru_cable,
+          { "RU cable", "eglink.ru_cable", FT_UINT8, BASE_DEC, VALS(eglink_ru_cable_vals), 0x0,
+            "1 when the RU runs on cable, 0 on wireless VisionLink", HFILL } },
+        { &hf_eglink_ru_docked,
+          { "RU docked", "eglink.ru_docked", FT_UINT8, BASE_DEC, VALS(eglink_ru_docked_vals), 0x0,
+            "1 when the RU sits in its docking station", HFILL } },
+        { &hf_eglink_ru_disabled,
+          { "RU disabled", "eglink.ru_disabled", FT_UINT8, BASE_DEC, VALS(eglink_ru_disabled_vals), 0x0,
+            "Why the armed RU's movements are disabled (0 = enabled)", HFILL } },
+        { &hf_eglink_joystick[0],
+          { "Joystick 1", "eglink.joystick1", FT_INT16, BASE_DEC, NULL, 0x0,
+            "Position of joystick 1 (-1000..+1000, 0 = passive)", HFILL } },
+        { &hf_eglink_joystick[1],
+          { "Joystick 2", "eglink.joystick2", FT_INT16, BASE_DEC, NULL, 0x0,
+            "Position of joystick 2 (-1000..+1000, 0 = passive)", HFILL } },
+        { &hf_eglink_joystick[2],
+          { "Joystick 3", "eglink.joystick3", FT_INT16, BASE_DEC, NULL, 0x0,
+            "Position of joystick 3 (-1000..+1000, 0 = passive)", HFILL } },
+        { &hf_eglink_joystick[3],
+          { "Joystick 4", "eglink.joystick4", FT_INT16, BASE_DEC, NULL, 0x0,
+            "Position of joystick 4 (-1000..+1000, 0 = passive)", HFILL } },
+        { &hf_eglink_switch[0],
+          { "Switch 1", "eglink.switch1", FT_INT16, BASE_DEC, NULL, 0x0,
+            "State of switch 1 (leftmost)", HFILL } },
+        { &hf_eglink_switch[1],
+          { "Switch 2", "eglink.switch2", FT_INT16, BASE_DEC, NULL, 0x0,
+            "State of switch 2", HFILL } },
+        { &hf_eglink_switch[2],
+          { "Switch 3", "eglink.switch3", FT_INT16, BASE_DEC, NULL, 0x0,
+            "State of switch 3", HFILL } },
+        { &hf_eglink_switch[3],
+          { "Switch 4", "eglink.switch4", FT_INT16, BASE_DEC, NULL, 0x0,
+            "State of switch 4", HFILL } },
+        { &hf_eglink_switch[4],
+          { "Switch 5", "eglink.switch5", FT_INT16, BASE_DEC, NULL, 0x0,
+            "State of switch 5", HFILL } },
+        { &hf_eglink_switch[5],
+          { "Switch 6", "eglink.switch6", FT_INT16, BASE_DEC, NULL, 0x0,
+            "State of switch 6", HFILL } },
+        { &hf_eglink_switch[6],
+          { "Switch 7", "eglink.switch7", FT_INT16, BASE_DEC, NULL, 0x0,
+            "State of switch 7", HFILL } },
+        { &hf_eglink_switch[7],
+          { "Switch 8", "eglink.switch8", FT_INT16, BASE_DEC, NULL, 0x0,
+            "State of switch 8", HFILL } },
+        { &hf_eglink_encoder,
+          { "Encoder", "eglink.encoder", FT_UINT8, BASE_DEC, NULL, 0x0,
+            "Encoder value; wraps around as the encoder turns", HFILL } },
+        { &hf_eglink_encoder_switch,
+          { "Encoder switch", "eglink.encoder_switch", FT_UINT8, BASE_DEC, VALS(eglink_encoder_switch_vals), 0x0,
+            "1 while the encoder is pushed down", HFILL } },
+
+        { &hf_eglink_packet_number,
+          { "Packet number", "eglink.packet_number", FT_UINT16, BASE_DEC, NULL, 0x0,
+            "Number of this packet within a split periodic output, from 0", HFILL } },
+        { &hf_eglink_periodic_data,
+          { "Periodic data", "eglink.periodic_data", FT_BYTES, BASE_NONE, NULL, 0x0,
+            "Periodic process data from the machine controller to the RU application", HFILL } },
+
+        { &hf_eglink_command_id,
+          { "Command ID", "eglink.command_id", FT_UINT16, BASE_DEC, NULL, 0x0,
+            "Sequential command number; an acknowledge carries the ID it acknowledges", HFILL } },
+        { &hf_eglink_command_data,
+          { "Command data", "eglink.command_data", FT_BYTES, BASE_NONE, NULL, 0x0,
+            "Command data between the RU application and the machine controller", HFILL } },
+    };
+
+    static gint *ett[] = {
+        &ett_eglink,
+        &ett_eglink_payload,
+    };
+
+    static ei_register_info ei[] = {
+        { &ei_eglink_too_short,
+          { "eglink.too_short", PI_MALFORMED, PI_ERROR,
+            "Packet too short for packet ID, header and CRC", EXPFILL } },
+        { &ei_eglink_size_mismatch,
+          { "eglink.size.mismatch", PI_MALFORMED, PI_ERROR,
+            "Header Size does not match the UDP payload length - 20", EXPFILL } },
+        { &ei_eglink_size_invalid,
+          { "eglink.size.invalid", PI_MALFORMED, PI_ERROR,
+            "Payload size is wrong for this packet type", EXPFILL } },
+        { &ei_eglink_type_unknown,
+          { "eglink.type.unknown", PI_UNDECODED, PI_WARN,
+            "Unknown packet type", EXPFILL } },
+        { &ei_eglink_revision_unknown,
+          { "eglink.revision.unknown", PI_PROTOCOL, PI_WARN,
+            "Unknown revision: only revision 0 is known", EXPFILL } },
+        { &ei_eglink_origin_nonzero,
+          { "eglink.origin.nonzero", PI_PROTOCOL, PI_WARN,
+            "Origin must be 0 in packets from the machine controller", EXPFILL } },
+        { &ei_eglink_origin_zero,
+          { "eglink.origin.zero", PI_PROTOCOL, PI_NOTE,
+            "Origin is 0 in a packet from the BU", EXPFILL } },
+        { &ei_eglink_spare_nonzero,
+          { "eglink.spare.nonzero", PI_PROTOCOL, PI_WARN,
+            "Header spare is not 0", EXPFILL } },
+        { &ei_eglink_payload_spare_nonzero,
+          { "eglink.payload_spare.nonzero", PI_PROTOCOL, PI_WARN,
+            "Payload spare bytes are not 0", EXPFILL } },
+        { &ei_eglink_crc_bad,
+          { "eglink.crc.bad", PI_CHECKSUM, PI_ERROR,
+            "Bad CRC", EXPFILL } },
+        { &ei_eglink_crc_variant,
+          { "eglink.crc.variant", PI_CHECKSUM, PI_WARN,
+            "CRC matches another CRC variant or byte order: set the preference", EXPFILL } },
+        { &ei_eglink_relays_open,
+          { "eglink.bu_state.relays_open", PI_RESPONSE_CODE, PI_WARN,
+            "ES-Link relays open", EXPFILL } },
+        { &ei_eglink_bu_state_unknown,
+          { "eglink.bu_state.unknown", PI_PROTOCOL, PI_WARN,
+            "BU state is not defined", EXPFILL } },
+        { &ei_eglink_link_status_unknown,
+          { "eglink.link_status.unknown", PI_PROTOCOL, PI_WARN,
+            "Link status is not defined (0..6)", EXPFILL } },
+        { &ei_eglink_vlaps_range,
+          { "eglink.vlaps.range", PI_PROTOCOL, PI_WARN,
+            "More than 3 VLAPs", EXPFILL } },
+        { &ei_eglink_ru_state_stopped,
+          { "eglink.ru_state.stopped", PI_RESPONSE_CODE, PI_WARN,
+            "RU stopped: ES-Link relays open", EXPFILL } },
+        { &ei_eglink_ru_state_unknown,
+          { "eglink.ru_state.unknown", PI_PROTOCOL, PI_WARN,
+            "RU state is not defined (0..4)", EXPFILL } },
+        { &ei_eglink_ru_battery_range,
+          { "eglink.ru_battery.range", PI_PROTOCOL, PI_WARN,
+            "RU battery above 100 %", EXPFILL } },
+        { &ei_eglink_ru_rssi_range,
+          { "eglink.ru_rssi.range", PI_PROTOCOL, PI_WARN,
+            "RU C-Link RSSI above 100 %", EXPFILL } },
+        { &ei_eglink_flag_invalid,
+          { "eglink.flag.invalid", PI_PROTOCOL, PI_WARN,
+            "Flag is neither 0 nor 1", EXPFILL } },
+        { &ei_eglink_ru_disabled_unknown,
+          { "eglink.ru_disabled.unknown", PI_PROTOCOL, PI_WARN,
+            "RU disabled reason is not defined (0..3)", EXPFILL } },
+        { &ei_eglink_joystick_range,
+          { "eglink.joystick.range", PI_PROTOCOL, PI_WARN,
+            "Joystick position outside -1000..+1000", EXPFILL } },
+        { &ei_eglink_unarmed_data,
+          { "eglink.armed_ru.unarmed_data", PI_PROTOCOL, PI_WARN,
+            "No RU is armed but RU fields are not 0", EXPFILL } },
+    };
+
+    module_t *eglink_module;
+    expert_module_t *expert_eglink;
+
+    proto_eglink = proto_register_protocol("VisionRemote EG-Link", "EG-Link", "eglink");
+    proto_register_field_array(proto_eglink, hf, array_length(hf));
+    proto_register_subtree_array(ett, array_length(ett));
+    expert_eglink = expert_register_protocol(proto_eglink);
+    expert_register_field_array(expert_eglink, ei, array_length(ei));
+
+    eglink_handle = register_dissector("eglink", dissect_eglink, proto_eglink);
+
+    eglink_module = prefs_register_protocol(proto_eglink, proto_reg_handoff_eglink);
+    range_convert_str(wmem_epan_scope(), &eglink_input_ports, EGLINK_DEFAULT_INPUT_PORTS, 65535);
+    prefs_register_range_preference(eglink_module, "input_port", "Input UDP port(s)",
+        "UDP port(s) the BU sends VRPI, VRCI and VRAI to. The machine controller sends "
+        "VRPO, VRCO and VRAO to the port 2 higher, which is registered as well.",
+        &eglink_input_ports, 65535);
+    prefs_register_enum_preference(eglink_module, "crc_variant", "CRC variant",
+        "CRC algorithm of the trailing CRC. TS-0006 specifies CRC-32/MPEG-2; some firmware "
+        "computes another variant (the expert info names the one that matches).",
+        &eglink_crc_variant, eglink_crc_variant_vals, FALSE);
+    prefs_register_enum_preference(eglink_module, "crc_byte_order", "CRC byte order",
+        "Byte order of the stored CRC. TS-0006 specifies little-endian.",
+        &eglink_crc_order, eglink_crc_order_vals, FALSE);
+    prefs_register_bool_preference(eglink_module, "heuristic", "Detect EG-Link on any UDP port",
+        "Look for EG-Link packets (\"VR\", a known packet type and a matching Size) on UDP "
+        "ports other than the configured ones.",
+        &eglink_heuristic);
+
+    eglink_analysis_register(proto_eglink, eglink_module);
+}
+
+/* Registers the input ports and the output ports (input + 2) on udp.port. */
+static void
+eglink_register_ports(void)
+{
+    wmem_strbuf_t *ports = wmem_strbuf_new(NULL, "");
+    guint i;
+
+    if (eglink_registered_ports) {
+        dissector_delete_uint_range("udp.port", eglink_registered_ports, eglink_handle);
+        wmem_free(wmem_epan_scope(), eglink_registered_ports);
+        eglink_registered_ports = NULL;
+    }
+    for (i = 0; eglink_input_ports && i < eglink_input_ports->nranges; i++) {
+        guint32 low = eglink_input_ports->ranges[i].low;
+        guint32 high = eglink_input_ports->ranges[i].high;
+
+        wmem_strbuf_append_printf(ports, "%s%u-%u", i ? "," : "", low, high);
+        if (low + EGLINK_OUTPUT_PORT_OFFSET <= 65535)
+            wmem_strbuf_append_printf(ports, ",%u-%u", low + EGLINK_OUTPUT_PORT_OFFSET,
+                                      MIN(high + EGLINK_OUTPUT_PORT_OFFSET, 65535));
+    }
+    range_convert_str(wmem_epan_scope(), &eglink_registered_ports, wmem_strbuf_get_str(ports), 65535);
+    wmem_strbuf_destroy(ports);
+    dissector_add_uint_range("udp.port", eglink_registered_ports, eglink_handle);
+}
+
+void
+proto_reg_handoff_eglink(void)
+{
+    static gboolean initialized = FALSE;
+
+    if (!initialized) {
+        dissector_add_for_decode_as("udp.port", eglink_handle);
+        heur_dissector_add("udp", dissect_eglink_heur, "EG-Link over UDP", "eglink_udp",
+                           proto_eglink, HEURISTIC_ENABLE);
+        initialized = TRUE;
+    }
+    eglink_register_ports();
 }
