@@ -33,6 +33,27 @@ def _world_dir(prefix, mode=0o755):
     return path
 
 
+# Wireshark 4.2 and later print a boolean field as True/False in -T fields and
+# -T json, 4.0 as 1/0; the fixture gives 1/0 on every version.
+_BOOL_TEXT = {"True": "1", "False": "0"}
+
+
+def _bool_as_number(cell, aggregator):
+    if aggregator and aggregator in cell:
+        return aggregator.join(_BOOL_TEXT.get(v, v) for v in cell.split(aggregator))
+    return _BOOL_TEXT.get(cell, cell)
+
+
+def _json_bools_as_numbers(value):
+    if isinstance(value, dict):
+        return {k: _json_bools_as_numbers(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_json_bools_as_numbers(v) for v in value]
+    if isinstance(value, str):
+        return _BOOL_TEXT.get(value, value)
+    return value
+
+
 class Tshark:
     """tools/tshark with a hermetic environment, and ways to read its output."""
 
@@ -90,7 +111,8 @@ class Tshark:
         args += ["-E", "separator=" + sep, "-E", "occurrence=" + occurrence,
                  "-E", "aggregator=" + aggregator]
         out = self.run(args).stdout
-        return [line.split(sep) for line in out.splitlines()]
+        return [[_bool_as_number(cell, aggregator) for cell in line.split(sep)]
+                for line in out.splitlines()]
 
     def field(self, capture, name, **kw):
         """One field's value per displayed frame (joined with ',' if repeated)."""
@@ -101,7 +123,7 @@ class Tshark:
         args = ["-n", "-r", str(capture)] + self._opts(**kw) + ["-T", "json", "--no-duplicate-keys"]
         for f in fields or ():
             args += ["-e", f]
-        return json.loads(self.run(args).stdout or "[]")
+        return _json_bools_as_numbers(json.loads(self.run(args).stdout or "[]"))
 
     def experts(self, capture, **kw):
         """{frame number: [expert messages]} for every frame that has expert info."""
