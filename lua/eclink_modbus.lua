@@ -1,4 +1,714 @@
+--[[ eclink_modbus.lua -- EC-Link process images carried over Modbus/TCP.
+
+The BU is a Modbus/TCP server (port 502). This plugin takes the Modbus/TCP
+port from the built-in "mbtcp" dissector, calls it unchanged (its tree stays
+as it is) and then adds the EC-Link view of every register and bit access:
+
+  Modbus table          addresses    image                       function codes
+  input registers       0..31        input image bytes 0..63     4
+  holding registers     2048..2079   input image bytes 0..63     3, 6, 16, 23
+  holding registers     0..111       output image bytes 0..223   3, 6, 16, 23
+  discrete inputs       0..511       input image bits            2
+  coils                 0..1791      output image bits           1, 5, 15
+  (bit k = bit k mod 8 of image byte k div 8; register n = image bytes 2n and
+   2n+1 with byte 2n in its LOW 8 bits, so every byte pair is swapped on the
+   wire; the "swap" preference turns that off)
+
+  MBAP header: transaction id (2), protocol id (2, = 0), length (2), unit (1),
+  then the PDU: function code (1) and its data. A response takes its start
+  address from its request (paired by connection + transaction + unit +
+  function code).
+
+Detection (preference): "heuristic" accepts a connection from the first
+response or request that carries a full input image passing every value
+check (image.validate_input); that and all later transactions of the
+connection are decoded, earlier ones are left as plain Modbus. "always"
+decodes every connection on the port; "off" leaves Modbus alone.
+
+Per connection, on the first pass, the latest value of every image byte is
+kept (so each frame can show the assembled images as of that frame), the
+handshake is analysed (PCI/PCO stalls, CCI -> CAO and CCO -> CAI echoes,
+BU state changes) and multiplexed periodic output blocks are reassembled.
+Everything is stored per frame, so a second pass and random access show
+the same.
+]]
+
 local dir = debug.getinfo(1, "S").source:match("^@(.*)[/\\]")
 package.path = dir .. "/?.lua;" .. package.path
 local image = require("vrshark.eclink_image")
-image.proto()
+
+image.proto()  -- the single Proto("eclink"), shared with the other EC-Link plugins
+local proto = Proto("eclink_modbus", "EC-Link over Modbus/TCP")
+local mbtcp = Dissector.get("mbtcp")
+
+------------------------------------------------------------------------
+-- Fields
+------------------------------------------------------------------------
+local pf = {
+    table = ProtoField.string("eclink_modbus.table", "Modbus table"),
+    request_in = ProtoField.framenum("eclink_modbus.request_in", "Request in", base.NONE, frametype.REQUEST),
+    response_in = ProtoField.framenum("eclink_modbus.response_in", "Response in", base.NONE, frametype.RESPONSE),
+    time = ProtoField.relative_time("eclink_modbus.time", "Time since request"),
+    accepted_in = ProtoField.framenum("eclink_modbus.accepted_in", "Connection recognized in"),
+    bits = ProtoField.string("eclink_modbus.bits", "Partial image byte"),
+    assembled = ProtoField.string("eclink_modbus.assembled", "Assembled image"),
+    pci_age = ProtoField.relative_time("eclink_modbus.pci_age", "Time since PCI changed"),
+    pco_age = ProtoField.relative_time("eclink_modbus.pco_age", "Time since PCO changed"),
+    bu_state_prev = ProtoField.uint8("eclink_modbus.bu_state_prev", "Previous BU state", base.HEX,
+        image.vs.bu_state),
+    cmd_from_ru_in = ProtoField.framenum("eclink_modbus.cmd_from_ru_in", "Command from RU (new CCI) in",
+        base.NONE, frametype.REQUEST),
+    cao_in = ProtoField.framenum("eclink_modbus.cao_in", "Acknowledged by CAO in", base.NONE, frametype.ACK),
+    cmd_from_ru_latency = ProtoField.relative_time("eclink_modbus.cmd_from_ru_latency",
+        "Command from RU acknowledge time"),
+    cmd_to_ru_in = ProtoField.framenum("eclink_modbus.cmd_to_ru_in", "Command to RU (new CCO) in",
+        base.NONE, frametype.REQUEST),
+    cai_in = ProtoField.framenum("eclink_modbus.cai_in", "Acknowledged by CAI in", base.NONE, frametype.ACK),
+    cmd_to_ru_latency = ProtoField.relative_time("eclink_modbus.cmd_to_ru_latency",
+        "Command to RU acknowledge time"),
+    periodic_reassembled_in = ProtoField.framenum("eclink_modbus.periodic.reassembled_in",
+        "Periodic data reassembled in"),
+    periodic_block_in = ProtoField.framenum("eclink_modbus.periodic.block_in", "Periodic data block in"),
+    periodic_length = ProtoField.uint32("eclink_modbus.periodic.length", "Reassembled periodic data length"),
+    periodic_data = ProtoField.bytes("eclink_modbus.periodic.data", "Reassembled periodic data"),
+}
+proto.fields = pf
+
+local ef = {
+    pci_stalled = ProtoExpert.new("eclink_modbus.pci_stalled", "PCI stalled over 500 ms",
+        expert.group.SEQUENCE, expert.severity.WARN),
+    pco_stalled = ProtoExpert.new("eclink_modbus.pco_stalled", "PCO stalled over 2000 ms",
+        expert.group.SEQUENCE, expert.severity.WARN),
+    cmd_from_ru = ProtoExpert.new("eclink_modbus.cmd_from_ru", "New command from RU (CCI)",
+        expert.group.SEQUENCE, expert.severity.CHAT),
+    cmd_from_ru_ack = ProtoExpert.new("eclink_modbus.cmd_from_ru.ack", "Command from RU acknowledged by CAO",
+        expert.group.SEQUENCE, expert.severity.CHAT),
+    cmd_from_ru_late = ProtoExpert.new("eclink_modbus.cmd_from_ru.late",
+        "Command from RU not acknowledged by CAO within 2000 ms", expert.group.SEQUENCE, expert.severity.WARN),
+    cmd_to_ru = ProtoExpert.new("eclink_modbus.cmd_to_ru", "New command to RU (CCO)",
+        expert.group.SEQUENCE, expert.severity.CHAT),
+    cmd_to_ru_ack = ProtoExpert.new("eclink_modbus.cmd_to_ru.ack", "Command to RU acknowledged by CAI",
+        expert.group.SEQUENCE, expert.severity.CHAT),
+    cmd_to_ru_late = ProtoExpert.new("eclink_modbus.cmd_to_ru.late",
+        "Command to RU not acknowledged by CAI within 2000 ms", expert.group.SEQUENCE, expert.severity.WARN),
+    bu_state_change = ProtoExpert.new("eclink_modbus.bu_state_change", "BU state changed",
+        expert.group.SEQUENCE, expert.severity.NOTE),
+    periodic_reassembled = ProtoExpert.new("eclink_modbus.periodic.reassembled", "Periodic data reassembled",
+        expert.group.REASSEMBLE, expert.severity.CHAT),
+    no_request = ProtoExpert.new("eclink_modbus.no_request", "Response without a request in the capture",
+        expert.group.SEQUENCE, expert.severity.NOTE),
+}
+proto.experts = { ef.pci_stalled, ef.pco_stalled, ef.cmd_from_ru, ef.cmd_from_ru_ack, ef.cmd_from_ru_late,
+    ef.cmd_to_ru, ef.cmd_to_ru_ack, ef.cmd_to_ru_late, ef.bu_state_change, ef.periodic_reassembled,
+    ef.no_request }
+
+------------------------------------------------------------------------
+-- Value tables
+------------------------------------------------------------------------
+-- Modbus tables and where they sit in the images: { kind, first address, last address }
+local REGIONS = {
+    input_registers = { { "input", 0, 31 } },
+    holding_registers = { { "output", 0, 111 }, { "input", 2048, 2079 } },
+    discrete_inputs = { { "input", 0, 511 } },
+    coils = { { "output", 0, 1791 } },
+}
+local TABLE_NAMES = {
+    input_registers = "Input registers", holding_registers = "Holding registers",
+    discrete_inputs = "Discrete inputs", coils = "Coils",
+}
+-- function code -> Modbus table
+local FC_TABLE = {
+    [1] = "coils", [2] = "discrete_inputs", [3] = "holding_registers", [4] = "input_registers",
+    [5] = "coils", [6] = "holding_registers", [15] = "coils", [16] = "holding_registers",
+    [23] = "holding_registers",
+}
+local IS_BITS = { coils = true, discrete_inputs = true }
+
+local PCI_LIMIT = 0.5
+local PCO_LIMIT = 2.0
+local ACK_LIMIT = 2.0
+
+------------------------------------------------------------------------
+-- Preferences
+------------------------------------------------------------------------
+local DETECT_HEURISTIC, DETECT_ALWAYS, DETECT_OFF = 0, 1, 2
+proto.prefs.port = Pref.uint("Modbus/TCP port", 502, "TCP port of the BU's Modbus/TCP server")
+proto.prefs.detection = Pref.enum("Detection", DETECT_HEURISTIC,
+    "heuristic: decode a connection once a valid input image is seen; always: every connection on the "
+    .. "port; off: leave Modbus alone",
+    { { 1, "heuristic", DETECT_HEURISTIC }, { 2, "always", DETECT_ALWAYS }, { 3, "off", DETECT_OFF } }, false)
+proto.prefs.swap = Pref.bool("Swap register bytes", true,
+    "A register carries image byte 2n in its low 8 bits (as the BU does); off: in its high 8 bits")
+proto.prefs.assembled = Pref.bool("Show assembled images", false,
+    "Show on every EC-Link frame the input and output images as assembled from all accesses so far")
+
+local tcp_port_table = DissectorTable.get("tcp.port")
+local current_port = 0
+
+local function prefs_changed()
+    local port = proto.prefs.port
+    if port ~= current_port then
+        if current_port ~= 0 then
+            tcp_port_table:remove(current_port, proto)
+            if current_port == 502 then tcp_port_table:add(502, mbtcp) end
+        end
+        if port ~= 0 then tcp_port_table:add(port, proto) end
+        current_port = port
+    end
+end
+proto.prefs_changed = prefs_changed
+
+------------------------------------------------------------------------
+-- Per-capture state
+------------------------------------------------------------------------
+local conns      -- connection key -> connection state
+local adus       -- ADU key -> what the first pass worked out for it
+
+-- seconds (a difference of pcap timestamps) as an NSTime, to the microsecond
+local function nstime(secs)
+    local us = math.floor(secs * 1e6 + 0.5)
+    return NSTime.new(math.floor(us / 1e6), (us % 1000000) * 1000)
+end
+
+local function new_image(len)
+    local img = { len = len, val = {}, mask = {} }
+    for i = 0, len - 1 do img.val[i] = 0; img.mask[i] = 0 end
+    return img
+end
+
+local function init_state()
+    conns = {}
+    adus = {}
+end
+proto.init = init_state
+init_state()
+
+local function conn_key(pinfo, is_request)
+    if is_request then
+        return tostring(pinfo.src) .. ":" .. pinfo.src_port .. ">" .. tostring(pinfo.dst) .. ":" .. pinfo.dst_port
+    end
+    return tostring(pinfo.dst) .. ":" .. pinfo.dst_port .. ">" .. tostring(pinfo.src) .. ":" .. pinfo.src_port
+end
+
+local function get_conn(key)
+    local c = conns[key]
+    if not c then
+        c = {
+            pending = {},
+            input = new_image(64),
+            output = new_image(224),
+            accepted = nil,
+            periodic = nil,
+        }
+        conns[key] = c
+    end
+    return c
+end
+
+------------------------------------------------------------------------
+-- Mapping Modbus accesses to image bytes
+------------------------------------------------------------------------
+-- Image bytes of one access: list of pieces { kind, first, length, bytes = {[i] = value},
+-- bits = {[bytepos] = {mask, value}} , reg = {tvb offset of first data byte} }
+local function map_access(tname, start, count, tvb, data_off, coil_value)
+    local pieces = {}
+    local swap = proto.prefs.swap
+    for _, r in ipairs(REGIONS[tname]) do
+        local kind, lo_a, hi_a = r[1], r[2], r[3]
+        local lo = math.max(start, lo_a)
+        local hi = math.min(start + count - 1, hi_a)
+        if lo <= hi then
+            local p = { kind = kind, addr_lo = lo, addr_hi = hi, base = lo_a }
+            if not IS_BITS[tname] then
+                p.first = 2 * (lo - lo_a)
+                p.length = 2 * (hi - lo + 1)
+                p.tvb_off = data_off + 2 * (lo - start)
+                p.swap = swap
+                p.bytes = {}
+                for i = 0, p.length - 1 do
+                    local rel = i
+                    if swap then rel = (i % 2 == 0) and i + 1 or i - 1 end
+                    p.bytes[p.first + i] = tvb(p.tvb_off + rel, 1):uint()
+                end
+            else
+                -- bits lo..hi (addresses) = image bits (lo - lo_a) .. (hi - lo_a)
+                local b0, b1 = lo - lo_a, hi - lo_a
+                p.bitmask = {}
+                for b = b0, b1 do
+                    local v
+                    if coil_value ~= nil then
+                        v = coil_value
+                    else
+                        local k = b + lo_a - start
+                        local byte = tvb(data_off + math.floor(k / 8), 1):uint()
+                        v = bit.band(bit.rshift(byte, k % 8), 1)
+                    end
+                    local pos = math.floor(b / 8)
+                    local e = p.bitmask[pos] or { 0, 0 }
+                    e[1] = bit.bor(e[1], bit.lshift(1, b % 8))
+                    e[2] = bit.bor(e[2], bit.lshift(v, b % 8))
+                    p.bitmask[pos] = e
+                end
+                local fb = math.ceil(b0 / 8)
+                local lb = math.floor((b1 + 1) / 8) - 1
+                p.first = fb
+                p.length = math.max(0, lb - fb + 1)
+                p.bytes = {}
+                for pos = fb, lb do p.bytes[pos] = p.bitmask[pos][2] end
+                if p.length > 0 and (fb * 8 + lo_a - start) % 8 == 0 then
+                    p.tvb_off = data_off + (fb * 8 + lo_a - start) / 8
+                end
+                p.swap = false
+            end
+            pieces[#pieces + 1] = p
+        end
+    end
+    return pieces
+end
+
+-- Apply a piece to the connection's stored image.
+local function store_piece(c, p)
+    local img = c[p.kind]
+    if p.bitmask then
+        for pos, e in pairs(p.bitmask) do
+            img.val[pos] = bit.bor(bit.band(img.val[pos], bit.bnot(e[1]) % 256), e[2])
+            img.mask[pos] = bit.bor(img.mask[pos], e[1])
+        end
+    else
+        for i = p.first, p.first + p.length - 1 do
+            img.val[i] = p.bytes[i]
+            img.mask[i] = 255
+        end
+    end
+end
+
+local function snapshot(img)
+    local t = {}
+    local n = 0
+    for i = 0, img.len - 1 do
+        if img.mask[i] == 255 then n = n + 1 end
+        t[#t + 1] = string.char(img.val[i])
+    end
+    return { data = table.concat(t), known = n }
+end
+
+local function known(img, off, len)
+    for i = off, off + len - 1 do
+        if img.mask[i] ~= 255 then return false end
+    end
+    return true
+end
+
+------------------------------------------------------------------------
+-- Handshake analysis and periodic reassembly (first pass only)
+------------------------------------------------------------------------
+local function analyse(c, rec, t, frame, touched)
+    local inp, out = c.input, c.output
+    local f = rec.findings
+    local links = rec.links
+    if touched.input and known(inp, 0, 4) then
+        local pci, cci, cai = inp.val[0], inp.val[1], inp.val[3]
+        if c.pci == nil or c.pci ~= pci then
+            c.pci, c.pci_t, c.pci_flagged = pci, t, false
+        end
+        if c.cci ~= nil and c.cci ~= cci then
+            c.cmd_in = { cci = cci, frame = frame, t = t, rec = rec }
+            f[#f + 1] = { ef.cmd_from_ru, string.format("New command from RU: CCI %d -> %d", c.cci, cci) }
+        end
+        c.cci = cci
+        if c.cmd_out and not c.cmd_out.acked and cai == c.cmd_out.cco then
+            local lat = t - c.cmd_out.t
+            c.cmd_out.acked = true
+            links.cmd_to_ru_in = c.cmd_out.frame
+            links.cmd_to_ru_latency = lat
+            c.cmd_out.rec.links.cai_in = frame
+            if lat > ACK_LIMIT then
+                f[#f + 1] = { ef.cmd_to_ru_late, string.format(
+                    "CAI echoed CCO %d after %.0f ms (limit 2000 ms)", cai, lat * 1000) }
+            else
+                f[#f + 1] = { ef.cmd_to_ru_ack, string.format(
+                    "CAI %d acknowledges the command to RU of frame %d after %.0f ms", cai, c.cmd_out.frame,
+                    lat * 1000) }
+            end
+        end
+    end
+    if touched.input and known(inp, 20, 1) then
+        local s = inp.val[20]
+        if c.bu_state ~= nil and c.bu_state ~= s then
+            rec.bu_state_prev = c.bu_state
+            f[#f + 1] = { ef.bu_state_change, string.format("BU state %s -> %s",
+                image.vs.bu_state[c.bu_state] or string.format("0x%02x", c.bu_state),
+                image.vs.bu_state[s] or string.format("0x%02x", s)) }
+        end
+        c.bu_state = s
+    end
+    if touched.output and known(out, 0, 4) then
+        local pco, cco, cao = out.val[0], out.val[1], out.val[3]
+        if c.pco == nil or c.pco ~= pco then
+            c.pco, c.pco_t, c.pco_flagged = pco, t, false
+        end
+        if c.cco ~= nil and c.cco ~= cco then
+            c.cmd_out = { cco = cco, frame = frame, t = t, rec = rec }
+            f[#f + 1] = { ef.cmd_to_ru, string.format("New command to RU: CCO %d -> %d", c.cco, cco) }
+        end
+        c.cco = cco
+        if c.cmd_in and not c.cmd_in.acked and cao == c.cmd_in.cci then
+            local lat = t - c.cmd_in.t
+            c.cmd_in.acked = true
+            links.cmd_from_ru_in = c.cmd_in.frame
+            links.cmd_from_ru_latency = lat
+            c.cmd_in.rec.links.cao_in = frame
+            if lat > ACK_LIMIT then
+                f[#f + 1] = { ef.cmd_from_ru_late, string.format(
+                    "CAO echoed CCI %d after %.0f ms (limit 2000 ms)", cao, lat * 1000) }
+            else
+                f[#f + 1] = { ef.cmd_from_ru_ack, string.format(
+                    "CAO %d acknowledges the command from RU of frame %d after %.0f ms", cao, c.cmd_in.frame,
+                    lat * 1000) }
+            end
+        end
+    end
+    -- commands still waiting for their echo
+    if c.cmd_in and not c.cmd_in.acked and not c.cmd_in.late and t - c.cmd_in.t > ACK_LIMIT then
+        c.cmd_in.late = true
+        f[#f + 1] = { ef.cmd_from_ru_late, string.format(
+            "Command from RU (CCI %d, frame %d) not acknowledged by CAO within 2000 ms", c.cmd_in.cci,
+            c.cmd_in.frame) }
+    end
+    if c.cmd_out and not c.cmd_out.acked and not c.cmd_out.late and t - c.cmd_out.t > ACK_LIMIT then
+        c.cmd_out.late = true
+        f[#f + 1] = { ef.cmd_to_ru_late, string.format(
+            "Command to RU (CCO %d, frame %d) not acknowledged by CAI within 2000 ms", c.cmd_out.cco,
+            c.cmd_out.frame) }
+    end
+    -- stalls
+    if c.pci_t then
+        rec.pci_age = t - c.pci_t
+        if rec.pci_age > PCI_LIMIT and not c.pci_flagged then
+            c.pci_flagged = true
+            f[#f + 1] = { ef.pci_stalled, string.format("PCI %d has not changed for %.0f ms (limit 500 ms)",
+                c.pci, rec.pci_age * 1000) }
+        end
+    end
+    if c.pco_t then
+        rec.pco_age = t - c.pco_t
+        if rec.pco_age > PCO_LIMIT and not c.pco_flagged then
+            c.pco_flagged = true
+            f[#f + 1] = { ef.pco_stalled, string.format("PCO %d has not changed for %.0f ms (limit 2000 ms)",
+                c.pco, rec.pco_age * 1000) }
+        end
+    end
+    -- periodic output multiplexing
+    if touched.output and known(out, 0, 1) and known(out, 20, 3) then
+        local size = out.val[20] * 256 + out.val[21]
+        local block = out.val[22]
+        local pco = out.val[0]
+        if size > image.PERIODIC_BLOCK_LEN and size <= image.PERIODIC_MAX then
+            local nblocks = math.ceil(size / image.PERIODIC_BLOCK_LEN)
+            local blen = math.min(image.PERIODIC_BLOCK_LEN, size - block * image.PERIODIC_BLOCK_LEN)
+            if block < nblocks and known(out, 24, blen)
+                and not (c.last_block == block and c.last_block_pco == pco) then
+                c.last_block, c.last_block_pco = block, pco
+                local pb = c.periodic
+                if not pb or pb.size ~= size then
+                    pb = { size = size, n = nblocks, blocks = {}, count = 0 }
+                    c.periodic = pb
+                end
+                local t2 = {}
+                for i = 24, 24 + blen - 1 do t2[#t2 + 1] = string.char(out.val[i]) end
+                if not pb.blocks[block] then pb.count = pb.count + 1 end
+                pb.blocks[block] = { data = table.concat(t2), frame = frame, rec = rec }
+                if pb.count == pb.n then
+                    local parts, frames = {}, {}
+                    for b = 0, pb.n - 1 do
+                        parts[#parts + 1] = pb.blocks[b].data
+                        frames[#frames + 1] = pb.blocks[b].frame
+                        pb.blocks[b].rec.links.periodic_reassembled_in = frame
+                    end
+                    rec.periodic = { data = table.concat(parts), frames = frames }
+                    f[#f + 1] = { ef.periodic_reassembled, string.format(
+                        "Periodic data reassembled: %d bytes from %d blocks", size, pb.n) }
+                    c.periodic = nil
+                end
+            end
+        else
+            c.last_block = nil
+        end
+    end
+end
+
+------------------------------------------------------------------------
+-- One ADU
+------------------------------------------------------------------------
+local function parse_request_pdu(tvb, off, len, fc)
+    -- returns start, count, data offset (writes), coil value (fc 5)
+    local r = {}
+    if len < 5 then return nil end
+    if fc == 1 or fc == 2 or fc == 3 or fc == 4 then
+        r.start, r.count = tvb(off + 1, 2):uint(), tvb(off + 3, 2):uint()
+    elseif fc == 5 then
+        r.start, r.count = tvb(off + 1, 2):uint(), 1
+        local v = tvb(off + 3, 2):uint()
+        r.wstart, r.wcount, r.wdata = r.start, 1, off + 3
+        r.coil = (v == 0xFF00) and 1 or ((v == 0) and 0 or nil)
+        if r.coil == nil then r.wstart = nil end
+    elseif fc == 6 then
+        r.start, r.count = tvb(off + 1, 2):uint(), 1
+        r.wstart, r.wcount, r.wdata = r.start, 1, off + 3
+    elseif fc == 15 or fc == 16 then
+        if len < 6 then return nil end
+        r.start, r.count = tvb(off + 1, 2):uint(), tvb(off + 3, 2):uint()
+        local need = (fc == 15) and math.ceil(r.count / 8) or 2 * r.count
+        if len >= 6 + need and tvb(off + 5, 1):uint() >= need then
+            r.wstart, r.wcount, r.wdata = r.start, r.count, off + 6
+        end
+    elseif fc == 23 then
+        if len < 10 then return nil end
+        r.start, r.count = tvb(off + 1, 2):uint(), tvb(off + 3, 2):uint()
+        local ws, wc = tvb(off + 5, 2):uint(), tvb(off + 7, 2):uint()
+        if len >= 10 + 2 * wc then
+            r.wstart, r.wcount, r.wdata = ws, wc, off + 10
+        end
+    else
+        return nil
+    end
+    return r
+end
+
+-- First pass: work out what this ADU means and update the connection.
+local function first_pass(tvb, pinfo, off, adu_len, is_request)
+    local tid = tvb(off, 2):uint()
+    local unit = tvb(off + 6, 1):uint()
+    local fcb = tvb(off + 7, 1):uint()
+    local fc = bit.band(fcb, 0x7F)
+    local pdu, plen = off + 7, adu_len - 7
+    local ckey = conn_key(pinfo, is_request)
+    local c = get_conn(ckey)
+    local tkey = tid .. "/" .. unit .. "/" .. fc
+    local t = pinfo.abs_ts
+    local rec = { fc = fc, is_request = is_request, accesses = {}, findings = {}, links = {} }
+    local tname = FC_TABLE[fc]
+    if not tname then return rec end
+    rec.table = tname
+    local accesses = {}
+    if is_request then
+        local r = parse_request_pdu(tvb, pdu, plen, fc)
+        if r then
+            r.frame, r.t, r.rec = pinfo.number, t, rec
+            c.pending[tkey] = r
+            rec.start, rec.count = r.start, r.count
+            if r.wstart then
+                accesses[#accesses + 1] = { tname = tname, start = r.wstart, count = r.wcount,
+                    data = r.wdata - off, coil = r.coil, write = true }
+            end
+        end
+    else
+        local r = c.pending[tkey]
+        if r then
+            c.pending[tkey] = nil
+            rec.request_in = r.frame
+            rec.time = t - r.t
+            r.rec.response_in = pinfo.number
+            rec.start, rec.count = r.start, r.count
+            if bit.band(fcb, 0x80) ~= 0 then
+                rec.exception = true
+            elseif (fc <= 4 or fc == 23) and plen >= 2 then
+                local bc = tvb(pdu + 1, 1):uint()
+                local need = (fc <= 2) and math.ceil(r.count / 8) or 2 * r.count
+                if bc >= need and plen >= 2 + need then
+                    accesses[#accesses + 1] = { tname = tname, start = r.start, count = r.count,
+                        data = 9 }
+                end
+            end
+        else
+            rec.no_request = true
+        end
+    end
+    -- detection
+    local det = proto.prefs.detection
+    local touched = {}
+    for _, a in ipairs(accesses) do
+        a.pieces = map_access(a.tname, a.start, a.count, tvb, off + a.data, a.coil)
+        for _, p in ipairs(a.pieces) do
+            if det == DETECT_HEURISTIC and not c.accepted and p.kind == "input" and p.length == 64 then
+                local bytes = {}
+                for i = 0, 63 do bytes[i] = p.bytes[i] end
+                if image.validate_input(bytes) then c.accepted = pinfo.number end
+            end
+        end
+    end
+    rec.decode = (det == DETECT_ALWAYS) or (det == DETECT_HEURISTIC and c.accepted ~= nil)
+    rec.accepted_in = c.accepted
+    rec.accesses = accesses
+    if not rec.decode then return rec end
+    for _, a in ipairs(accesses) do
+        for _, p in ipairs(a.pieces) do
+            store_piece(c, p)
+            touched[p.kind] = true
+        end
+    end
+    analyse(c, rec, t, pinfo.number, touched)
+    if proto.prefs.assembled then
+        rec.snap_in = snapshot(c.input)
+        rec.snap_out = snapshot(c.output)
+    end
+    return rec
+end
+
+local function bit_text(p)
+    -- partial bytes touched by a bit access
+    local out = {}
+    local layout = image.layout[p.kind]
+    for pos, e in pairs(p.bitmask) do
+        if e[1] ~= 255 then
+            local name = "?"
+            for _, l in ipairs(layout) do
+                if pos >= l.off and pos < l.off + l.len then name = l.name end
+            end
+            local lo, hi
+            for b = 0, 7 do
+                if bit.band(e[1], bit.lshift(1, b)) ~= 0 then
+                    lo = lo or b
+                    hi = b
+                end
+            end
+            out[#out + 1] = { pos, string.format("%s image byte %d bits %d-%d (%s)", p.kind, pos, lo, hi, name) }
+        end
+    end
+    table.sort(out, function(a, b) return a[1] < b[1] end)
+    return out
+end
+
+local function show_assembled(tree, pinfo, snap, kind)
+    if not snap then return end
+    local len = (kind == "input") and 64 or 224
+    if kind == "output" and snap.data:byte(21) == 0 and snap.known <= 20 then len = 20 end
+    local ti = tree:add(pf.assembled, string.format("%s image as of this frame (%d of %d bytes seen)",
+        kind, snap.known, len))
+    ti:set_generated()
+    if snap.known == 0 then return end
+    local ba = ByteArray.new()
+    ba:set_size(len)
+    for i = 0, len - 1 do ba:set_index(i, snap.data:byte(i + 1)) end
+    local tvb = ba:tvb("Assembled " .. kind .. " image")
+    image.dissect(tvb, pinfo, ti, { kind = kind, image_len = len, generated = true, quiet = true })
+end
+
+local function show_adu(tvb, pinfo, tree, off, adu_len, rec)
+    local item = tree:add(proto, tvb(off, adu_len))
+    local tname = rec.table
+    local desc = TABLE_NAMES[tname]
+    if rec.start then
+        desc = string.format("%s %d-%d", desc, rec.start, rec.start + math.max(rec.count, 1) - 1)
+    end
+    item:append_text(": " .. desc)
+    item:add(pf.table, tvb(off + 7, 1), desc):set_generated()
+    if rec.accepted_in then item:add(pf.accepted_in, rec.accepted_in):set_generated() end
+    if rec.request_in then
+        item:add(pf.request_in, rec.request_in):set_generated()
+        item:add(pf.time, nstime(rec.time))
+            :set_generated()
+    end
+    if rec.response_in then item:add(pf.response_in, rec.response_in):set_generated() end
+    if rec.no_request then item:add_proto_expert_info(ef.no_request) end
+    local infos = {}
+    for _, a in ipairs(rec.accesses) do
+        for _, p in ipairs(a.pieces) do
+            if p.length > 0 then
+                local src, soff = tvb, off + (p.tvb_off and (p.tvb_off - off) or 0)
+                if not p.tvb_off then
+                    local ba = ByteArray.new()
+                    ba:set_size(p.length)
+                    for i = 0, p.length - 1 do ba:set_index(i, p.bytes[p.first + i]) end
+                    src = ba:tvb("EC-Link image bytes from bits")
+                    soff = 0
+                end
+                local label = string.format("(%s %d-%d%s)", TABLE_NAMES[a.tname]:lower(), p.addr_lo, p.addr_hi,
+                    a.write and ", written" or "")
+                local info = image.dissect(src, pinfo, item, { kind = p.kind, offset = soff, first = p.first,
+                    length = p.length, swap = p.swap, label = label,
+                    image_len = (p.kind == "input") and 64 or 224 })
+                infos[#infos + 1] = p.kind .. " " .. info.summary
+            end
+            if p.bitmask then
+                for _, bt in ipairs(bit_text(p)) do
+                    item:add(pf.bits, tvb(off, adu_len), bt[2]):set_generated()
+                end
+            end
+        end
+    end
+    if rec.pci_age then
+        item:add(pf.pci_age, nstime(rec.pci_age))
+            :set_generated()
+    end
+    if rec.pco_age then
+        item:add(pf.pco_age, nstime(rec.pco_age))
+            :set_generated()
+    end
+    if rec.bu_state_prev then item:add(pf.bu_state_prev, rec.bu_state_prev):set_generated() end
+    local l = rec.links
+    for _, name in ipairs({ "cmd_from_ru_in", "cao_in", "cmd_to_ru_in", "cai_in", "periodic_reassembled_in" }) do
+        if l[name] then item:add(pf[name], l[name]):set_generated() end
+    end
+    for _, name in ipairs({ "cmd_from_ru_latency", "cmd_to_ru_latency" }) do
+        local v = l[name]
+        if v then
+            item:add(pf[name], nstime(v)):set_generated()
+        end
+    end
+    for _, fd in ipairs(rec.findings) do
+        item:add_proto_expert_info(fd[1], fd[2])
+    end
+    if rec.periodic then
+        local ba = ByteArray.new(rec.periodic.data, true)
+        local rtvb = ba:tvb("Reassembled periodic data")
+        local pt = item:add(pf.periodic_data, rtvb())
+        pt:set_generated()
+        pt:add(pf.periodic_length, #rec.periodic.data):set_generated()
+        for _, fr in ipairs(rec.periodic.frames) do
+            pt:add(pf.periodic_block_in, fr):set_generated()
+        end
+    end
+    if proto.prefs.assembled then
+        show_assembled(item, pinfo, rec.snap_in, "input")
+        show_assembled(item, pinfo, rec.snap_out, "output")
+    end
+    return infos
+end
+
+------------------------------------------------------------------------
+-- The dissector: mbtcp first, then the EC-Link view of each complete ADU
+------------------------------------------------------------------------
+function proto.dissector(tvb, pinfo, tree)
+    -- let mbtcp use TCP desegmentation as if TCP had called it directly
+    if pinfo.can_desegment > 0 then pinfo.can_desegment = pinfo.can_desegment + 1 end
+    local consumed = mbtcp:call(tvb, pinfo, tree)
+    if proto.prefs.detection == DETECT_OFF then return consumed end
+    local is_request = (pinfo.dst_port == pinfo.match_uint) and (pinfo.src_port ~= pinfo.match_uint)
+    local n = tvb:len()
+    local off = 0
+    local infos = {}
+    while off + 8 <= n do
+        local plen = tvb(off + 4, 2):uint()
+        if tvb(off + 2, 2):uint() ~= 0 or plen < 2 then break end
+        local adu_len = 6 + plen
+        if off + adu_len > n then break end
+        local key = pinfo.number .. ":" .. tvb:reported_len() .. ":" .. off
+        local rec = adus[key]
+        if not rec then
+            rec = first_pass(tvb, pinfo, off, adu_len, is_request)
+            adus[key] = rec
+        end
+        if rec.decode and rec.table then
+            for _, s in ipairs(show_adu(tvb, pinfo, tree, off, adu_len, rec)) do infos[#infos + 1] = s end
+        end
+        off = off + adu_len
+    end
+    if #infos > 0 then
+        pinfo.cols.info:append(" [EC-Link " .. table.concat(infos, "; ") .. "]")
+    end
+    return consumed
+end
+
+tcp_port_table:add_for_decode_as(proto)
+prefs_changed()

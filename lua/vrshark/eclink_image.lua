@@ -37,6 +37,7 @@ API
       opts.image_len  total image length: 64 input, 224 (default) or 20 output
       opts.label   text appended to the subtree title
       opts.generated  mark the subtree generated (an assembled image)
+      opts.quiet   no expert info (an assembled copy of checked bytes)
       Fields fully covered by [first, first+length) are decoded with their
       checks; partly covered ones are named (eclink.cut), missing ones
       listed (eclink.not_covered). Returns info = { item = subtree,
@@ -421,7 +422,7 @@ function M.dissect(tvb, pinfo, tree, opts)
 
     local title = (kind == "input") and "EC-Link input image" or "EC-Link output image"
     if length < image_len then
-        title = title .. string.format(" (bytes %d-%d of %d)", first, last, image_len)
+        title = title .. string.format(", bytes %d-%d of %d", first, last, image_len)
     end
     if opts.label then title = title .. " " .. opts.label end
     local p = M.proto()
@@ -445,7 +446,8 @@ function M.dissect(tvb, pinfo, tree, opts)
             if e.kind == "bytes" then
                 local v = raw(e.off, e.len)
                 info.values[e.name] = v
-                local lo = math.min(pos(e.off), pos(e_last))
+                -- swapped pairs: a multi-byte blob starts and ends on a pair boundary
+                local lo = (e.len == 1) and pos(e.off) or (offset + e.off - first)
                 if swap then
                     ti = item:add(f[e.name], tvb(lo, e.len), v:raw())
                 else
@@ -477,14 +479,14 @@ function M.dissect(tvb, pinfo, tree, opts)
     if #info.not_covered > 0 then
         item:add(f.not_covered, span, table.concat(info.not_covered, ", ")):set_generated()
     end
-    if length < image_len then
+    if length < image_len and not opts.quiet then
         item:add_proto_expert_info(M.experts.partial,
             string.format("Image bytes %d-%d of %d present%s", first, last, image_len,
                 (#info.cut > 0) and ("; cut: " .. table.concat(info.cut, ", ")) or ""))
     end
 
     info.findings = M.check(kind, get, first, last)
-    for _, fd in ipairs(info.findings) do
+    for _, fd in ipairs(opts.quiet and {} or info.findings) do
         local target = info.items[fd.field] or item
         if fd.expert == "relays_open" then
             local g = item:add(f.es_relays_open, tvb(pos(20), 1), true)
@@ -508,8 +510,9 @@ function M.dissect(tvb, pinfo, tree, opts)
         if v.periodic_size then parts[#parts + 1] = "size=" .. v.periodic_size end
         if v.periodic_block then parts[#parts + 1] = "block=" .. v.periodic_block end
     end
+    if #parts > 0 then item:append_text(": " .. table.concat(parts, " ")) end
+    if length < image_len then parts[#parts + 1] = string.format("bytes %d-%d", first, last) end
     info.summary = table.concat(parts, " ")
-    if info.summary ~= "" then item:append_text(": " .. info.summary) end
     return info
 end
 
