@@ -398,18 +398,48 @@ eglink_check_percent(eglink_payload_t *p, proto_item *ti, expert_field *ei, cons
         expert_add_info_format(p->pinfo, ti, ei, "%s %u %% is above 100 %%", name, value);
 }
 
+/* With Armed RU 0 every RU field after it must be 0: name the ones that are not. */
+static void
+eglink_check_unarmed(eglink_payload_t *p, proto_item *armed_ti)
+{
+    static const struct {
+        int offset;
+        int len;
+        const char *name;
+    } ru_fields[] = {
+        { 8, 1, "RU state" }, { 9, 1, "RU battery" }, { 10, 1, "RU C-Link RSSI" },
+        { 11, 1, "RU cable" }, { 12, 1, "RU docked" }, { 13, 1, "RU disabled" },
+        { 14, 2, "joystick 1" }, { 16, 2, "joystick 2" }, { 18, 2, "joystick 3" },
+        { 20, 2, "joystick 4" }, { 22, 2, "switch 1" }, { 24, 2, "switch 2" },
+        { 26, 2, "switch 3" }, { 28, 2, "switch 4" }, { 30, 2, "switch 5" },
+        { 32, 2, "switch 6" }, { 34, 2, "switch 7" }, { 36, 2, "switch 8" },
+        { 38, 1, "encoder" }, { 39, 1, "encoder switch" },
+    };
+    wmem_strbuf_t *names = wmem_strbuf_new(p->pinfo->pool, "");
+    guint i;
+
+    for (i = 0; i < array_length(ru_fields); i++) {
+        if (ru_fields[i].offset + ru_fields[i].len > p->len)
+            break;
+        if ((ru_fields[i].len == 1 ? tvb_get_guint8(p->tvb, p->base + ru_fields[i].offset)
+                                   : tvb_get_letohs(p->tvb, p->base + ru_fields[i].offset)) != 0)
+            wmem_strbuf_append_printf(names, "%s%s", wmem_strbuf_get_len(names) ? ", " : "",
+                                      ru_fields[i].name);
+    }
+    if (wmem_strbuf_get_len(names))
+        expert_add_info_format(p->pinfo, armed_ti, &ei_eglink_unarmed_data,
+            "No RU is armed (Armed RU 0) but these RU fields are not 0: %s",
+            wmem_strbuf_get_str(names));
+}
+
 /* VRPI: BU status and the armed RU's controls. */
 static void
 dissect_eglink_vrpi(eglink_payload_t *p, eglink_info_t *info)
 {
-    static const char *const unarmed_names[] = {
-        "RU state", "RU battery", "RU C-Link RSSI", "RU cable", "RU docked", "RU disabled"
-    };
     proto_item *ti, *bu_ti, *armed_ti;
     guint32 bu_state, value, armed_ru, ru_state = 0;
     gint32 svalue;
     gboolean have_bu, have_armed, have_ru_state;
-    wmem_strbuf_t *unarmed = wmem_strbuf_new(p->pinfo->pool, "");
     gint32 joysticks[4] = { 0, 0, 0, 0 };
     char name[16];
     int i;
@@ -421,8 +451,10 @@ dissect_eglink_vrpi(eglink_payload_t *p, eglink_info_t *info)
     }
     info->has_bu_state = TRUE;
     info->bu_state = (guint8)bu_state;
-    col_append_fstr(p->pinfo->cinfo, COL_INFO, " %s",
-                    val_to_str_const(bu_state, eglink_bu_state_vals, "Unknown BU state"));
+    if (try_val_to_str(bu_state, eglink_bu_state_vals))
+        col_append_fstr(p->pinfo->cinfo, COL_INFO, " %s", val_to_str_const(bu_state, eglink_bu_state_vals, ""));
+    else
+        col_append_fstr(p->pinfo->cinfo, COL_INFO, " BU state 0x%02x", bu_state);
     if (try_val_to_str(bu_state, eglink_bu_state_vals) == NULL)
         expert_add_info_format(p->pinfo, bu_ti, &ei_eglink_bu_state_unknown,
             "BU state 0x%02x is not defined in TS-0006", bu_state);
@@ -459,7 +491,7 @@ dissect_eglink_vrpi(eglink_payload_t *p, eglink_info_t *info)
         col_append_fstr(p->pinfo->cinfo, COL_INFO, " RU=0x%04x", armed_ru);
         if (have_ru_state)
             col_append_fstr(p->pinfo->cinfo, COL_INFO, " %s",
-                            val_to_str_const(ru_state, eglink_ru_state_vals, "Unknown RU state"));
+                            val_to_str_const(ru_state, eglink_ru_state_vals, "RU state unknown"));
     }
     if (have_ru_state) {
         if (ru_state == EGLINK_RU_STATE_STOPPED)
@@ -469,30 +501,18 @@ dissect_eglink_vrpi(eglink_payload_t *p, eglink_info_t *info)
             expert_add_info_format(p->pinfo, ti, &ei_eglink_ru_state_unknown,
                 "RU state %u is not defined in TS-0006 (0..4)", ru_state);
     }
-    if (have_ru_state && armed_ru == 0 && ru_state != 0)
-        wmem_strbuf_append(unarmed, unarmed_names[0]);
 
     if (eglink_add_uint(p, hf_eglink_ru_battery, 9, 1, &value, &ti))
         eglink_check_percent(p, ti, &ei_eglink_ru_battery_range, "RU battery", value);
-    if (value && armed_ru == 0)
-        wmem_strbuf_append_printf(unarmed, "%s%s", wmem_strbuf_get_len(unarmed) ? ", " : "", unarmed_names[1]);
     if (eglink_add_uint(p, hf_eglink_ru_rssi, 10, 1, &value, &ti))
         eglink_check_percent(p, ti, &ei_eglink_ru_rssi_range, "RU C-Link RSSI", value);
-    if (value && armed_ru == 0)
-        wmem_strbuf_append_printf(unarmed, "%s%s", wmem_strbuf_get_len(unarmed) ? ", " : "", unarmed_names[2]);
     if (eglink_add_uint(p, hf_eglink_ru_cable, 11, 1, &value, &ti))
         eglink_check_flag(p, ti, "RU cable", value);
-    if (value && armed_ru == 0)
-        wmem_strbuf_append_printf(unarmed, "%s%s", wmem_strbuf_get_len(unarmed) ? ", " : "", unarmed_names[3]);
     if (eglink_add_uint(p, hf_eglink_ru_docked, 12, 1, &value, &ti))
         eglink_check_flag(p, ti, "RU docked", value);
-    if (value && armed_ru == 0)
-        wmem_strbuf_append_printf(unarmed, "%s%s", wmem_strbuf_get_len(unarmed) ? ", " : "", unarmed_names[4]);
     if (eglink_add_uint(p, hf_eglink_ru_disabled, 13, 1, &value, &ti) && value > 3)
         expert_add_info_format(p->pinfo, ti, &ei_eglink_ru_disabled_unknown,
             "RU disabled reason %u is not defined (0 enabled, 1 tilted, 2 inactivity, 3 other)", value);
-    if (value && armed_ru == 0)
-        wmem_strbuf_append_printf(unarmed, "%s%s", wmem_strbuf_get_len(unarmed) ? ", " : "", unarmed_names[5]);
 
     for (i = 0; i < 4; i++) {
         if (!eglink_add_int(p, hf_eglink_joystick[i], 14 + 2 * i, 2, &svalue, &ti))
@@ -501,30 +521,18 @@ dissect_eglink_vrpi(eglink_payload_t *p, eglink_info_t *info)
         if (svalue < -EGLINK_JOYSTICK_LIMIT || svalue > EGLINK_JOYSTICK_LIMIT)
             expert_add_info_format(p->pinfo, ti, &ei_eglink_joystick_range,
                 "Joystick %d position %d is outside -1000..+1000", i + 1, svalue);
-        if (svalue && armed_ru == 0)
-            wmem_strbuf_append_printf(unarmed, "%sjoystick %d",
-                                      wmem_strbuf_get_len(unarmed) ? ", " : "", i + 1);
     }
     for (i = 0; i < 8; i++) {
         if (!eglink_add_int(p, hf_eglink_switch[i], 22 + 2 * i, 2, &svalue, &ti))
             break;
-        if (svalue && armed_ru == 0)
-            wmem_strbuf_append_printf(unarmed, "%sswitch %d",
-                                      wmem_strbuf_get_len(unarmed) ? ", " : "", i + 1);
     }
     eglink_add_uint(p, hf_eglink_encoder, 38, 1, &value, NULL);
-    if (value && armed_ru == 0)
-        wmem_strbuf_append_printf(unarmed, "%sencoder", wmem_strbuf_get_len(unarmed) ? ", " : "");
     if (eglink_add_uint(p, hf_eglink_encoder_switch, 39, 1, &value, &ti))
         eglink_check_flag(p, ti, "Encoder switch", value);
-    if (value && armed_ru == 0)
-        wmem_strbuf_append_printf(unarmed, "%sencoder switch", wmem_strbuf_get_len(unarmed) ? ", " : "");
     eglink_check_payload_spare(p, 40, 6);
 
-    if (have_armed && armed_ru == 0 && wmem_strbuf_get_len(unarmed))
-        expert_add_info_format(p->pinfo, armed_ti, &ei_eglink_unarmed_data,
-            "No RU is armed (Armed RU 0) but these RU fields are not 0: %s",
-            wmem_strbuf_get_str(unarmed));
+    if (have_armed && armed_ru == 0)
+        eglink_check_unarmed(p, armed_ti);
 
     for (i = 0; i < 4; i++) {
         snprintf(name, sizeof name, " J%d=%d", i + 1, joysticks[i]);
@@ -678,16 +686,14 @@ dissect_eglink(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data _
     eglink_item = proto_tree_add_item(tree, proto_eglink, tvb, 0, -1, ENC_NA);
     eglink_tree = proto_item_add_subtree(eglink_item, ett_eglink);
 
+    id = tvb_format_text(pinfo->pool, tvb, 0, MIN(MIN(reported, 4), (int)tvb_captured_length(tvb)));
+    col_add_str(pinfo->cinfo, COL_INFO, id);
+    proto_item_append_text(eglink_item, ", %s", id);
     if (reported >= 4) {
         info.type = eglink_type_from_id(tvb_get_guint8(tvb, 2), tvb_get_guint8(tvb, 3));
         ti = proto_tree_add_item(eglink_tree, hf_eglink_type, tvb, 0, 4, ENC_ASCII);
         proto_item_append_text(ti, " (%s)", val_to_str_const(info.type, eglink_type_descr, ""));
-        id = tvb_format_text(pinfo->pool, tvb, 0, 4);
-    } else {
-        id = tvb_format_text(pinfo->pool, tvb, 0, reported);
     }
-    col_add_str(pinfo->cinfo, COL_INFO, id);
-    proto_item_append_text(eglink_item, ", %s", id);
     if (info.type == EGLINK_TYPE_UNKNOWN) {
         col_append_str(pinfo->cinfo, COL_INFO, " (unknown type)");
         expert_add_info_format(pinfo, eglink_item, &ei_eglink_type_unknown,

@@ -333,10 +333,10 @@ def wrong_sizes():
     link.ctrl(0.06, "VRCO", command(5, b"\x01") + b"\x00\x00")  # 7 VRCO payload 24
     link.bu(0.07, "VRAI", ack(5) + b"\x00\x00")                 # 8 VRAI payload 4
     link.ctrl(0.08, "VRAO", b"")                                # 9 VRAO payload 0
-    link.raw_bu(0.09, packet("VRPI", full)[:18])                # 10 18 bytes: no room for a CRC
+    link.raw_bu(0.09, packet("VRPI", full, BU_ORIGIN)[:18])     # 10 18 bytes: no room for a CRC
     link.raw_bu(0.10, b"VRPI\x00\x00\x01\x10")                  # 11 8 bytes: half a header
     link.raw_bu(0.11, b"VRP")                                   # 12 3 bytes
-    link.bu(0.12, "VRPO", vrpo(0, b""), size=0)                 # 13 Size 0, carries 2
+    link.ctrl(0.12, "VRPO", vrpo(0, b""), size=0)               # 13 Size 0, carries 2
     return link.cap
 
 
@@ -375,7 +375,7 @@ def heuristic_ports():
     link.ctrl(0.060, "VRAO", ack(2))
     link.ctrl(0.070, "VRCO", command(6, b"\x05"))
     link.bu(0.080, "VRAI", ack(6))
-    other = Link(input_port=6200)
+    other = Link(link.cap, input_port=6200)
     other.raw_bu(0.100, b"VRPI is not EG-Link: just some text over UDP")  # Size inconsistent
     other.raw_bu(0.110, packet("VRQI", b"\x00\x01"))                      # no known type
     link.bu(0.125, "VRPI", armed(joysticks=(300, 0, 0, 0)))
