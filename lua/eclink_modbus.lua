@@ -382,7 +382,7 @@ local function analyse(c, rec, t, frame, touched)
             c.cmd_out.frame) }
     end
     -- stalls
-    if c.pci_t then
+    if c.pci_t and touched.input then
         rec.pci_age = t - c.pci_t
         if rec.pci_age > PCI_LIMIT and not c.pci_flagged then
             c.pci_flagged = true
@@ -423,7 +423,9 @@ local function analyse(c, rec, t, frame, touched)
                     for b = 0, pb.n - 1 do
                         parts[#parts + 1] = pb.blocks[b].data
                         frames[#frames + 1] = pb.blocks[b].frame
-                        pb.blocks[b].rec.links.periodic_reassembled_in = frame
+                        if pb.blocks[b].frame ~= frame then
+                            pb.blocks[b].rec.links.periodic_reassembled_in = frame
+                        end
                     end
                     rec.periodic = { data = table.concat(parts), frames = frames }
                     f[#f + 1] = { ef.periodic_reassembled, string.format(
