@@ -1,14 +1,1159 @@
 /* eglink-analysis.c
- * EG-Link conversation analysis (placeholder until it is written).
+ * EG-Link conversation analysis: per-BU tracking of serial numbers and
+ * periodic intervals, command/acknowledge links with retransmissions and
+ * timeouts, reassembly of split VRPO bursts, and the "eglink" tap.
+ *
+ * Everything is computed on the first pass, in frame order, and stored per
+ * frame (p_add_proto_data in file scope), so a single pass, "tshark -2" and
+ * clicking around in the GUI show the same findings. A finding that depends
+ * on time passing (a missing VRPI/VRPO, an unacknowledged command) is
+ * reported on the first packet of the BU that arrives after the deadline:
+ * that is the earliest packet at which a one-pass reader knows it.
+ *
+ * Which packets belong to one BU: the BU sends VRPI/VRCI/VRAI to its input
+ * port, the machine controller sends VRPO/VRCO/VRAO to the input port + 2,
+ * both usually to the same multicast group. A BU is therefore keyed by
+ *   (multicast group, input port)                      for multicast, or
+ *   (the two unicast addresses, unordered, input port)  for unicast,
+ * where the input port is the destination port of a BU packet and the
+ * destination port - 2 of a controller packet. The BU's origin (its unique
+ * ID) is learned from its own packets; controller packets carry origin 0.
+ *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
-#include "packet-eglink.h"
+#include "eglink-analysis.h"
 
-void eglink_analysis_register(int proto _U_, module_t *prefs _U_)
+#include <epan/expert.h>
+#include <epan/proto_data.h>
+#include <epan/reassemble.h>
+#include <epan/tap.h>
+#include <epan/to_str.h>
+
+/* p_add_proto_data key: one record per EG-Link layer of a frame. */
+#define EGLINK_ANALYSIS_KEY_BASE 0x45410000u
+/* Commands remembered per direction and BU (bounded: oldest replaced). */
+#define EGLINK_CMD_SLOTS 8
+/* A serial this far behind the last one is a restart, not a repeat. */
+#define EGLINK_SERIAL_REPEAT_WINDOW 1024
+
+static int proto_eglink = -1;
+static int eglink_tap = -1;
+static int hf_eglink_periodic_data_id = -1;     /* looked up by name: eglink.periodic_data */
+
+static int hf_analysis = -1;
+static int hf_bu_stream = -1;
+static int hf_bu_origin = -1;
+static int hf_expected_serial = -1;
+static int hf_lost = -1;
+static int hf_repeat_of = -1;
+static int hf_time_since_prev_vrpi = -1;
+static int hf_time_since_prev_vrpo = -1;
+static int hf_retransmission_of = -1;
+static int hf_ack_in = -1;
+static int hf_ack_to = -1;
+static int hf_ack_time = -1;
+static int hf_failed_command = -1;
+static int hf_incomplete_burst = -1;
+
+static int hf_fragments = -1;
+static int hf_fragment = -1;
+static int hf_fragment_overlap = -1;
+static int hf_fragment_overlap_conflicts = -1;
+static int hf_fragment_multiple_tails = -1;
+static int hf_fragment_too_long_fragment = -1;
+static int hf_fragment_error = -1;
+static int hf_fragment_count = -1;
+static int hf_reassembled_in = -1;
+static int hf_reassembled_length = -1;
+
+static gint ett_analysis = -1;
+static gint ett_fragment = -1;
+static gint ett_fragments = -1;
+
+static expert_field ei_serial_gap = EI_INIT;
+static expert_field ei_serial_repeat = EI_INIT;
+static expert_field ei_serial_restart = EI_INIT;
+static expert_field ei_vrpi_gap = EI_INIT;
+static expert_field ei_vrpo_gap = EI_INIT;
+static expert_field ei_vrpi_missing = EI_INIT;
+static expert_field ei_vrpo_missing = EI_INIT;
+static expert_field ei_retransmission = EI_INIT;
+static expert_field ei_vrci_unacked = EI_INIT;
+static expert_field ei_vrco_unacked = EI_INIT;
+static expert_field ei_late_ack = EI_INIT;
+static expert_field ei_unknown_ack = EI_INIT;
+static expert_field ei_bu_state_changed = EI_INIT;
+static expert_field ei_origin_changed = EI_INIT;
+static expert_field ei_burst_incomplete = EI_INIT;
+static expert_field ei_burst_size = EI_INIT;
+
+/* Preferences */
+static guint pref_vrpi_gap_ms = 500;
+static guint pref_vrpo_gap_ms = 2000;
+static guint pref_vrci_ack_timeout_ms = 2000;
+static guint pref_vrco_ack_timeout_ms = 2000;
+static guint pref_periodic_size = 0;
+static gboolean pref_reassemble = TRUE;
+
+static reassembly_table eglink_reassembly_table;
+
+static const fragment_items eglink_frag_items = {
+    &ett_fragment,
+    &ett_fragments,
+    &hf_fragments,
+    &hf_fragment,
+    &hf_fragment_overlap,
+    &hf_fragment_overlap_conflicts,
+    &hf_fragment_multiple_tails,
+    &hf_fragment_too_long_fragment,
+    &hf_fragment_error,
+    &hf_fragment_count,
+    &hf_reassembled_in,
+    &hf_reassembled_length,
+    NULL,
+    "VRPO fragments"
+};
+
+/* One command (VRCI or VRCO) with all its transmissions. */
+typedef struct {
+    nstime_t first_ts;
+    nstime_t last_ts;           /* latest transmission */
+    guint32 first_frame;
+    guint32 ack_frame;          /* first acknowledgement, 0 if none (yet) */
+    guint16 command_id;
+    guint8 dir;                 /* EGLINK_DIR_IN: VRCI, EGLINK_DIR_OUT: VRCO */
+    guint8 failed;              /* the deadline passed unacknowledged */
+} eglink_cmd_t;
+
+typedef struct {
+    address a;                  /* multicast group, or the lower unicast address */
+    address b;                  /* AT_NONE for multicast, else the higher address */
+    guint32 port;               /* the BU's input port */
+} eglink_bu_key_t;
+
+typedef struct {
+    guint32 index;              /* BU stream number, from 0 in order of appearance */
+    const char *name;
+    gboolean origin_known;
+    guint16 origin;
+
+    gboolean have_serial[2];    /* per sender: EGLINK_DIR_IN = BU, OUT = controller */
+    guint16 last_serial[2];
+    guint32 last_serial_frame[2];
+
+    guint32 last_vrpi_frame;    /* 0: none yet */
+    nstime_t last_vrpi_ts;
+    gboolean vrpi_missing_reported;
+    gboolean have_bu_state;
+    guint8 bu_state;
+
+    guint32 last_vrpo_frame;
+    nstime_t last_vrpo_ts;
+    gboolean vrpo_missing_reported;
+
+    gboolean burst_open;        /* a split VRPO burst whose end is not seen yet */
+    gboolean burst_broken;      /* ... with a packet missing: it cannot complete */
+    guint32 burst_id;           /* its reassembly ID (0 when broken from the start) */
+    guint32 burst_first_frame;
+    guint16 burst_next;         /* packet number expected next */
+    guint16 burst_missing;      /* first missing packet number */
+    guint32 burst_bytes;
+
+    eglink_cmd_t *cmds[2][EGLINK_CMD_SLOTS];
+    guint cmd_next[2];
+} eglink_bu_t;
+
+/* Findings that only some frames have; a list hung off the frame record. */
+typedef enum {
+    FND_REPEAT,                 /* frame: earlier copy (0 unknown), value: last serial */
+    FND_RESTART,                /* value: last serial */
+    FND_ORIGIN,                 /* value: previous origin */
+    FND_BU_STATE,               /* value: previous BU state */
+    FND_VRPI_GAP,               /* frame: previous VRPI */
+    FND_VRPO_GAP,               /* frame: previous VRPO */
+    FND_VRPI_MISSING,           /* frame: last VRPI */
+    FND_VRPO_MISSING,           /* frame: last VRPO */
+    FND_FAILED_VRCI,            /* frame: first transmission, value: command ID, ns: age */
+    FND_FAILED_VRCO,
+    FND_LATE_ACK,               /* frame: first transmission, value: command ID */
+    FND_UNKNOWN_ACK,            /* value: command ID */
+    FND_BURST_DONE,             /* value: reassembly ID of the previous burst it completes */
+    FND_BURST_INCOMPLETE,       /* frame: first packet of the burst, value: missing packet number */
+    FND_BURST_SIZE              /* value: bytes in the burst, ns: configured size */
+} eglink_finding_kind_t;
+
+typedef struct eglink_finding {
+    struct eglink_finding *next;
+    gint64 ns;
+    guint32 frame;
+    guint32 value;
+    guint8 kind;
+} eglink_finding_t;
+
+typedef enum {
+    SERIAL_FIRST,               /* first packet of this sender */
+    SERIAL_OK,
+    SERIAL_LOST,                /* packets missing before this one */
+    SERIAL_REPEAT,              /* already seen (or older): ignored by the analysis */
+    SERIAL_RESTART              /* far behind the last one: the sender restarted */
+} eglink_serial_status_t;
+
+#define FF_INVALID      0x0001  /* CRC or size check failed: not analysed */
+#define FF_ORIGIN       0x0002  /* bu_origin is known */
+#define FF_DELTA        0x0004  /* delta_ns is set */
+#define FF_RETRANS      0x0008  /* VRCI/VRCO retransmission */
+#define FF_FIRST_ACK    0x0010  /* first VRAO/VRAI of its command */
+#define FF_PREV_STATE   0x0020  /* prev_bu_state is set (VRPI after a VRPI) */
+#define FF_BURST_LAST   0x0040  /* the last fragment of its burst */
+
+/* Per frame: a few dozen bytes. */
+typedef struct {
+    eglink_bu_t *bu;
+    eglink_cmd_t *cmd;          /* VRCI/VRCO: its command; VRAO/VRAI: the one it acknowledges */
+    eglink_finding_t *findings;
+    gint64 delta_ns;            /* VRPI/VRPO: since the previous one; VRAO/VRAI: ack time */
+    guint32 burst_id;           /* VRPO fragment: reassembly ID, 0 if not reassembled */
+    guint16 flags;
+    guint16 expected_serial;
+    guint16 bu_origin;
+    guint8 serial_status;
+    guint8 prev_bu_state;
+} eglink_frame_t;
+
+static wmem_map_t *eglink_bus;
+static guint32 eglink_bu_count;
+static guint32 eglink_burst_count;
+
+/* ---------------------------------------------------------------------- */
+
+static void
+eglink_analysis_init(void)
 {
+    eglink_bu_count = 0;
+    eglink_burst_count = 0;
 }
 
-void eglink_analysis_dissect(tvbuff_t *tvb _U_, packet_info *pinfo _U_, proto_tree *eglink_tree _U_,
-                             proto_item *eglink_item _U_, const eglink_info_t *info _U_)
+static gint64
+ns_between(const nstime_t *later, const nstime_t *earlier)
 {
+    nstime_t d;
+
+    nstime_delta(&d, later, earlier);
+    return (gint64)d.secs * 1000000000 + d.nsecs;
+}
+
+static nstime_t
+ns_to_nstime(gint64 ns)
+{
+    nstime_t t;
+
+    t.secs = (time_t)(ns / 1000000000);
+    t.nsecs = (int)(ns % 1000000000);
+    return t;
+}
+
+static gint64
+ms_to_ns(guint ms)
+{
+    return (gint64)ms * 1000000;
+}
+
+/* "0.812 s" */
+static const char *
+ns_str(wmem_allocator_t *scope, gint64 ns)
+{
+    return wmem_strdup_printf(scope, "%" G_GINT64_FORMAT ".%03d s",
+                              ns / 1000000000, (int)((ns % 1000000000) / 1000000));
+}
+
+static gboolean
+eglink_is_input(eglink_type_t type)
+{
+    return type == EGLINK_TYPE_VRPI || type == EGLINK_TYPE_VRCI || type == EGLINK_TYPE_VRAI;
+}
+
+static gboolean
+address_is_multicast(const address *addr)
+{
+    const guint8 *d = (const guint8 *)addr->data;
+
+    if (addr->type == AT_IPv4 && addr->len == 4)
+        return (d[0] & 0xF0) == 0xE0;
+    if (addr->type == AT_IPv6 && addr->len == 16)
+        return d[0] == 0xFF;
+    return FALSE;
+}
+
+static guint
+eglink_bu_hash(gconstpointer k)
+{
+    const eglink_bu_key_t *key = (const eglink_bu_key_t *)k;
+    guint h = key->port;
+
+    h = add_address_to_hash(h, &key->a);
+    return add_address_to_hash(h, &key->b);
+}
+
+static gboolean
+eglink_bu_equal(gconstpointer k1, gconstpointer k2)
+{
+    const eglink_bu_key_t *x = (const eglink_bu_key_t *)k1;
+    const eglink_bu_key_t *y = (const eglink_bu_key_t *)k2;
+
+    return x->port == y->port && addresses_equal(&x->a, &y->a) && addresses_equal(&x->b, &y->b);
+}
+
+static eglink_bu_t *
+eglink_bu_lookup(packet_info *pinfo, eglink_type_t type)
+{
+    eglink_bu_key_t key, *stored;
+    eglink_bu_t *bu;
+    guint32 port = pinfo->destport;
+
+    if (!eglink_is_input(type) && port >= 2)
+        port -= 2;
+    key.port = port;
+    if (address_is_multicast(&pinfo->dst)) {
+        key.a = pinfo->dst;
+        clear_address(&key.b);
+    } else if (cmp_address(&pinfo->src, &pinfo->dst) <= 0) {
+        key.a = pinfo->src;
+        key.b = pinfo->dst;
+    } else {
+        key.a = pinfo->dst;
+        key.b = pinfo->src;
+    }
+    bu = (eglink_bu_t *)wmem_map_lookup(eglink_bus, &key);
+    if (bu)
+        return bu;
+
+    stored = wmem_new(wmem_file_scope(), eglink_bu_key_t);
+    copy_address_wmem(wmem_file_scope(), &stored->a, &key.a);
+    copy_address_wmem(wmem_file_scope(), &stored->b, &key.b);
+    stored->port = key.port;
+    bu = wmem_new0(wmem_file_scope(), eglink_bu_t);
+    bu->index = eglink_bu_count++;
+    if (key.b.type == AT_NONE)
+        bu->name = wmem_strdup_printf(wmem_file_scope(), "BU %s port %u",
+                                      address_to_str(pinfo->pool, &key.a), key.port);
+    else
+        bu->name = wmem_strdup_printf(wmem_file_scope(), "BU %s <-> %s port %u",
+                                      address_to_str(pinfo->pool, &key.a),
+                                      address_to_str(pinfo->pool, &key.b), key.port);
+    wmem_map_insert(eglink_bus, stored, bu);
+    return bu;
+}
+
+static void
+add_finding(eglink_frame_t *fd, eglink_finding_kind_t kind, guint32 frame, guint32 value, gint64 ns)
+{
+    eglink_finding_t *f = wmem_new0(wmem_file_scope(), eglink_finding_t);
+    eglink_finding_t **tail = &fd->findings;
+
+    f->kind = (guint8)kind;
+    f->frame = frame;
+    f->value = value;
+    f->ns = ns;
+    while (*tail)
+        tail = &(*tail)->next;
+    *tail = f;
+}
+
+/* ---------------------------------------------------------------------- */
+/* First pass                                                              */
+
+static void
+track_serial(eglink_bu_t *bu, eglink_frame_t *fd, packet_info *pinfo, guint16 serial, int dir)
+{
+    guint16 expected, delta;
+
+    if (!bu->have_serial[dir]) {
+        fd->serial_status = SERIAL_FIRST;
+    } else {
+        expected = (guint16)(bu->last_serial[dir] + 1);
+        fd->expected_serial = expected;
+        delta = (guint16)(serial - bu->last_serial[dir]);
+        if (delta == 1) {
+            fd->serial_status = SERIAL_OK;
+        } else if (delta == 0) {
+            fd->serial_status = SERIAL_REPEAT;
+            add_finding(fd, FND_REPEAT, bu->last_serial_frame[dir], bu->last_serial[dir], 0);
+            return;
+        } else if (delta < 0x8000) {
+            fd->serial_status = SERIAL_LOST;
+        } else if ((guint16)(bu->last_serial[dir] - serial) <= EGLINK_SERIAL_REPEAT_WINDOW) {
+            fd->serial_status = SERIAL_REPEAT;
+            add_finding(fd, FND_REPEAT, 0, bu->last_serial[dir], 0);
+            return;
+        } else {
+            fd->serial_status = SERIAL_RESTART;
+            add_finding(fd, FND_RESTART, 0, bu->last_serial[dir], 0);
+        }
+    }
+    bu->have_serial[dir] = TRUE;
+    bu->last_serial[dir] = serial;
+    bu->last_serial_frame[dir] = pinfo->num;
+}
+
+/* Reports what a one-pass reader learns from the time of this packet alone:
+ * periodic packets that stopped, commands whose deadline passed. */
+static void
+check_deadlines(eglink_bu_t *bu, eglink_frame_t *fd, packet_info *pinfo, eglink_type_t type)
+{
+    const nstime_t *now = &pinfo->abs_ts;
+    int dir, i;
+
+    if (type != EGLINK_TYPE_VRPI && bu->last_vrpi_frame && !bu->vrpi_missing_reported &&
+        ns_between(now, &bu->last_vrpi_ts) > ms_to_ns(pref_vrpi_gap_ms)) {
+        bu->vrpi_missing_reported = TRUE;
+        add_finding(fd, FND_VRPI_MISSING, bu->last_vrpi_frame, 0, ns_between(now, &bu->last_vrpi_ts));
+    }
+    if (type != EGLINK_TYPE_VRPO && bu->last_vrpo_frame && !bu->vrpo_missing_reported &&
+        ns_between(now, &bu->last_vrpo_ts) > ms_to_ns(pref_vrpo_gap_ms)) {
+        bu->vrpo_missing_reported = TRUE;
+        add_finding(fd, FND_VRPO_MISSING, bu->last_vrpo_frame, 0, ns_between(now, &bu->last_vrpo_ts));
+    }
+    for (dir = 0; dir < 2; dir++) {
+        gint64 timeout = ms_to_ns(dir == EGLINK_DIR_IN ? pref_vrci_ack_timeout_ms : pref_vrco_ack_timeout_ms);
+        for (i = 0; i < EGLINK_CMD_SLOTS; i++) {
+            eglink_cmd_t *cmd = bu->cmds[dir][i];
+            gint64 age;
+
+            if (!cmd || cmd->ack_frame || cmd->failed)
+                continue;
+            age = ns_between(now, &cmd->first_ts);
+            if (age > timeout) {
+                cmd->failed = TRUE;
+                add_finding(fd, dir == EGLINK_DIR_IN ? FND_FAILED_VRCI : FND_FAILED_VRCO,
+                            cmd->first_frame, cmd->command_id, age);
+            }
+        }
+    }
+}
+
+/* The most recent command of this BU and direction with this ID. */
+static eglink_cmd_t *
+find_command(eglink_bu_t *bu, int dir, guint16 command_id)
+{
+    eglink_cmd_t *best = NULL;
+    int i;
+
+    for (i = 0; i < EGLINK_CMD_SLOTS; i++) {
+        eglink_cmd_t *cmd = bu->cmds[dir][i];
+        if (cmd && cmd->command_id == command_id &&
+            (!best || cmd->first_frame > best->first_frame))
+            best = cmd;
+    }
+    return best;
+}
+
+static void
+track_command(eglink_bu_t *bu, eglink_frame_t *fd, packet_info *pinfo, int dir, guint16 command_id)
+{
+    gint64 timeout = ms_to_ns(dir == EGLINK_DIR_IN ? pref_vrci_ack_timeout_ms : pref_vrco_ack_timeout_ms);
+    eglink_cmd_t *cmd = find_command(bu, dir, command_id);
+
+    /* Same Command ID, sent again while the sender may still be waiting for
+     * its acknowledgement: a retransmission. Much later it is a new command
+     * that reuses the ID (wrap-around, restarted sender). */
+    if (cmd && ns_between(&pinfo->abs_ts, &cmd->last_ts) <= timeout) {
+        fd->flags |= FF_RETRANS;
+        cmd->last_ts = pinfo->abs_ts;
+    } else {
+        cmd = wmem_new0(wmem_file_scope(), eglink_cmd_t);
+        cmd->first_ts = pinfo->abs_ts;
+        cmd->last_ts = pinfo->abs_ts;
+        cmd->first_frame = pinfo->num;
+        cmd->command_id = command_id;
+        cmd->dir = (guint8)dir;
+        bu->cmds[dir][bu->cmd_next[dir]] = cmd;
+        bu->cmd_next[dir] = (bu->cmd_next[dir] + 1) % EGLINK_CMD_SLOTS;
+    }
+    fd->cmd = cmd;
+}
+
+static void
+track_ack(eglink_bu_t *bu, eglink_frame_t *fd, packet_info *pinfo, int dir, guint16 command_id)
+{
+    gint64 timeout = ms_to_ns(dir == EGLINK_DIR_IN ? pref_vrci_ack_timeout_ms : pref_vrco_ack_timeout_ms);
+    eglink_cmd_t *cmd = find_command(bu, dir, command_id);
+
+    if (!cmd) {
+        add_finding(fd, FND_UNKNOWN_ACK, 0, command_id, 0);
+        return;
+    }
+    fd->cmd = cmd;
+    fd->delta_ns = ns_between(&pinfo->abs_ts, &cmd->first_ts);
+    fd->flags |= FF_DELTA;
+    if (!cmd->ack_frame) {
+        cmd->ack_frame = pinfo->num;
+        fd->flags |= FF_FIRST_ACK;
+        if (fd->delta_ns > timeout)
+            add_finding(fd, FND_LATE_ACK, cmd->first_frame, command_id, fd->delta_ns);
+    }
+}
+
+static gboolean
+burst_ends_here(const eglink_bu_t *bu, int data_len)
+{
+    if (data_len < EGLINK_VRPO_FRAGMENT_MAX)
+        return TRUE;
+    return pref_periodic_size != 0 && bu->burst_bytes >= pref_periodic_size;
+}
+
+static void
+burst_check_size(eglink_bu_t *bu, eglink_frame_t *fd)
+{
+    if (pref_periodic_size != 0 && bu->burst_bytes != pref_periodic_size)
+        add_finding(fd, FND_BURST_SIZE, 0, bu->burst_bytes, pref_periodic_size);
+}
+
+/* VRPO packet numbers count 0..N-1 within a burst; all but the last carry
+ * 488 bytes. A burst ends at a short packet, when it reaches the configured
+ * periodic data size, or when the next burst starts at packet 0. */
+static void
+track_burst(eglink_bu_t *bu, eglink_frame_t *fd, packet_info *pinfo, const eglink_info_t *info)
+{
+    int len = info->periodic_len;
+    guint16 pn = info->packet_number;
+
+    if (pn == 0 && bu->burst_open) {
+        /* The previous burst did not show its end. */
+        if (!bu->burst_broken && pref_periodic_size == 0) {
+            add_finding(fd, FND_BURST_DONE, bu->burst_first_frame, bu->burst_id, 0);
+        } else {
+            add_finding(fd, FND_BURST_INCOMPLETE, bu->burst_first_frame,
+                        bu->burst_broken ? bu->burst_missing : bu->burst_next, 0);
+        }
+        bu->burst_open = FALSE;
+    }
+
+    if (pn == 0) {
+        bu->burst_open = TRUE;
+        bu->burst_broken = FALSE;
+        bu->burst_first_frame = pinfo->num;
+        bu->burst_next = 1;
+        bu->burst_bytes = (guint32)len;
+        if (burst_ends_here(bu, len)) {
+            /* One packet: nothing to reassemble. */
+            burst_check_size(bu, fd);
+            bu->burst_open = FALSE;
+            return;
+        }
+        bu->burst_id = ++eglink_burst_count;
+        fd->burst_id = bu->burst_id;
+        return;
+    }
+
+    if (!bu->burst_open) {
+        /* Its packet 0 was not captured (or lost). */
+        bu->burst_open = TRUE;
+        bu->burst_broken = TRUE;
+        bu->burst_missing = 0;
+        bu->burst_id = 0;
+        bu->burst_first_frame = pinfo->num;
+        bu->burst_bytes = 0;
+    } else if (!bu->burst_broken && pn != bu->burst_next) {
+        bu->burst_broken = TRUE;
+        bu->burst_missing = bu->burst_next;
+    }
+    bu->burst_next = (guint16)(pn + 1);
+    bu->burst_bytes += (guint32)len;
+    if (!bu->burst_broken)
+        fd->burst_id = bu->burst_id;
+    if (burst_ends_here(bu, len)) {
+        if (bu->burst_broken) {
+            add_finding(fd, FND_BURST_INCOMPLETE, bu->burst_first_frame, bu->burst_missing, 0);
+        } else {
+            fd->flags |= FF_BURST_LAST;
+            burst_check_size(bu, fd);
+        }
+        bu->burst_open = FALSE;
+    }
+}
+
+static void
+track_periodic(eglink_bu_t *bu, eglink_frame_t *fd, packet_info *pinfo, const eglink_info_t *info)
+{
+    if (info->type == EGLINK_TYPE_VRPI) {
+        if (bu->last_vrpi_frame) {
+            fd->delta_ns = ns_between(&pinfo->abs_ts, &bu->last_vrpi_ts);
+            fd->flags |= FF_DELTA;
+            if (fd->delta_ns > ms_to_ns(pref_vrpi_gap_ms))
+                add_finding(fd, FND_VRPI_GAP, bu->last_vrpi_frame, 0, fd->delta_ns);
+        }
+        if (info->has_bu_state) {
+            if (bu->have_bu_state) {
+                fd->prev_bu_state = bu->bu_state;
+                fd->flags |= FF_PREV_STATE;
+                if (bu->bu_state != info->bu_state)
+                    add_finding(fd, FND_BU_STATE, 0, bu->bu_state, 0);
+            }
+            bu->have_bu_state = TRUE;
+            bu->bu_state = info->bu_state;
+        }
+        bu->last_vrpi_frame = pinfo->num;
+        bu->last_vrpi_ts = pinfo->abs_ts;
+        bu->vrpi_missing_reported = FALSE;
+    } else {
+        if (bu->last_vrpo_frame) {
+            fd->delta_ns = ns_between(&pinfo->abs_ts, &bu->last_vrpo_ts);
+            fd->flags |= FF_DELTA;
+            if (fd->delta_ns > ms_to_ns(pref_vrpo_gap_ms))
+                add_finding(fd, FND_VRPO_GAP, bu->last_vrpo_frame, 0, fd->delta_ns);
+        }
+        bu->last_vrpo_frame = pinfo->num;
+        bu->last_vrpo_ts = pinfo->abs_ts;
+        bu->vrpo_missing_reported = FALSE;
+        if (info->has_packet_number)
+            track_burst(bu, fd, pinfo, info);
+    }
+}
+
+static eglink_frame_t *
+analyse_packet(packet_info *pinfo, const eglink_info_t *info)
+{
+    eglink_bu_t *bu = eglink_bu_lookup(pinfo, info->type);
+    eglink_frame_t *fd = wmem_new0(wmem_file_scope(), eglink_frame_t);
+    gboolean input = eglink_is_input(info->type);
+    int dir = input ? EGLINK_DIR_IN : EGLINK_DIR_OUT;
+
+    fd->bu = bu;
+    /* Receivers silently drop illegal packets (TS-0006 5.1.5); so does the analysis. */
+    if (!info->crc_ok || !info->size_ok) {
+        fd->flags |= FF_INVALID;
+        return fd;
+    }
+
+    if (input) {
+        if (!bu->origin_known) {
+            bu->origin_known = TRUE;
+            bu->origin = info->origin;
+        } else if (bu->origin != info->origin) {
+            add_finding(fd, FND_ORIGIN, 0, bu->origin, 0);
+            bu->origin = info->origin;
+        }
+    }
+    if (bu->origin_known) {
+        fd->flags |= FF_ORIGIN;
+        fd->bu_origin = bu->origin;
+    }
+
+    track_serial(bu, fd, pinfo, info->serial, dir);
+    if (fd->serial_status == SERIAL_REPEAT)
+        return fd;
+
+    check_deadlines(bu, fd, pinfo, info->type);
+
+    switch (info->type) {
+    case EGLINK_TYPE_VRPI:
+    case EGLINK_TYPE_VRPO:
+        track_periodic(bu, fd, pinfo, info);
+        break;
+    case EGLINK_TYPE_VRCI:
+    case EGLINK_TYPE_VRCO:
+        if (info->has_command_id)
+            track_command(bu, fd, pinfo, dir, info->command_id);
+        break;
+    case EGLINK_TYPE_VRAO:      /* acknowledges a VRCI */
+    case EGLINK_TYPE_VRAI:      /* acknowledges a VRCO */
+        if (info->has_command_id)
+            track_ack(bu, fd, pinfo, input ? EGLINK_DIR_OUT : EGLINK_DIR_IN, info->command_id);
+        break;
+    default:
+        break;
+    }
+    return fd;
+}
+
+/* ---------------------------------------------------------------------- */
+/* Every pass: the tree, the expert info, the reassembly and the tap        */
+
+static proto_item *
+add_generated_uint(proto_tree *tree, int hf, tvbuff_t *tvb, guint32 value)
+{
+    proto_item *ti = proto_tree_add_uint(tree, hf, tvb, 0, 0, value);
+
+    proto_item_set_generated(ti);
+    return ti;
+}
+
+static proto_item *
+add_generated_time(proto_tree *tree, int hf, tvbuff_t *tvb, gint64 ns)
+{
+    nstime_t t = ns_to_nstime(ns);
+    proto_item *ti = proto_tree_add_time(tree, hf, tvb, 0, 0, &t);
+
+    proto_item_set_generated(ti);
+    return ti;
+}
+
+static void
+show_serial(proto_tree *at, tvbuff_t *tvb, packet_info *pinfo, const eglink_info_t *info,
+            const eglink_frame_t *fd)
+{
+    proto_item *ti;
+    guint lost;
+
+    if (fd->serial_status == SERIAL_FIRST)
+        return;
+    ti = add_generated_uint(at, hf_expected_serial, tvb, fd->expected_serial);
+    if (fd->serial_status == SERIAL_LOST) {
+        lost = (guint16)(info->serial - fd->expected_serial);
+        ti = add_generated_uint(at, hf_lost, tvb, lost);
+        expert_add_info_format(pinfo, ti, &ei_serial_gap,
+            "%u packet%s lost from this sender: serial %u expected, %u received",
+            lost, lost == 1 ? "" : "s", fd->expected_serial, info->serial);
+    }
+}
+
+static void
+show_command(proto_tree *at, tvbuff_t *tvb, packet_info *pinfo, const eglink_info_t *info,
+             const eglink_frame_t *fd)
+{
+    const eglink_cmd_t *cmd = fd->cmd;
+    proto_item *ti;
+    const char *what = cmd->dir == EGLINK_DIR_IN ? "VRCI" : "VRCO";
+    const char *ack = cmd->dir == EGLINK_DIR_IN ? "VRAO" : "VRAI";
+
+    if (info->type == EGLINK_TYPE_VRCI || info->type == EGLINK_TYPE_VRCO) {
+        if (fd->flags & FF_RETRANS) {
+            ti = add_generated_uint(at, hf_retransmission_of, tvb, cmd->first_frame);
+            expert_add_info_format(pinfo, ti, &ei_retransmission,
+                "Retransmission of %s command %u (first sent in frame %u)",
+                what, cmd->command_id, cmd->first_frame);
+            col_append_str(pinfo->cinfo, COL_INFO, " [Retransmission]");
+        }
+        /* Known on the first pass only when the acknowledgement came first. */
+        if (cmd->ack_frame) {
+            ti = add_generated_uint(at, hf_ack_in, tvb, cmd->ack_frame);
+            proto_item_append_text(ti, " (%s)", ack);
+        }
+    } else {
+        ti = add_generated_uint(at, hf_ack_to, tvb, cmd->first_frame);
+        proto_item_append_text(ti, " (%s command %u)", what, cmd->command_id);
+        if (fd->flags & FF_DELTA)
+            add_generated_time(at, hf_ack_time, tvb, fd->delta_ns);
+    }
+}
+
+static void
+show_findings(proto_tree *at, proto_item *aitem, tvbuff_t *tvb, packet_info *pinfo,
+              const eglink_info_t *info, const eglink_frame_t *fd)
+{
+    const eglink_finding_t *f;
+    proto_item *ti;
+
+    for (f = fd->findings; f; f = f->next) {
+        switch ((eglink_finding_kind_t)f->kind) {
+        case FND_REPEAT:
+            ti = aitem;
+            if (f->frame)
+                ti = add_generated_uint(at, hf_repeat_of, tvb, f->frame);
+            if (f->value == info->serial)
+                expert_add_info_format(pinfo, ti, &ei_serial_repeat,
+                    "Repeated packet: serial %u was already received%s; not analysed further",
+                    info->serial, f->frame ? wmem_strdup_printf(pinfo->pool, " in frame %u", f->frame) : "");
+            else
+                expert_add_info_format(pinfo, ti, &ei_serial_repeat,
+                    "Repeated or reordered packet: serial %u is older than the last one received (%u); "
+                    "not analysed further", info->serial, f->value);
+            col_append_str(pinfo->cinfo, COL_INFO, " [Repeated]");
+            break;
+        case FND_RESTART:
+            expert_add_info_format(pinfo, aitem, &ei_serial_restart,
+                "Serial jumped back from %u to %u: the sender restarted?", f->value, info->serial);
+            break;
+        case FND_ORIGIN:
+            expert_add_info_format(pinfo, aitem, &ei_origin_changed,
+                "Origin changed from %u to %u on the same group and port: another BU uses them, "
+                "or the BU was replaced", f->value, info->origin);
+            break;
+        case FND_BU_STATE:
+            expert_add_info_format(pinfo, aitem, &ei_bu_state_changed,
+                "BU state changed from %s (0x%02x) to %s (0x%02x)",
+                eglink_bu_state_name((guint8)f->value), f->value,
+                eglink_bu_state_name(info->bu_state), info->bu_state);
+            break;
+        case FND_VRPI_GAP:
+            expert_add_info_format(pinfo, aitem, &ei_vrpi_gap,
+                "No VRPI for %s since frame %u (more than %u ms): the machine controller "
+                "should have flagged an error", ns_str(pinfo->pool, f->ns), f->frame, pref_vrpi_gap_ms);
+            break;
+        case FND_VRPO_GAP:
+            expert_add_info_format(pinfo, aitem, &ei_vrpo_gap,
+                "No VRPO for %s since frame %u (more than %u ms): the BU flags an error and, "
+                "with an RU armed, opens the ES-Link relays", ns_str(pinfo->pool, f->ns), f->frame,
+                pref_vrpo_gap_ms);
+            break;
+        case FND_VRPI_MISSING:
+            expert_add_info_format(pinfo, aitem, &ei_vrpi_missing,
+                "No VRPI from this BU for %s (more than %u ms, last in frame %u)",
+                ns_str(pinfo->pool, f->ns), pref_vrpi_gap_ms, f->frame);
+            break;
+        case FND_VRPO_MISSING:
+            expert_add_info_format(pinfo, aitem, &ei_vrpo_missing,
+                "No VRPO to this BU for %s (more than %u ms, last in frame %u): the BU flags an "
+                "error and, with an RU armed, opens the ES-Link relays",
+                ns_str(pinfo->pool, f->ns), pref_vrpo_gap_ms, f->frame);
+            break;
+        case FND_FAILED_VRCI:
+            ti = add_generated_uint(at, hf_failed_command, tvb, f->frame);
+            expert_add_info_format(pinfo, ti, &ei_vrci_unacked,
+                "VRCI command %u (frame %u) not acknowledged by a VRAO within %u ms: the BU "
+                "reports to the RU application that the command failed",
+                f->value, f->frame, pref_vrci_ack_timeout_ms);
+            break;
+        case FND_FAILED_VRCO:
+            ti = add_generated_uint(at, hf_failed_command, tvb, f->frame);
+            expert_add_info_format(pinfo, ti, &ei_vrco_unacked,
+                "VRCO command %u (frame %u) not acknowledged by a VRAI within %u ms",
+                f->value, f->frame, pref_vrco_ack_timeout_ms);
+            break;
+        case FND_LATE_ACK:
+            expert_add_info_format(pinfo, aitem, &ei_late_ack,
+                "Acknowledges command %u %s after its first transmission (frame %u), later than %u ms",
+                f->value, ns_str(pinfo->pool, f->ns), f->frame,
+                info->type == EGLINK_TYPE_VRAO ? pref_vrci_ack_timeout_ms : pref_vrco_ack_timeout_ms);
+            break;
+        case FND_UNKNOWN_ACK:
+            expert_add_info_format(pinfo, aitem, &ei_unknown_ack,
+                "Acknowledges %s command %u, which is not in the capture",
+                info->type == EGLINK_TYPE_VRAO ? "VRCI" : "VRCO", f->value);
+            break;
+        case FND_BURST_INCOMPLETE:
+            ti = add_generated_uint(at, hf_incomplete_burst, tvb, f->frame);
+            expert_add_info_format(pinfo, ti, &ei_burst_incomplete,
+                "VRPO burst from frame %u is incomplete (packet %u missing): its periodic data "
+                "cannot be reassembled", f->frame, f->value);
+            break;
+        case FND_BURST_SIZE:
+            expert_add_info_format(pinfo, aitem, &ei_burst_size,
+                "VRPO burst carries %u bytes of periodic data; the periodic data size "
+                "preference says %u", f->value, (guint)f->ns);
+            break;
+        case FND_BURST_DONE:
+            break;              /* shown with the reassembly */
+        }
+    }
+}
+
+static void
+show_reassembled(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, const eglink_info_t *info,
+                 fragment_head *fh)
+{
+    tvbuff_t *next_tvb;
+    proto_item *ti;
+
+    next_tvb = process_reassembled_data(tvb, info->periodic_offset, pinfo,
+                                        "Reassembled VRPO periodic data", fh, &eglink_frag_items,
+                                        NULL, tree);
+    if (!next_tvb)
+        return;
+    col_append_fstr(pinfo->cinfo, COL_INFO, " [Reassembled %u bytes]", tvb_reported_length(next_tvb));
+    if (hf_eglink_periodic_data_id == -1)
+        hf_eglink_periodic_data_id = proto_registrar_get_id_byname("eglink.periodic_data");
+    if (hf_eglink_periodic_data_id != -1) {
+        ti = proto_tree_add_item(tree, hf_eglink_periodic_data_id, next_tvb, 0, -1, ENC_NA);
+        proto_item_append_text(ti, " (reassembled, %u bytes)", tvb_reported_length(next_tvb));
+    }
+}
+
+static void
+show_reassembly(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, const eglink_info_t *info,
+                const eglink_frame_t *fd)
+{
+    const eglink_finding_t *f;
+    fragment_head *fh;
+
+    if (!pref_reassemble || info->type != EGLINK_TYPE_VRPO)
+        return;
+    /* A packet 0 that shows where the previous (all full) burst ended. */
+    for (f = fd->findings; f; f = f->next) {
+        if (f->kind == FND_BURST_DONE) {
+            fh = fragment_end_seq_next(&eglink_reassembly_table, pinfo, f->value, NULL);
+            show_reassembled(tvb, pinfo, tree, info, fh);
+        }
+    }
+    if (fd->burst_id && tvb_bytes_exist(tvb, info->periodic_offset, info->periodic_len)) {
+        fh = fragment_add_seq_check(&eglink_reassembly_table, tvb, info->periodic_offset, pinfo,
+                                    fd->burst_id, NULL, info->packet_number,
+                                    (guint32)info->periodic_len, !(fd->flags & FF_BURST_LAST));
+        show_reassembled(tvb, pinfo, tree, info, fh);
+    }
+}
+
+static void
+queue_tap(packet_info *pinfo, const eglink_info_t *info, const eglink_frame_t *fd)
+{
+    eglink_tap_info_t *t = wmem_new0(pinfo->pool, eglink_tap_info_t);
+    const eglink_finding_t *f;
+
+    t->bu_name = fd->bu->name;
+    t->type = info->type;
+    t->invalid = (fd->flags & FF_INVALID) != 0;
+    t->repeated = fd->serial_status == SERIAL_REPEAT;
+    if (fd->serial_status == SERIAL_LOST)
+        t->lost = (guint16)(info->serial - fd->expected_serial);
+    if ((fd->flags & FF_DELTA) && (info->type == EGLINK_TYPE_VRPI || info->type == EGLINK_TYPE_VRPO)) {
+        t->has_interval = TRUE;
+        t->interval_ns = fd->delta_ns;
+    }
+    if (fd->cmd && (info->type == EGLINK_TYPE_VRCI || info->type == EGLINK_TYPE_VRCO)) {
+        t->retransmission = (fd->flags & FF_RETRANS) != 0;
+        t->new_command = !t->retransmission;
+    }
+    if (fd->flags & FF_FIRST_ACK) {
+        t->first_ack = TRUE;
+        t->ack_ns = fd->delta_ns;
+    }
+    if ((fd->flags & FF_PREV_STATE) && (fd->flags & FF_DELTA)) {
+        t->has_state_time = TRUE;
+        t->prev_state = fd->prev_bu_state;
+        t->state_ns = fd->delta_ns;
+    }
+    if (fd->flags & FF_BURST_LAST)
+        t->burst_complete = TRUE;
+    for (f = fd->findings; f; f = f->next) {
+        if (f->kind == FND_FAILED_VRCI)
+            t->failed[EGLINK_DIR_IN]++;
+        else if (f->kind == FND_FAILED_VRCO)
+            t->failed[EGLINK_DIR_OUT]++;
+        else if (f->kind == FND_BURST_DONE)
+            t->burst_complete = TRUE;
+        else if (f->kind == FND_BURST_INCOMPLETE)
+            t->burst_incomplete = TRUE;
+    }
+    tap_queue_packet(eglink_tap, pinfo, t);
+}
+
+void
+eglink_analysis_dissect(tvbuff_t *tvb, packet_info *pinfo, proto_tree *eglink_tree,
+                        proto_item *eglink_item _U_, const eglink_info_t *info)
+{
+    guint32 key = EGLINK_ANALYSIS_KEY_BASE + pinfo->curr_layer_num;
+    eglink_frame_t *fd;
+    proto_item *aitem;
+    proto_tree *at;
+
+    /* Unknown types are not part of the packet flow; a copy quoted in an
+     * ICMP error is not a packet of the conversation. */
+    if (info->type == EGLINK_TYPE_UNKNOWN || pinfo->flags.in_error_pkt)
+        return;
+
+    fd = (eglink_frame_t *)p_get_proto_data(wmem_file_scope(), pinfo, proto_eglink, key);
+    if (!fd) {
+        if (PINFO_FD_VISITED(pinfo))
+            return;
+        fd = analyse_packet(pinfo, info);
+        p_add_proto_data(wmem_file_scope(), pinfo, proto_eglink, key, fd);
+    }
+
+    aitem = proto_tree_add_item(eglink_tree, hf_analysis, tvb, 0, 0, ENC_NA);
+    proto_item_set_generated(aitem);
+    at = proto_item_add_subtree(aitem, ett_analysis);
+    proto_item_append_text(aitem, ": %s", fd->bu->name);
+    add_generated_uint(at, hf_bu_stream, tvb, fd->bu->index);
+    if (fd->flags & FF_ORIGIN)
+        add_generated_uint(at, hf_bu_origin, tvb, fd->bu_origin);
+
+    if (fd->flags & FF_INVALID) {
+        proto_item_append_text(aitem, " (not analysed: CRC or size check failed)");
+    } else {
+        show_serial(at, tvb, pinfo, info, fd);
+        if ((fd->flags & FF_DELTA) && info->type == EGLINK_TYPE_VRPI)
+            add_generated_time(at, hf_time_since_prev_vrpi, tvb, fd->delta_ns);
+        if ((fd->flags & FF_DELTA) && info->type == EGLINK_TYPE_VRPO)
+            add_generated_time(at, hf_time_since_prev_vrpo, tvb, fd->delta_ns);
+        if (fd->cmd)
+            show_command(at, tvb, pinfo, info, fd);
+        show_findings(at, aitem, tvb, pinfo, info, fd);
+        show_reassembly(tvb, pinfo, eglink_tree, info, fd);
+    }
+    queue_tap(pinfo, info, fd);
+}
+
+/* ---------------------------------------------------------------------- */
+
+void
+eglink_analysis_register(int proto, module_t *prefs)
+{
+    static hf_register_info hf[] = {
+        { &hf_analysis,
+          { "Analysis", "eglink.analysis", FT_NONE, BASE_NONE, NULL, 0x0,
+            "Conversation analysis of this packet within its BU", HFILL } },
+        { &hf_bu_stream,
+          { "BU stream index", "eglink.analysis.bu_stream", FT_UINT32, BASE_DEC, NULL, 0x0,
+            "Number of the BU (multicast group or address pair, and input port) this packet "
+            "belongs to, from 0 in order of appearance", HFILL } },
+        { &hf_bu_origin,
+          { "BU origin", "eglink.analysis.bu_origin", FT_UINT16, BASE_DEC, NULL, 0x0,
+            "Unique ID of the BU this packet belongs to, learned from its VRPI/VRCI/VRAI "
+            "(also on the machine controller's packets, which carry origin 0)", HFILL } },
+        { &hf_expected_serial,
+          { "Expected serial", "eglink.analysis.expected_serial", FT_UINT16, BASE_DEC, NULL, 0x0,
+            "Serial that follows the previous packet of the same sender", HFILL } },
+        { &hf_lost,
+          { "Lost packets", "eglink.analysis.lost", FT_UINT16, BASE_DEC, NULL, 0x0,
+            "Packets of this sender missing just before this one (serial gap)", HFILL } },
+        { &hf_repeat_of,
+          { "Repeat of frame", "eglink.analysis.repeat_of", FT_FRAMENUM, BASE_NONE,
+            FRAMENUM_TYPE(FT_FRAMENUM_DUP_ACK), 0x0,
+            "Earlier frame with the same sender and serial", HFILL } },
+        { &hf_time_since_prev_vrpi,
+          { "Time since previous VRPI", "eglink.analysis.time_since_prev_vrpi", FT_RELATIVE_TIME,
+            BASE_NONE, NULL, 0x0, "Time since the previous VRPI of this BU", HFILL } },
+        { &hf_time_since_prev_vrpo,
+          { "Time since previous VRPO", "eglink.analysis.time_since_prev_vrpo", FT_RELATIVE_TIME,
+            BASE_NONE, NULL, 0x0, "Time since the previous VRPO to this BU", HFILL } },
+        { &hf_retransmission_of,
+          { "Retransmission of frame", "eglink.analysis.retransmission_of", FT_FRAMENUM, BASE_NONE,
+            FRAMENUM_TYPE(FT_FRAMENUM_RETRANS_PREV), 0x0,
+            "First transmission of this command (same Command ID)", HFILL } },
+        { &hf_ack_in,
+          { "Acknowledged in frame", "eglink.analysis.ack_in", FT_FRAMENUM, BASE_NONE,
+            FRAMENUM_TYPE(FT_FRAMENUM_RESPONSE), 0x0,
+            "First VRAO (for a VRCI) or VRAI (for a VRCO) acknowledging this command", HFILL } },
+        { &hf_ack_to,
+          { "Acknowledges frame", "eglink.analysis.ack_to", FT_FRAMENUM, BASE_NONE,
+            FRAMENUM_TYPE(FT_FRAMENUM_ACK), 0x0,
+            "First transmission of the command this packet acknowledges", HFILL } },
+        { &hf_ack_time,
+          { "Acknowledgement time", "eglink.analysis.ack_time", FT_RELATIVE_TIME, BASE_NONE,
+            NULL, 0x0, "Time from the first transmission of the command to this acknowledgement",
+            HFILL } },
+        { &hf_failed_command,
+          { "Unacknowledged command", "eglink.analysis.failed_command", FT_FRAMENUM, BASE_NONE,
+            FRAMENUM_TYPE(FT_FRAMENUM_NONE), 0x0,
+            "Command whose acknowledgement deadline passed before this packet", HFILL } },
+        { &hf_incomplete_burst,
+          { "Incomplete VRPO burst", "eglink.analysis.incomplete_burst", FT_FRAMENUM, BASE_NONE,
+            FRAMENUM_TYPE(FT_FRAMENUM_NONE), 0x0,
+            "First packet of a split VRPO burst that cannot be reassembled", HFILL } },
+
+        { &hf_fragments,
+          { "VRPO fragments", "eglink.fragments", FT_NONE, BASE_NONE, NULL, 0x0,
+            "The VRPO packets of a split periodic output", HFILL } },
+        { &hf_fragment,
+          { "VRPO fragment", "eglink.fragment", FT_FRAMENUM, BASE_NONE, NULL, 0x0,
+            "A VRPO packet of the burst", HFILL } },
+        { &hf_fragment_overlap,
+          { "Fragment overlap", "eglink.fragment.overlap", FT_BOOLEAN, BASE_NONE, NULL, 0x0,
+            "Fragment overlaps with other fragments", HFILL } },
+        { &hf_fragment_overlap_conflicts,
+          { "Conflicting data in fragment overlap", "eglink.fragment.overlap.conflicts",
+            FT_BOOLEAN, BASE_NONE, NULL, 0x0, "Overlapping fragments contain conflicting data",
+            HFILL } },
+        { &hf_fragment_multiple_tails,
+          { "Multiple tail fragments found", "eglink.fragment.multiple_tails", FT_BOOLEAN,
+            BASE_NONE, NULL, 0x0, "Several tails were found when reassembling", HFILL } },
+        { &hf_fragment_too_long_fragment,
+          { "Fragment too long", "eglink.fragment.too_long_fragment", FT_BOOLEAN, BASE_NONE,
+            NULL, 0x0, "Fragment contained data past the end of the burst", HFILL } },
+        { &hf_fragment_error,
+          { "Reassembly error", "eglink.fragment.error", FT_FRAMENUM, BASE_NONE, NULL, 0x0,
+            "Reassembly error due to illegal fragments", HFILL } },
+        { &hf_fragment_count,
+          { "Fragment count", "eglink.fragment.count", FT_UINT32, BASE_DEC, NULL, 0x0,
+            "Number of VRPO packets in the burst", HFILL } },
+        { &hf_reassembled_in,
+          { "Reassembled in", "eglink.reassembled_in", FT_FRAMENUM, BASE_NONE, NULL, 0x0,
+            "Frame in which the burst's periodic data is reassembled", HFILL } },
+        { &hf_reassembled_length,
+          { "Reassembled periodic data length", "eglink.reassembled.length", FT_UINT32, BASE_DEC,
+            NULL, 0x0, "Total periodic data of the burst, in bytes", HFILL } },
+    };
+
+    static gint *ett[] = {
+        &ett_analysis,
+        &ett_fragment,
+        &ett_fragments,
+    };
+
+    static ei_register_info ei[] = {
+        { &ei_serial_gap,
+          { "eglink.analysis.serial_gap", PI_SEQUENCE, PI_WARN,
+            "Packets lost: serial gap", EXPFILL } },
+        { &ei_serial_repeat,
+          { "eglink.analysis.serial_repeat", PI_SEQUENCE, PI_WARN,
+            "Repeated packet: serial already received", EXPFILL } },
+        { &ei_serial_restart,
+          { "eglink.analysis.serial_restart", PI_SEQUENCE, PI_NOTE,
+            "Serial jumped back: the sender restarted", EXPFILL } },
+        { &ei_vrpi_gap,
+          { "eglink.analysis.vrpi_gap", PI_SEQUENCE, PI_WARN,
+            "VRPI gap longer than the threshold", EXPFILL } },
+        { &ei_vrpo_gap,
+          { "eglink.analysis.vrpo_gap", PI_SEQUENCE, PI_WARN,
+            "VRPO gap longer than the threshold", EXPFILL } },
+        { &ei_vrpi_missing,
+          { "eglink.analysis.vrpi_missing", PI_SEQUENCE, PI_WARN,
+            "No VRPI from the BU for longer than the threshold", EXPFILL } },
+        { &ei_vrpo_missing,
+          { "eglink.analysis.vrpo_missing", PI_SEQUENCE, PI_WARN,
+            "No VRPO to the BU for longer than the threshold", EXPFILL } },
+        { &ei_retransmission,
+          { "eglink.analysis.retransmission", PI_SEQUENCE, PI_NOTE,
+            "Command retransmission (same Command ID)", EXPFILL } },
+        { &ei_vrci_unacked,
+          { "eglink.analysis.vrci_unacked", PI_SEQUENCE, PI_WARN,
+            "VRCI not acknowledged in time: the command failed", EXPFILL } },
+        { &ei_vrco_unacked,
+          { "eglink.analysis.vrco_unacked", PI_SEQUENCE, PI_WARN,
+            "VRCO not acknowledged in time", EXPFILL } },
+        { &ei_late_ack,
+          { "eglink.analysis.late_ack", PI_SEQUENCE, PI_WARN,
+            "Acknowledgement after the deadline", EXPFILL } },
+        { &ei_unknown_ack,
+          { "eglink.analysis.unknown_ack", PI_SEQUENCE, PI_NOTE,
+            "Acknowledges a command that is not in the capture", EXPFILL } },
+        { &ei_bu_state_changed,
+          { "eglink.analysis.bu_state_changed", PI_SEQUENCE, PI_NOTE,
+            "BU state changed", EXPFILL } },
+        { &ei_origin_changed,
+          { "eglink.analysis.origin_changed", PI_SEQUENCE, PI_WARN,
+            "Another origin on the same BU group and port", EXPFILL } },
+        { &ei_burst_incomplete,
+          { "eglink.analysis.burst_incomplete", PI_REASSEMBLE, PI_WARN,
+            "Split VRPO burst incomplete", EXPFILL } },
+        { &ei_burst_size,
+          { "eglink.analysis.burst_size", PI_REASSEMBLE, PI_WARN,
+            "VRPO burst size differs from the periodic data size preference", EXPFILL } },
+    };
+    expert_module_t *expert;
+
+    proto_eglink = proto;
+    proto_register_field_array(proto, hf, array_length(hf));
+    proto_register_subtree_array(ett, array_length(ett));
+    expert = expert_register_protocol(proto);
+    expert_register_field_array(expert, ei, array_length(ei));
+
+    prefs_register_uint_preference(prefs, "vrpi_gap_ms", "VRPI gap threshold (ms)",
+        "A VRPI later than this after the previous one of its BU is flagged; the machine "
+        "controller should flag an error after e.g. 500 ms (the BU sends every 125 ms)",
+        10, &pref_vrpi_gap_ms);
+    prefs_register_uint_preference(prefs, "vrpo_gap_ms", "VRPO gap threshold (ms)",
+        "A VRPO later than this after the previous one to its BU is flagged; the BU flags an "
+        "error after 2000 ms and, with an RU armed, opens the ES-Link relays",
+        10, &pref_vrpo_gap_ms);
+    prefs_register_uint_preference(prefs, "vrci_ack_timeout_ms", "VRCI acknowledgement timeout (ms)",
+        "A VRCI not acknowledged by a VRAO within this time failed (the BU gives up after 2000 ms)",
+        10, &pref_vrci_ack_timeout_ms);
+    prefs_register_uint_preference(prefs, "vrco_ack_timeout_ms", "VRCO acknowledgement timeout (ms)",
+        "A VRCO not acknowledged by a VRAI within this time is flagged",
+        10, &pref_vrco_ack_timeout_ms);
+    prefs_register_uint_preference(prefs, "periodic_size", "Periodic data size (bytes, 0 = unknown)",
+        "Configured size of the VRPO periodic data; a split burst ends when it reaches this size. "
+        "0: a burst ends with a packet shorter than 488 bytes or when the next burst starts",
+        10, &pref_periodic_size);
+    prefs_register_bool_preference(prefs, "reassemble_vrpo", "Reassemble split VRPO bursts",
+        "Reassemble the periodic data of VRPO bursts split into several packets",
+        &pref_reassemble);
+
+    eglink_bus = wmem_map_new_autoreset(wmem_epan_scope(), wmem_file_scope(),
+                                        eglink_bu_hash, eglink_bu_equal);
+    register_init_routine(eglink_analysis_init);
+    reassembly_table_register(&eglink_reassembly_table, &addresses_ports_reassembly_table_functions);
+    eglink_tap = register_tap("eglink");
+    eglink_stats_register();
 }
