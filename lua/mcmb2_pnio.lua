@@ -1,0 +1,814 @@
+--[[ mcmb2_pnio.lua -- MC-MB2-PN (SP-14-023) and EC-Link (TS-0007) images in
+PROFINET IO cyclic data (protocols "mcmb2" and "eclink_pnio").
+
+Transport: PROFINET RT, EtherType 0x8892 (optionally 802.1Q tagged):
+
+  FrameID (2) | C-SDU (40..1440) | CycleCounter (2) | DataStatus (1) | TransferStatus (1)
+
+Wireshark's own pn_rt/pn_io dissectors decode the frame as always; this
+plugin runs after them (a postdissector: it adds nothing to frames that are
+not ours and leaves Wireshark's tree, columns and protocol list of every
+other frame untouched) and decodes the C-SDU of the FrameIDs it knows.
+
+Inside the C-SDU every submodule's data is followed by its IOPS byte; the
+IOCS bytes of the other direction's submodules sit at offsets of their own.
+They are shown and stripped: the data of one terminal is the concatenation of
+its modules' data. Layouts come from, best first:
+  1. the Connect request/response in the capture (pn_io: IOCR blocks give
+     FrameIDs and frame offsets, ExpectedSubmodule blocks the lengths);
+  2. the preference table (mcmb2.layouts, format in README and
+     vrshark/pnio_layout.lua);
+  3. a polled uplink header, which describes itself (Y, Z, slot status);
+     the downlink from the controller to the same device is laid out with it.
+
+MC-MB2-PN uplink (device -> controller), duplex/simplex:
+  0 status (bits 0-3 status 0,1,2,7,0xA; bits 4-7 terminal) | 1 watchdog | 2.. data
+MC-MB2-PN downlink, duplex/simplex:
+  0 base unit number | 1 watchdog | 2.. data (none on simplex)
+Polled uplink:
+  0 status (0xA or 0xF, bits 4-7 zero) | 1 watchdog | 2 Y | 3 Z |
+  4..7 slot status (bits 0-3 0,1,2,7,0xF; bits 4-7 terminal) | Y bytes per used slot
+Polled downlink:
+  0 reserved (0) | 1 watchdog | Z bytes per used slot
+EC-Link: slot 1 input image (64), slot 2 output image (20 or 224), decoded by
+vrshark/eclink_image.lua; the handshake counters are supervised here.
+
+All analysis runs on the first pass in frame order and is stored per frame,
+so tshark -2 and clicking around show the same as one pass.
+]]
+
+local dir = debug.getinfo(1, "S").source:match("^@(.*)[/\\]")
+package.path = dir .. "/?.lua;" .. package.path
+local layout = require("vrshark.pnio_layout")
+local handshake = require("vrshark.handshake")
+local image = require("vrshark.eclink_image")
+image.proto()
+
+------------------------------------------------------------------------
+-- Protocols
+------------------------------------------------------------------------
+local mcmb2 = Proto("mcmb2", "MC-MB2-PN radio base unit (PROFINET IO)")
+local eclp = Proto("eclink_pnio", "EC-Link over PROFINET IO")
+-- The carrier: learns layouts from the Connect and finds our cyclic frames.
+local carrier = Proto("vrshark_pnio", "vrshark PROFINET IO cyclic data")
+
+------------------------------------------------------------------------
+-- Value tables
+------------------------------------------------------------------------
+local STATUS = {
+    [0x0] = "Terminal absent",
+    [0x1] = "Terminal present",
+    [0x2] = "Terminal blocked (waiting for start key)",
+    [0x7] = "Active stop",
+    [0xA] = "Fieldbus update failure (E010)",
+    [0xF] = "Polled system normal mode",
+}
+local SLOT_STATUS = {
+    [0x0] = "Terminal absent",
+    [0x1] = "Terminal present",
+    [0x2] = "Terminal blocked (waiting for start key)",
+    [0x7] = "Active stop",
+    [0xF] = "Slot not used",
+}
+local DUPLEX_OK = { [0x0] = true, [0x1] = true, [0x2] = true, [0x7] = true, [0xA] = true }
+local POLLED_OK = { [0xA] = true, [0xF] = true }
+local SLOT_OK = { [0x0] = true, [0x1] = true, [0x2] = true, [0x7] = true, [0xF] = true }
+local IOXS = {
+    [0x80] = "Good",
+    [0x00] = "Bad (by subslot)",
+    [0x20] = "Bad (by slot)",
+    [0x40] = "Bad (by IO device)",
+    [0x60] = "Bad (by IO controller)",
+}
+
+------------------------------------------------------------------------
+-- Fields
+------------------------------------------------------------------------
+local pf = {
+    system = ProtoField.string("mcmb2.system", "System"),
+    direction = ProtoField.string("mcmb2.direction", "Direction"),
+    layout = ProtoField.string("mcmb2.layout", "Layout from"),
+    status = ProtoField.uint8("mcmb2.status", "MC-MB2-PN status", base.HEX, STATUS, 0x0F),
+    terminal = ProtoField.uint8("mcmb2.terminal", "Terminal number", base.DEC, nil, 0xF0),
+    uplink_watchdog = ProtoField.uint8("mcmb2.uplink_watchdog", "Uplink watchdog counter", base.DEC),
+    uplink_data = ProtoField.bytes("mcmb2.uplink_data", "Uplink data from terminal"),
+    uplink_size = ProtoField.uint8("mcmb2.uplink_size", "Uplink data area size (Y)", base.DEC),
+    downlink_size = ProtoField.uint8("mcmb2.downlink_size", "Downlink data area size (Z)", base.DEC),
+    slot = ProtoField.uint8("mcmb2.slot", "Data slot", base.DEC),
+    slot_status = ProtoField.uint8("mcmb2.slot.status", "Terminal status", base.HEX, SLOT_STATUS, 0x0F),
+    slot_terminal = ProtoField.uint8("mcmb2.slot.terminal", "Terminal number", base.DEC, nil, 0xF0),
+    slot_uplink_data = ProtoField.bytes("mcmb2.slot.uplink_data", "Uplink data"),
+    base_unit = ProtoField.uint8("mcmb2.base_unit", "Base unit number", base.DEC),
+    reserved = ProtoField.uint8("mcmb2.reserved", "Reserved", base.HEX),
+    downlink_watchdog = ProtoField.uint8("mcmb2.downlink_watchdog", "Downlink watchdog counter", base.DEC),
+    downlink_data = ProtoField.bytes("mcmb2.downlink_data", "Downlink data to terminal"),
+    slot_downlink_data = ProtoField.bytes("mcmb2.slot.downlink_data", "Downlink data"),
+    iops = ProtoField.uint8("mcmb2.iops", "IOPS", base.HEX, IOXS),
+    iocs = ProtoField.uint8("mcmb2.iocs", "IOCS", base.HEX, IOXS),
+    watchdog_age = ProtoField.relative_time("mcmb2.watchdog_age", "Watchdog unchanged for"),
+    frame_id = ProtoField.uint16("mcmb2.frame_id", "FrameID", base.HEX),
+}
+mcmb2.fields = pf
+
+local ef = {
+    status_undefined = ProtoExpert.new("mcmb2.status.undefined",
+        "Undefined MC-MB2-PN status: bring the system to a safe state", expert.group.PROTOCOL,
+        expert.severity.ERROR),
+    slot_status_undefined = ProtoExpert.new("mcmb2.slot.status.undefined",
+        "Undefined terminal status: bring the system to a safe state", expert.group.PROTOCOL,
+        expert.severity.ERROR),
+    terminal_not_zero = ProtoExpert.new("mcmb2.terminal.not_zero",
+        "Terminal number bits of a polled status byte are not 0", expert.group.PROTOCOL, expert.severity.WARN),
+    not_valid = ProtoExpert.new("mcmb2.no_valid_data",
+        "No valid terminal data: the IO controller must keep the system in a safe state",
+        expert.group.PROTOCOL, expert.severity.WARN),
+    data_not_zero = ProtoExpert.new("mcmb2.data_not_zero",
+        "Status is not 'present' but the uplink data is not all 0", expert.group.PROTOCOL, expert.severity.WARN),
+    uplink_stalled = ProtoExpert.new("mcmb2.uplink_watchdog.stalled",
+        "Uplink watchdog unchanged for over 1 s: bring the system to a safe state", expert.group.SEQUENCE,
+        expert.severity.ERROR),
+    downlink_stalled = ProtoExpert.new("mcmb2.downlink_watchdog.stalled",
+        "Downlink watchdog unchanged for over 2000 ms: the base shows E010", expert.group.SEQUENCE,
+        expert.severity.ERROR),
+    terminal_changed = ProtoExpert.new("mcmb2.slot.terminal_changed",
+        "Slot changed terminal (dynamic polling)", expert.group.SEQUENCE, expert.severity.NOTE),
+    layout_mismatch = ProtoExpert.new("mcmb2.layout_mismatch",
+        "Polled layout (Y/Z/slots) differs from the configured layout: bring the system to a safe state",
+        expert.group.PROTOCOL, expert.severity.ERROR),
+    iops_bad = ProtoExpert.new("mcmb2.iops.bad", "IOPS is not GOOD (0x80)", expert.group.PROTOCOL,
+        expert.severity.WARN),
+    iocs_bad = ProtoExpert.new("mcmb2.iocs.bad", "IOCS is not GOOD (0x80)", expert.group.PROTOCOL,
+        expert.severity.WARN),
+    reserved_not_zero = ProtoExpert.new("mcmb2.reserved.not_zero", "Reserved byte is not 0",
+        expert.group.PROTOCOL, expert.severity.WARN),
+    short = ProtoExpert.new("mcmb2.short", "C-SDU shorter than the layout", expert.group.MALFORMED,
+        expert.severity.ERROR),
+    learned = ProtoExpert.new("mcmb2.layout.learned", "Cyclic data layout learned from this Connect",
+        expert.group.SEQUENCE, expert.severity.CHAT),
+}
+mcmb2.experts = { ef.status_undefined, ef.slot_status_undefined, ef.terminal_not_zero, ef.not_valid,
+                  ef.data_not_zero, ef.uplink_stalled, ef.downlink_stalled, ef.terminal_changed,
+                  ef.layout_mismatch, ef.iops_bad, ef.iocs_bad, ef.reserved_not_zero, ef.short, ef.learned }
+
+local epf = {
+    pci_age = ProtoField.relative_time("eclink_pnio.pci_age", "Time since PCI changed"),
+    pco_age = ProtoField.relative_time("eclink_pnio.pco_age", "Time since PCO changed"),
+    layout = ProtoField.string("eclink_pnio.layout", "Layout from"),
+    iops = ProtoField.uint8("eclink_pnio.iops", "IOPS", base.HEX, IOXS),
+    iocs = ProtoField.uint8("eclink_pnio.iocs", "IOCS", base.HEX, IOXS),
+}
+eclp.fields = epf
+local eef = {
+    pci_stalled = ProtoExpert.new("eclink_pnio.pci_stalled", "PCI stalled over 500 ms", expert.group.SEQUENCE,
+        expert.severity.ERROR),
+    pco_stalled = ProtoExpert.new("eclink_pnio.pco_stalled", "PCO stalled over 2000 ms", expert.group.SEQUENCE,
+        expert.severity.ERROR),
+    cmd_from_ru = ProtoExpert.new("eclink_pnio.cmd_from_ru", "New command from RU (CCI)",
+        expert.group.SEQUENCE, expert.severity.CHAT),
+    cmd_from_ru_ack = ProtoExpert.new("eclink_pnio.cmd_from_ru.ack", "Command from RU acknowledged by CAO",
+        expert.group.SEQUENCE, expert.severity.CHAT),
+    cmd_from_ru_late = ProtoExpert.new("eclink_pnio.cmd_from_ru.late",
+        "Command from RU not acknowledged by CAO within 2000 ms", expert.group.SEQUENCE, expert.severity.ERROR),
+    cmd_to_ru = ProtoExpert.new("eclink_pnio.cmd_to_ru", "New command to RU (CCO)", expert.group.SEQUENCE,
+        expert.severity.CHAT),
+    cmd_to_ru_ack = ProtoExpert.new("eclink_pnio.cmd_to_ru.ack", "Command to RU acknowledged by CAI",
+        expert.group.SEQUENCE, expert.severity.CHAT),
+    cmd_to_ru_late = ProtoExpert.new("eclink_pnio.cmd_to_ru.late",
+        "Command to RU not acknowledged by CAI within 2000 ms", expert.group.SEQUENCE, expert.severity.WARN),
+    bu_state_change = ProtoExpert.new("eclink_pnio.bu_state_change", "BU state changed", expert.group.SEQUENCE,
+        expert.severity.NOTE),
+    iops_bad = ProtoExpert.new("eclink_pnio.iops.bad", "IOPS is not GOOD (0x80)", expert.group.PROTOCOL,
+        expert.severity.WARN),
+    short = ProtoExpert.new("eclink_pnio.short", "C-SDU shorter than the layout", expert.group.MALFORMED,
+        expert.severity.ERROR),
+    learned = ProtoExpert.new("eclink_pnio.layout.learned", "Cyclic data layout learned from this Connect",
+        expert.group.SEQUENCE, expert.severity.CHAT),
+}
+eclp.experts = { eef.pci_stalled, eef.pco_stalled, eef.cmd_from_ru, eef.cmd_from_ru_ack, eef.cmd_from_ru_late,
+                 eef.cmd_to_ru, eef.cmd_to_ru_ack, eef.cmd_to_ru_late, eef.bu_state_change, eef.iops_bad,
+                 eef.short, eef.learned }
+
+------------------------------------------------------------------------
+-- Preferences
+------------------------------------------------------------------------
+mcmb2.prefs.layouts = Pref.string("Layout table", "",
+    "FrameID layouts used when the capture has no Connect, separated by ';'. "
+    .. "IN[/OUT]=SYSTEM[:UP[/DOWN]][@DAP], e.g. 0x8001/0x8002=duplex:26/10,a20 ; "
+    .. "0x8003/0x8004=polled:4x24/4x10 ; 0x8005/0x8006=eclink:/224 (see README)")
+mcmb2.prefs.connect = Pref.bool("Learn layouts from the Connect", true,
+    "Recognise MC-MB2-PN and EC-Link devices by the modules of a Connect request in the capture")
+mcmb2.prefs.heuristic = Pref.bool("Recognise polled uplink headers", true,
+    "Decode unknown cyclic frames that start (after the DAP IOPS) with a consistent polled MC-MB2-PN header")
+mcmb2.prefs.uplink_timeout = Pref.uint("Uplink watchdog timeout (ms)", 1000,
+    "Flag an uplink watchdog that keeps its value longer than this")
+mcmb2.prefs.downlink_timeout = Pref.uint("Downlink watchdog timeout (ms)", 2000,
+    "Flag a downlink watchdog that keeps its value longer than this (the base shows E010)")
+
+local LIMITS = { pci = 0.5, pco = 2.0, cmd = 2.0 }
+local HEUR_TRIES = 64
+
+------------------------------------------------------------------------
+-- Per-capture state
+------------------------------------------------------------------------
+local by_fid      -- FrameID -> { [sender hex or "any"] = plan }
+local pending_down -- "src..dst" hex -> downlink plan waiting for its FrameID
+local tries       -- FrameID -> failed header checks
+local devs        -- device key -> analysis state
+local frames      -- frame number -> record
+local ars         -- AR UUID -> parsed Connect
+local table_plans -- plans from the preference table (kept across captures)
+
+local function register(plan)
+    if not plan or not plan.fid or plan.fid == 0xFFFF then return end
+    local t = by_fid[plan.fid]
+    if not t then
+        t = {}
+        by_fid[plan.fid] = t
+    end
+    t[plan.sender or "any"] = plan
+end
+
+local function build_table_plans()
+    table_plans = {}
+    local entries = layout.parse_table(mcmb2.prefs.layouts)
+    for i, e in ipairs(entries) do
+        local up, down
+        local dev = "pref" .. i
+        if e.system == "eclink" then
+            up, down = layout.eclink_plans(e.outlen, e.dap, "preference", dev)
+        else
+            local n = (e.system == "polled") and (e.slots or 4) or 1
+            up, down = layout.mcmb2_plans(e.system, n, e.up, e.down, e.dap, "preference", dev)
+            if e.system == "polled" and #e.up == 0 then
+                -- Sizes come from the header (Y, Z); only the system is forced.
+                up.from_header, down.from_header = true, true
+            end
+        end
+        if up and e.in_fid then up.fid = e.in_fid; table_plans[#table_plans + 1] = up end
+        if down and e.out_fid then down.fid = e.out_fid; table_plans[#table_plans + 1] = down end
+    end
+end
+
+function carrier.init()
+    by_fid, pending_down, tries, devs, frames, ars = {}, {}, {}, {}, {}, {}
+    if not table_plans then build_table_plans() end
+    for _, p in ipairs(table_plans) do register(p) end
+end
+
+function mcmb2.prefs_changed()
+    table_plans = nil
+end
+
+------------------------------------------------------------------------
+-- Learning from the Connect
+------------------------------------------------------------------------
+local f_block_type = Field.new("pn_io.block_type")
+local f_frame_id = Field.new("pn_rt.frame_id")
+
+local function learn_connect(tvb, pinfo, blocks)
+    local ar = {}
+    local any = false
+    for _, fi in ipairs(blocks) do
+        local v = fi.value
+        if v == 0x0101 or v == 0x0102 or v == 0x0104 or v == 0x8101 or v == 0x8102 then
+            local src = fi.source
+            if src then
+                if layout.parse_block(ar, src, fi.offset) then any = true end
+            end
+        end
+    end
+    if not any or not ar.uuid then return nil end
+    local known = ars[ar.uuid]
+    if ar.subs then
+        -- A request: remember it (the device MAC is where it goes).
+        ar.dev_mac = ar.dev_mac or layout.mac_hex(tvb, 0)
+        ar.frame = pinfo.number
+        ars[ar.uuid] = ar
+        known = ar
+    elseif known and (ar.res_fids or ar.dev_mac) then
+        known.res_fids = ar.res_fids or known.res_fids
+        known.dev_mac = ar.dev_mac or known.dev_mac
+    else
+        return nil
+    end
+    if not known.subs or not known.iocrs then return nil end
+    local cls = layout.classify(known.subs)
+    if not cls then return nil end
+    local up, down = layout.plans_from_ar(known, cls, "Connect in frame " .. known.frame)
+    register(up)
+    register(down)
+    return { kind = "connect", system = cls.system, up = up, down = down }
+end
+
+------------------------------------------------------------------------
+-- Helpers
+------------------------------------------------------------------------
+local function hexmac(tvb, off)
+    return tostring(tvb:range(off, 6):bytes():tohex()):lower()
+end
+
+local function all_zero(ba, objs)
+    for _, o in ipairs(objs) do
+        for i = o.off, o.off + o.len - 1 do
+            if ba:get_index(i) ~= 0 then return false end
+        end
+    end
+    return true
+end
+
+local function dev_state(key)
+    local d = devs[key]
+    if not d then
+        d = { up_wd = {}, down_wd = {}, slot_term = {}, pci = {}, pco = {}, from_ru = {}, to_ru = {} }
+        devs[key] = d
+    end
+    return d
+end
+
+local function add_finding(rec, anchor, ex, text)
+    rec.findings[#rec.findings + 1] = { anchor = anchor, ex = ex, text = text }
+end
+
+-- Splits modules into groups of `size` bytes; nil if they do not add up.
+local function group_by(mods, size, count)
+    local groups, cur, acc = {}, {}, 0
+    if size == 0 then return nil end
+    for _, o in ipairs(mods) do
+        cur[#cur + 1] = o
+        acc = acc + o.len
+        if acc == size then
+            groups[#groups + 1] = cur
+            cur, acc = {}, 0
+        elseif acc > size then
+            return nil
+        end
+    end
+    if acc ~= 0 or (count and #groups ~= count) then return nil end
+    return groups
+end
+
+------------------------------------------------------------------------
+-- First pass: the analysis of one cyclic frame
+------------------------------------------------------------------------
+local function check_ioxs(rec, plan, ba, ex_iops, ex_iocs)
+    local objs = {}
+    for _, o in ipairs(plan.dap) do objs[#objs + 1] = o end
+    if plan.header then objs[#objs + 1] = plan.header end
+    if plan.image then objs[#objs + 1] = plan.image end
+    for _, o in ipairs(plan.modules) do objs[#objs + 1] = o end
+    for _, o in ipairs(objs) do
+        local v = ba:get_index(o.off + o.len)
+        if v ~= 0x80 then
+            add_finding(rec, "iops", ex_iops, string.format("IOPS of slot %d/0x%x is %s (0x%02x)", o.slot,
+                o.subslot, IOXS[v] or "not GOOD", v))
+        end
+    end
+    if ex_iocs then
+        for _, c in ipairs(plan.iocs) do
+            local v = ba:get_index(c.off)
+            if v ~= 0x80 then
+                add_finding(rec, "iocs", ex_iocs, string.format("IOCS of slot %d/0x%x is %s (0x%02x)", c.slot,
+                    c.subslot, IOXS[v] or "not GOOD", v))
+            end
+        end
+    end
+end
+
+local function watchdog(rec, st, value, t, frame, limit, ex, what)
+    local r = handshake.stall(st, value, t, frame, limit)
+    rec.wd_age = t - st.t
+    if r and r.kind == "stalled" then
+        add_finding(rec, "wd", ex, string.format("%s watchdog unchanged for %.0f ms (value %d since frame %d)%s",
+            what, r.age * 1000, r.value, r.since,
+            (what == "Uplink") and ": bring the system to a safe state" or ": the base shows E010"))
+    end
+end
+
+local function analyse_mcmb2(rec, plan, ba, t, frame)
+    local d = dev_state(plan.dev)
+    local h = plan.header.off
+    local up = plan.dir == "up"
+    check_ioxs(rec, plan, ba, ef.iops_bad, ef.iocs_bad)
+    if plan.system == "duplex" then
+        local sb = ba:get_index(h)
+        local st = bit.band(sb, 0x0F)
+        if up then
+            if not DUPLEX_OK[st] then
+                add_finding(rec, "status", ef.status_undefined, string.format(
+                    "Undefined MC-MB2-PN status 0x%X: bring the system to a safe state", st))
+            elseif st ~= 1 then
+                add_finding(rec, "status", ef.not_valid, string.format(
+                    "%s: no valid terminal data, the IO controller must keep the system in a safe state",
+                    STATUS[st]))
+            end
+            if st ~= 1 and not all_zero(ba, plan.modules) then
+                add_finding(rec, "data", ef.data_not_zero, string.format(
+                    "Status 0x%X is not 'Terminal present' but the uplink data is not all 0", st))
+            end
+            watchdog(rec, d.up_wd, ba:get_index(h + 1), t, frame, mcmb2.prefs.uplink_timeout / 1000,
+                ef.uplink_stalled, "Uplink")
+        else
+            watchdog(rec, d.down_wd, ba:get_index(h + 1), t, frame, mcmb2.prefs.downlink_timeout / 1000,
+                ef.downlink_stalled, "Downlink")
+        end
+        rec.groups = { plan.modules }
+        return
+    end
+    -- polled
+    local cfg = plan.cfg
+    if up then
+        local sb = ba:get_index(h)
+        local st = bit.band(sb, 0x0F)
+        if not POLLED_OK[st] then
+            add_finding(rec, "status", ef.status_undefined, string.format(
+                "Undefined MC-MB2-PN status 0x%X on a polled system: bring the system to a safe state", st))
+        elseif st == 0xA then
+            add_finding(rec, "status", ef.not_valid,
+                "Fieldbus update failure (E010): no valid terminal data, the IO controller must keep the "
+                .. "system in a safe state")
+        end
+        if bit.band(sb, 0xF0) ~= 0 then
+            add_finding(rec, "status", ef.terminal_not_zero, string.format(
+                "Terminal number bits are %d, not 0, on a polled system", bit.rshift(sb, 4)))
+        end
+        watchdog(rec, d.up_wd, ba:get_index(h + 1), t, frame, mcmb2.prefs.uplink_timeout / 1000,
+            ef.uplink_stalled, "Uplink")
+        local y, z = ba:get_index(h + 2), ba:get_index(h + 3)
+        local used = {}
+        for k = 1, 4 do
+            local s = ba:get_index(h + 3 + k)
+            if bit.band(s, 0x0F) ~= 0x0F then used[#used + 1] = k end
+        end
+        local groups = group_by(plan.modules, y, #used)
+        local mismatch = not groups or (not plan.from_header and (y ~= cfg.y or z ~= cfg.z))
+        if mismatch then
+            add_finding(rec, "size", ef.layout_mismatch, string.format(
+                "Y=%d, Z=%d, %d used slot(s) differ from the configured layout (Y=%d, Z=%d, %d slot(s)): "
+                .. "bring the system to a safe state", y, z, #used, cfg.y, cfg.z, cfg.n))
+            groups = group_by(plan.modules, cfg.y) or {}
+        end
+        rec.groups, rec.slots = groups, used
+        d.z, d.used = z, used
+        for k = 1, 4 do
+            local s = ba:get_index(h + 3 + k)
+            local sst, term = bit.band(s, 0x0F), bit.rshift(s, 4)
+            local anchor = "slot" .. k
+            if not SLOT_OK[sst] then
+                add_finding(rec, anchor, ef.slot_status_undefined, string.format(
+                    "Slot %d: undefined terminal status 0x%X: bring the system to a safe state", k, sst))
+            end
+            if sst ~= 0xF then
+                local prev = d.slot_term[k]
+                if prev ~= nil and prev ~= term then
+                    add_finding(rec, anchor, ef.terminal_changed, string.format(
+                        "Slot %d now serves terminal %d (was terminal %d): dynamic polling", k, term, prev))
+                end
+                d.slot_term[k] = term
+                local gi
+                for i, u in ipairs(used) do if u == k then gi = i end end
+                if sst ~= 1 and gi and groups[gi] and not all_zero(ba, groups[gi]) then
+                    add_finding(rec, anchor, ef.data_not_zero, string.format(
+                        "Slot %d: terminal status 0x%X is not 'Terminal present' but its uplink data is not all 0",
+                        k, sst))
+                end
+            end
+        end
+    else
+        local r = ba:get_index(h)
+        if r ~= 0 then
+            add_finding(rec, "reserved", ef.reserved_not_zero, string.format("Reserved byte is 0x%02x, not 0", r))
+        end
+        watchdog(rec, d.down_wd, ba:get_index(h + 1), t, frame, mcmb2.prefs.downlink_timeout / 1000,
+            ef.downlink_stalled, "Downlink")
+        local z = d.z or cfg.z
+        local groups = group_by(plan.modules, z) or group_by(plan.modules, cfg.z) or {}
+        local slots = d.used
+        if not slots then
+            slots = {}
+            for i = 1, #groups do slots[i] = i end
+        end
+        rec.groups, rec.slots = groups, slots
+    end
+end
+
+local function analyse_eclink(rec, plan, ba, t, frame)
+    local d = dev_state(plan.dev)
+    local o = plan.image.off
+    check_ioxs(rec, plan, ba, eef.iops_bad, nil)
+    local function note(list, ex_new, ex_ack, ex_late, what, req, ans)
+        for _, r in ipairs(list) do
+            if r.kind == "new" then
+                add_finding(rec, "image", ex_new, string.format("New command %s (%s = %d)", what, req, r.value))
+            elseif r.kind == "acked" or r.kind == "acked_late" then
+                add_finding(rec, "image", ex_ack, string.format("Command %s acknowledged by %s after %.0f ms "
+                    .. "(frame %d)", what, ans, r.delay * 1000, r.since))
+            elseif r.kind == "late" then
+                add_finding(rec, "image", ex_late, string.format("Command %s (frame %d) not acknowledged by %s "
+                    .. "within 2000 ms", what, r.since, ans))
+            end
+        end
+    end
+    if plan.dir == "up" then
+        local pci, cci, cai, bu = ba:get_index(o), ba:get_index(o + 1), ba:get_index(o + 3), ba:get_index(o + 20)
+        local r = handshake.stall(d.pci, pci, t, frame, LIMITS.pci)
+        rec.pci_age = t - d.pci.t
+        if r and r.kind == "stalled" then
+            add_finding(rec, "image", eef.pci_stalled, string.format(
+                "PCI %d has not changed for %.0f ms (since frame %d, limit 500 ms)", r.value, r.age * 1000, r.since))
+        end
+        note(handshake.echo(d.from_ru, cci, nil, t, frame, LIMITS.cmd), eef.cmd_from_ru, eef.cmd_from_ru_ack,
+            eef.cmd_from_ru_late, "from RU", "CCI", "CAO")
+        note(handshake.echo(d.to_ru, nil, cai, t, frame, LIMITS.cmd), eef.cmd_to_ru, eef.cmd_to_ru_ack,
+            eef.cmd_to_ru_late, "to RU", "CCO", "CAI")
+        if d.bu ~= nil and d.bu ~= bu then
+            add_finding(rec, "image", eef.bu_state_change, string.format("BU state 0x%02x -> 0x%02x (%s)", d.bu, bu,
+                image.vs.bu_state[bu] or "unknown"))
+        end
+        d.bu = bu
+    else
+        local pco, cco, cao = ba:get_index(o), ba:get_index(o + 1), ba:get_index(o + 3)
+        local r = handshake.stall(d.pco, pco, t, frame, LIMITS.pco)
+        rec.pco_age = t - d.pco.t
+        if r and r.kind == "stalled" then
+            add_finding(rec, "image", eef.pco_stalled, string.format(
+                "PCO %d has not changed for %.0f ms (since frame %d, limit 2000 ms)", r.value, r.age * 1000, r.since))
+        end
+        note(handshake.echo(d.to_ru, cco, nil, t, frame, LIMITS.cmd), eef.cmd_to_ru, eef.cmd_to_ru_ack,
+            eef.cmd_to_ru_late, "to RU", "CCO", "CAI")
+        note(handshake.echo(d.from_ru, nil, cao, t, frame, LIMITS.cmd), eef.cmd_from_ru, eef.cmd_from_ru_ack,
+            eef.cmd_from_ru_late, "from RU", "CCI", "CAO")
+    end
+end
+
+-- An unknown cyclic FrameID: a polled uplink header, or the downlink that
+-- belongs to one seen before (same two MAC addresses, the other way).
+local function try_heuristic(fid, tvb, base, size, frame)
+    if next(pending_down) then
+        local key = hexmac(tvb, 6) .. hexmac(tvb, 0)
+        local down = pending_down[key]
+        if down and size >= down.need then
+            pending_down[key] = nil
+            down.fid = fid
+            register(down)
+            return down
+        end
+    end
+    local n = tries[fid] or 0
+    if n >= HEUR_TRIES then return nil end
+    local ba = tvb:range(base, size):bytes()
+    local h = layout.polled_header(function(i) return ba:get_index(i) end, size)
+    if not h then
+        tries[fid] = n + 1
+        return nil
+    end
+    local dev_mac, ctl_mac = hexmac(tvb, 6), hexmac(tvb, 0)
+    local up, down = layout.mcmb2_plans("polled", h.used, h.up_mods, h.down_mods, h.dap,
+        "polled header in frame " .. frame, "hdr" .. dev_mac)
+    up.fid, up.sender, up.from_header = fid, dev_mac, true
+    down.sender, down.from_header = ctl_mac, true
+    register(up)
+    pending_down[ctl_mac .. dev_mac] = down
+    return up
+end
+
+local function first_pass(fi, tvb, pinfo)
+    local fid = fi.value
+    local cands = by_fid[fid]
+    local base = fi.offset + 2
+    local size = tvb:len() - base - 4
+    if size <= 0 then return nil end
+    local plan
+    if cands then
+        plan = cands[hexmac(tvb, 6)] or cands.any
+    end
+    if not plan then
+        if not mcmb2.prefs.heuristic or fid < 0x8000 or fid > 0xFBFF then return nil end
+        plan = try_heuristic(fid, tvb, base, size, pinfo.number)
+        if not plan then return nil end
+    end
+    local rec = { plan = plan, base = base, size = size, findings = {} }
+    if size < plan.need then
+        add_finding(rec, "top", plan.system == "eclink" and eef.short or ef.short, string.format(
+            "C-SDU has %d bytes, the layout needs %d", size, plan.need))
+        return rec
+    end
+    local ba = tvb:range(base, size):bytes()
+    local t = pinfo.abs_ts
+    if plan.system == "eclink" then
+        analyse_eclink(rec, plan, ba, t, pinfo.number)
+    else
+        analyse_mcmb2(rec, plan, ba, t, pinfo.number)
+    end
+    return rec
+end
+
+------------------------------------------------------------------------
+-- Display
+------------------------------------------------------------------------
+local function attach(rec, anchor, item)
+    for _, f in ipairs(rec.findings) do
+        if f.anchor == anchor then
+            item:add_proto_expert_info(f.ex, f.text)
+            f.shown = true
+        end
+    end
+end
+
+local function nstime(s)
+    return NSTime.new(math.floor(s), math.floor((s % 1) * 1e9 + 0.5))
+end
+
+-- The data of several modules as one range (a new data source when they
+-- are not contiguous).
+local function data_range(tvb, base, objs, name)
+    if #objs == 0 then return nil end
+    if #objs == 1 then return tvb:range(base + objs[1].off, objs[1].len) end
+    local ba = ByteArray.new()
+    for _, o in ipairs(objs) do ba:append(tvb:range(base + o.off, o.len):bytes()) end
+    return ba:tvb(name):range()
+end
+
+local function add_ioxs(tree, rec, plan, tvb, base, f_iops, f_iocs)
+    local sub = tree:add(tvb:range(base, plan.need), "IO status (IOPS / IOCS)")
+    local function one(f, off, what, slot, subslot)
+        local item = sub:add(f, tvb:range(base + off, 1))
+        item:append_text(string.format(" (%s of slot %d/0x%x)", what, slot, subslot))
+    end
+    for _, o in ipairs(plan.dap) do one(f_iops, o.off + o.len, "IOPS", o.slot, o.subslot) end
+    if plan.header then one(f_iops, plan.header.off + plan.header.len, "IOPS", plan.header.slot, 1) end
+    if plan.image then one(f_iops, plan.image.off + plan.image.len, "IOPS", plan.image.slot, 1) end
+    for _, o in ipairs(plan.modules) do one(f_iops, o.off + o.len, "IOPS", o.slot, o.subslot) end
+    for _, c in ipairs(plan.iocs) do one(f_iocs, c.off, "IOCS", c.slot, c.subslot) end
+    attach(rec, "iops", sub)
+    attach(rec, "iocs", sub)
+end
+
+local function show_mcmb2(rec, tvb, pinfo, tree)
+    local plan, base = rec.plan, rec.base
+    local up = plan.dir == "up"
+    local root = tree:add(mcmb2, tvb:range(base, math.min(rec.size, math.max(plan.need, 1))))
+    root:append_text(string.format(", %s %s", plan.system, up and "uplink" or "downlink"))
+    root:add(pf.system, plan.system):set_generated()
+    root:add(pf.direction, up and "uplink" or "downlink"):set_generated()
+    root:add(pf.layout, plan.source):set_generated()
+    attach(rec, "top", root)
+    pinfo.cols.protocol = "MC-MB2"
+    if rec.size < plan.need then
+        pinfo.cols.info = "MC-MB2-PN: C-SDU too short for the layout"
+        return
+    end
+    local h = base + plan.header.off
+    local info
+    if up then
+        local sb = tvb:range(h, 1):uint()
+        local item = root:add(pf.status, tvb:range(h, 1))
+        local known = (plan.system == "duplex") and DUPLEX_OK or POLLED_OK
+        if not known[bit.band(sb, 0x0F)] then item:append_text(" [undefined on a " .. plan.system .. " system]") end
+        attach(rec, "status", item)
+        if plan.system == "duplex" then
+            root:add(pf.terminal, tvb:range(h, 1))
+            local wd = root:add(pf.uplink_watchdog, tvb:range(h + 1, 1))
+            if rec.wd_age then wd:add(pf.watchdog_age, nstime(rec.wd_age)):set_generated() end
+            attach(rec, "wd", wd)
+            local r = data_range(tvb, base, plan.modules, "MC-MB2 uplink data")
+            if r then attach(rec, "data", root:add(pf.uplink_data, r)) end
+            info = string.format("Uplink duplex: %s, terminal %d, watchdog %d",
+                DUPLEX_OK[bit.band(sb, 0x0F)] and STATUS[bit.band(sb, 0x0F)]
+                    or string.format("undefined status 0x%X", bit.band(sb, 0x0F)),
+                bit.rshift(sb, 4), tvb:range(h + 1, 1):uint())
+        else
+            root:add(pf.terminal, tvb:range(h, 1))
+            local wd = root:add(pf.uplink_watchdog, tvb:range(h + 1, 1))
+            if rec.wd_age then wd:add(pf.watchdog_age, nstime(rec.wd_age)):set_generated() end
+            attach(rec, "wd", wd)
+            attach(rec, "size", root:add(pf.uplink_size, tvb:range(h + 2, 1)))
+            root:add(pf.downlink_size, tvb:range(h + 3, 1))
+            local parts = {}
+            for k = 1, 4 do
+                local sr = tvb:range(h + 3 + k, 1)
+                local s = sr:uint()
+                local sst = bit.band(s, 0x0F)
+                local st = root:add(sr, string.format("Slot %d: %s, terminal %d", k,
+                    SLOT_STATUS[sst] or string.format("undefined status 0x%X", sst), bit.rshift(s, 4)))
+                st:add(pf.slot, k):set_generated()
+                st:add(pf.slot_status, sr)
+                st:add(pf.slot_terminal, sr)
+                local gi
+                for i, u in ipairs(rec.slots or {}) do if u == k then gi = i end end
+                if gi and rec.groups[gi] then
+                    local r = data_range(tvb, base, rec.groups[gi], "MC-MB2 slot " .. k .. " uplink data")
+                    if r then st:add(pf.slot_uplink_data, r) end
+                end
+                attach(rec, "slot" .. k, st)
+                if sst ~= 0xF then parts[#parts + 1] = string.format("%d:T%d/%X", k, bit.rshift(s, 4), sst) end
+            end
+            info = string.format("Uplink polled: status 0x%X, watchdog %d, Y=%d Z=%d, slots %s",
+                bit.band(sb, 0x0F), tvb:range(h + 1, 1):uint(), tvb:range(h + 2, 1):uint(),
+                tvb:range(h + 3, 1):uint(), (#parts > 0) and table.concat(parts, " ") or "none")
+        end
+    else
+        if plan.system == "duplex" then
+            root:add(pf.base_unit, tvb:range(h, 1))
+        else
+            attach(rec, "reserved", root:add(pf.reserved, tvb:range(h, 1)))
+        end
+        local wd = root:add(pf.downlink_watchdog, tvb:range(h + 1, 1))
+        if rec.wd_age then wd:add(pf.watchdog_age, nstime(rec.wd_age)):set_generated() end
+        attach(rec, "wd", wd)
+        if plan.system == "duplex" then
+            local r = data_range(tvb, base, plan.modules, "MC-MB2 downlink data")
+            if r then root:add(pf.downlink_data, r) end
+            info = string.format("Downlink duplex: base unit %d, watchdog %d", tvb:range(h, 1):uint(),
+                tvb:range(h + 1, 1):uint())
+        else
+            for i, g in ipairs(rec.groups or {}) do
+                local k = rec.slots and rec.slots[i] or i
+                local r = data_range(tvb, base, g, "MC-MB2 slot " .. k .. " downlink data")
+                if r then
+                    local st = root:add(r, string.format("Slot %d", k))
+                    st:add(pf.slot, k):set_generated()
+                    st:add(pf.slot_downlink_data, r)
+                end
+            end
+            info = string.format("Downlink polled: watchdog %d, %d slot(s)", tvb:range(h + 1, 1):uint(),
+                #(rec.groups or {}))
+        end
+    end
+    add_ioxs(root, rec, plan, tvb, base, pf.iops, pf.iocs)
+    for _, f in ipairs(rec.findings) do
+        if not f.shown then root:add_proto_expert_info(f.ex, f.text) end
+        f.shown = nil
+    end
+    pinfo.cols.info = info
+end
+
+local function show_eclink(rec, tvb, pinfo, tree)
+    local plan, base = rec.plan, rec.base
+    local up = plan.dir == "up"
+    local root = tree:add(eclp, tvb:range(base, math.min(rec.size, math.max(plan.need, 1))))
+    root:append_text(up and ", input image" or ", output image")
+    root:add(epf.layout, plan.source):set_generated()
+    attach(rec, "top", root)
+    pinfo.cols.protocol = "EC-Link"
+    if rec.size < plan.need then
+        pinfo.cols.info = "EC-Link: C-SDU too short for the layout"
+        return
+    end
+    local o = plan.image
+    local info = image.dissect(tvb, pinfo, root, { kind = up and "input" or "output", offset = base + o.off,
+        length = o.len, image_len = o.len })
+    if rec.pci_age then root:add(epf.pci_age, nstime(rec.pci_age)):set_generated() end
+    if rec.pco_age then root:add(epf.pco_age, nstime(rec.pco_age)):set_generated() end
+    attach(rec, "image", info and info.item or root)
+    add_ioxs(root, rec, plan, tvb, base, epf.iops, epf.iocs)
+    for _, f in ipairs(rec.findings) do f.shown = nil end
+    pinfo.cols.info = (up and "Input image " or "Output image ") .. ((info and info.summary) or "")
+end
+
+local function show_connect(rec, tvb, tree)
+    local p = (rec.system == "eclink") and eclp or mcmb2
+    local item = tree:add(p, tvb:range(0, 0))
+    local function fid(plan) return plan and plan.fid and string.format("0x%04x", plan.fid) or "none" end
+    local text = string.format("%s device: uplink FrameID %s, downlink FrameID %s", rec.system, fid(rec.up),
+        fid(rec.down))
+    item:append_text(": layout learned, " .. text)
+    if p == mcmb2 then
+        item:add(pf.system, rec.system):set_generated()
+        if rec.up and rec.up.fid then item:add(pf.frame_id, rec.up.fid):set_generated() end
+        if rec.down and rec.down.fid then item:add(pf.frame_id, rec.down.fid):set_generated() end
+        item:add_proto_expert_info(ef.learned, "Cyclic data layout learned: " .. text)
+    else
+        item:add_proto_expert_info(eef.learned, "Cyclic data layout learned: " .. text)
+    end
+end
+
+------------------------------------------------------------------------
+-- The postdissector
+------------------------------------------------------------------------
+function carrier.dissector(tvb, pinfo, tree)
+    local rec
+    if pinfo.visited then
+        rec = frames[pinfo.number]
+        if not rec then return end
+    else
+        local fi = f_frame_id()
+        if fi then
+            rec = first_pass(fi, tvb, pinfo)
+        elseif mcmb2.prefs.connect then
+            local blocks = { f_block_type() }
+            if #blocks == 0 then return end
+            rec = learn_connect(tvb, pinfo, blocks)
+        end
+        if not rec then return end
+        frames[pinfo.number] = rec
+    end
+    if rec.kind == "connect" then
+        show_connect(rec, tvb, tree)
+    elseif rec.plan.system == "eclink" then
+        show_eclink(rec, tvb, pinfo, tree)
+    else
+        show_mcmb2(rec, tvb, pinfo, tree)
+    end
+end
+
+register_postdissector(carrier)
