@@ -263,7 +263,52 @@ end
 -- Learning from the Connect
 ------------------------------------------------------------------------
 local f_block_type = Field.new("pn_io.block_type")
-local f_frame_id = Field.new("pn_rt.frame_id")
+
+-- The EtherType and payload offset of an Ethernet frame (802.1Q / 802.1ad
+-- tags skipped).
+local function ethertype(tvb)
+    local n = tvb:len()
+    if n < 18 then return nil end
+    local et, off = tvb:range(12, 2):uint(), 14
+    while (et == 0x8100 or et == 0x88A8) and off + 6 <= n do
+        et, off = tvb:range(off + 2, 2):uint(), off + 4
+    end
+    return et, off
+end
+
+-- The PNIO blocks of a Connect request/response: the fields of Wireshark's
+-- pn_io dissector when there is a tree, else (the first pass of tshark -2
+-- without a filter builds none) the bytes of an unfragmented DCE/RPC
+-- datagram on UDP 34964 (PNIO-CM).
+local function raw_connect_blocks(tvb)
+    local et, off = ethertype(tvb)
+    if et ~= 0x0800 or tvb:len() < off + 28 then return nil end
+    if tvb:range(off + 9, 1):uint() ~= 17 then return nil end
+    local ihl = bit.band(tvb:range(off, 1):uint(), 0x0F) * 4
+    local u = off + ihl
+    if tvb:len() < u + 8 + 100 then return nil end
+    if tvb:range(u, 2):uint() ~= 34964 and tvb:range(u + 2, 2):uint() ~= 34964 then return nil end
+    local r = u + 8
+    local ptype = tvb:range(r + 1, 1):uint()
+    local flags1 = tvb:range(r + 2, 1):uint()
+    if tvb:range(r, 1):uint() ~= 4 or (ptype ~= 0 and ptype ~= 2) or bit.band(flags1, 0x04) ~= 0 then
+        return nil
+    end
+    local le = bit.band(tvb:range(r + 4, 1):uint(), 0x10) ~= 0
+    local function u16(o) return le and tvb:range(o, 2):le_uint() or tvb:range(o, 2):uint() end
+    local function u32(o) return le and tvb:range(o, 4):le_uint() or tvb:range(o, 4):uint() end
+    if u16(r + 68) ~= 0 then return nil end -- opnum 0: Connect
+    local p = r + 80
+    if ptype == 2 and u32(p) ~= 0 then return nil end -- PNIO status not OK
+    local args = u32(p + 4)
+    local start, stop = p + 20, math.min(p + 20 + args, tvb:len())
+    local list = {}
+    while start + 6 <= stop do
+        list[#list + 1] = { source = tvb, offset = start, value = tvb:range(start, 2):uint() }
+        start = start + 4 + tvb:range(start + 2, 2):uint()
+    end
+    return list
+end
 
 local function learn_connect(tvb, pinfo, blocks)
     local ar = {}
@@ -571,10 +616,9 @@ local function try_heuristic(fid, tvb, base, size, frame)
     return up
 end
 
-local function first_pass(fi, tvb, pinfo)
-    local fid = fi.value
+local function first_pass(fid, fid_off, tvb, pinfo)
     local cands = by_fid[fid]
-    local base = fi.offset + 2
+    local base = fid_off + 2
     local size = tvb:len() - base - 4
     if size <= 0 then return nil end
     local plan
@@ -791,12 +835,16 @@ function carrier.dissector(tvb, pinfo, tree)
         rec = frames[pinfo.number]
         if not rec then return end
     else
-        local fi = f_frame_id()
-        if fi then
-            rec = first_pass(fi, tvb, pinfo)
+        local et, off = ethertype(tvb)
+        if et == 0x8892 then
+            rec = first_pass(tvb:range(off, 2):uint(), off, tvb, pinfo)
         elseif mcmb2.prefs.connect then
             local blocks = { f_block_type() }
-            if #blocks == 0 then return end
+            if #blocks == 0 then
+                if et ~= 0x0800 then return end
+                blocks = raw_connect_blocks(tvb)
+                if not blocks then return end
+            end
             rec = learn_connect(tvb, pinfo, blocks)
         end
         if not rec then return end

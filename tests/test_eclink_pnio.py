@@ -1,0 +1,46 @@
+"""EC-Link images over PROFINET IO and the handshake analysis."""
+import pytest
+
+CAP = "eclink_pnio_connect.pcap"
+
+
+def test_images_from_the_connect(tshark, capture_file):
+    rows = tshark.fields(capture_file(CAP), ["frame.number", "eclink.image", "eclink.pci", "eclink.cci",
+                                             "eclink.bu_state", "eclink.joystick1", "eclink.joystick2",
+                                             "eclink.pco", "eclink.periodic_size", "eclink_pnio.layout"],
+                         display_filter="frame.number <= 4")
+    assert rows[0][:2] == ["1", ""]
+    assert rows[2] == ["3", "input", "1", "0", "0x10", "500", "-250", "", "", "Connect in frame 1"]
+    assert rows[3] == ["4", "output", "", "", "", "", "", "1", "10", "Connect in frame 1"]
+
+
+def test_connect_learned(tshark, capture_file):
+    ex = tshark.experts(capture_file(CAP))
+    assert ex[1] == ["Cyclic data layout learned: eclink device: uplink FrameID 0x8010, downlink FrameID 0x8011"]
+
+
+def test_handshake_experts(tshark, capture_file):
+    ex = tshark.experts(capture_file(CAP))
+    assert "BU state 0x10 -> 0x11 (Armed)" in ex[7]
+    assert "New command from RU (CCI = 1)" in ex[9]
+    assert "Command from RU acknowledged by CAO after 251 ms (frame 9)" in ex[14]
+    assert "New command to RU (CCO = 1)" in ex[20]
+    assert "Command to RU acknowledged by CAI after 124 ms (frame 20)" in ex[21]
+    assert "PCI 10 has not changed for 625 ms (since frame 21, limit 500 ms)" in ex[31]
+    assert "New command from RU (CCI = 2)" in ex[43]
+    assert "PCO 18 has not changed for 2125 ms (since frame 38, limit 2000 ms)" in ex[72]
+    assert "Command from RU (frame 43) not acknowledged by CAO within 2000 ms" in ex[76]
+    stalls = [n for n, m in ex.items() if any("has not changed" in x for x in m)]
+    assert stalls == [31, 72]
+
+
+def test_filters_by_expert_field(tshark, capture_file):
+    rows = tshark.fields(capture_file(CAP), ["frame.number"], display_filter="eclink_pnio.cmd_from_ru.late")
+    assert rows == [["76"]]
+
+
+def test_two_pass_agrees(tshark, capture_file):
+    fields = ["frame.number", "eclink.pci", "eclink_pnio.pci_age", "_ws.expert.message"]
+    one = tshark.fields(capture_file(CAP), fields)
+    assert one == tshark.fields(capture_file(CAP), fields, two_pass=True)
+    assert any(r[3] for r in one)
