@@ -23,6 +23,8 @@
  */
 #include "eglink-analysis.h"
 
+#include "eglink-compat.h"
+
 #include <epan/expert.h>
 #include <epan/proto_data.h>
 #include <epan/reassemble.h>
@@ -93,7 +95,7 @@ static guint pref_vrpo_gap_ms = 2000;
 static guint pref_vrci_ack_timeout_ms = 2000;
 static guint pref_vrco_ack_timeout_ms = 2000;
 static guint pref_periodic_size = 0;
-static gboolean pref_reassemble = TRUE;
+static eglink_pref_bool_t pref_reassemble = TRUE;
 
 static reassembly_table eglink_reassembly_table;
 
