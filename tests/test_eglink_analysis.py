@@ -390,8 +390,8 @@ EG-Link base units                     60                                       
 """
 
 
-def stats(tshark, capture, two_pass=False):
-    args = ["-q", "-n", "-r", str(capture), "-z", "eglink,tree"] + (["-2"] if two_pass else [])
+def stats(tshark, capture, two_pass=False, command="eglink,stat"):
+    args = ["-q", "-n", "-r", str(capture), "-z", command] + (["-2"] if two_pass else [])
     return tshark.run(args).stdout
 
 
@@ -403,8 +403,21 @@ def test_statistics_two_pass_identical(tshark, cap):
     assert stats(tshark, cap("session"), two_pass=True) == STATS_SESSION
 
 
+def test_statistics_tree_spelling(tshark, cap):
+    """-z eglink,tree (the stats_tree name) prints the same table."""
+    assert stats(tshark, cap("session"), command="eglink,tree") == STATS_SESSION
+
+
+def test_statistics_with_filter(tshark, cap):
+    """-z eglink,stat,FILTER counts only the matching packets."""
+    rows = _rows(stats(tshark, cap("session"), command='eglink,stat,eglink.type == "VRPI"'))
+    assert rows[("EG-Link base units", "BU 239.255.42.20 port 5825")] == 23
+    assert rows[("Packets", "VRPI")] == 23
+    assert rows[("Packets", "VRPO")] == 0
+
+
 def _rows(text):
-    """{(parent row, name): count} of a -z eglink,tree output."""
+    """{(parent row, name): count} of a -z eglink,stat output."""
     out, parents = {}, {}
     for line in text.splitlines():
         m = re.match(r"^( *)(\S.*?)\s{2,}(\d+)\s", line)

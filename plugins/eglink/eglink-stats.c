@@ -8,8 +8,14 @@
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
 #include "eglink-analysis.h"
+#include "eglink-compat.h"
 
+#include <stdio.h>
 #include <epan/stats_tree.h>
+#include <epan/stats_tree_priv.h>
+#include <epan/stat_tap_ui.h>
+#include <epan/tap.h>
+#include <wsutil/report_message.h>
 
 #define ST_ROOT_NAME "EG-Link base units"
 
@@ -108,9 +114,74 @@ eglink_stats_packet(stats_tree *st, packet_info *pinfo _U_, epan_dissect_t *edt 
     return TAP_PACKET_REDRAW;
 }
 
+/* tshark -z eglink,stat[,FILTER]: the stats tree registered below, printed
+ * as tshark prints "-z eglink,tree" (which works too). stats_tree names its
+ * command "<abbr>,tree", so the "stat" spelling gets its own, small command
+ * line entry doing what tshark's tap-stats_tree.c does. */
+#define EGLINK_STAT_CLI "eglink,stat"
+
+static void
+eglink_stat_draw(void *p)
+{
+    stats_tree *st = (stats_tree *)p;
+    GString *s = stats_tree_format_as_str(st, ST_FORMAT_PLAIN, stats_tree_get_default_sort_col(st),
+                                          stats_tree_is_default_sort_DESC(st));
+
+    printf("%s", s->str);
+    g_string_free(s, TRUE);
+}
+
+static void
+eglink_stat_free(void *p)
+{
+    stats_tree_free((stats_tree *)p);
+}
+
+/* The callback returns bool from Wireshark 4.6 on, nothing before. */
+#if EGLINK_WS_AT_LEAST(4, 6)
+#define EGLINK_STAT_INIT_RET bool
+#define EGLINK_STAT_INIT_RETURN(ok) return (ok)
+#else
+#define EGLINK_STAT_INIT_RET void
+#define EGLINK_STAT_INIT_RETURN(ok) do { (void)(ok); return; } while (0)
+#endif
+
+static EGLINK_STAT_INIT_RET
+eglink_stat_init(const char *opt_arg, void *userdata _U_)
+{
+    stats_tree_cfg *cfg = stats_tree_get_cfg_by_abbr("eglink");
+    const char *filter = NULL;
+    stats_tree *st;
+    GString *error;
+
+    if (cfg == NULL) {
+        report_failure("eglink statistics are not registered");
+        EGLINK_STAT_INIT_RETURN(false);
+    }
+    if (strncmp(opt_arg, EGLINK_STAT_CLI ",", strlen(EGLINK_STAT_CLI ",")) == 0)
+        filter = opt_arg + strlen(EGLINK_STAT_CLI ",");
+    st = stats_tree_new(cfg, NULL, filter);
+    error = register_tap_listener(cfg->tapname, st, st->filter, cfg->flags, stats_tree_reset,
+                                  stats_tree_packet, eglink_stat_draw, eglink_stat_free);
+    if (error) {
+        report_failure("-z " EGLINK_STAT_CLI ": %s", error->str);
+        g_string_free(error, TRUE);
+        stats_tree_free(st);
+        EGLINK_STAT_INIT_RETURN(false);
+    }
+    if (cfg->init)
+        cfg->init(st);
+    EGLINK_STAT_INIT_RETURN(true);
+}
+
 void
 eglink_stats_register(void)
 {
+    static stat_tap_ui stat_ui = {
+        REGISTER_STAT_GROUP_GENERIC, NULL, EGLINK_STAT_CLI, eglink_stat_init, 0, NULL
+    };
+
     stats_tree_register_plugin("eglink", "eglink", "EG-Link", 0,
                                eglink_stats_packet, eglink_stats_init, NULL);
+    register_stat_tap_ui(&stat_ui, NULL);
 }
