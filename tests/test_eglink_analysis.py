@@ -314,10 +314,10 @@ def test_two_bus_kept_apart(tshark, cap):
                                          "eglink.analysis.ack_time", "eglink.analysis.ack_in"],
                 display_filter="eglink.command_id", two_pass=True)
     assert rows == {
-        13: ("VRCI", "0", "4097", "", "", "18"),
-        14: ("VRCI", "1", "4098", "", "", "15"),
-        15: ("VRAO", "1", "4098", "14", "0.020000000", ""),
-        18: ("VRAO", "0", "4097", "13", "0.060000000", ""),
+        13: ("VRCI", "0", "0x1001", "", "", "18"),
+        14: ("VRCI", "1", "0x1002", "", "", "15"),
+        15: ("VRAO", "1", "0x1002", "14", "0.020000000", ""),
+        18: ("VRAO", "0", "0x1001", "13", "0.060000000", ""),
     }
     assert analysis_experts(tshark, cap("two_bus")) == {
         27: [("eglink.analysis.serial_gap",
@@ -325,7 +325,7 @@ def test_two_bus_kept_apart(tshark, cap):
     # Controller packets carry origin 0 but belong to their BU.
     streams = cols(tshark, cap("two_bus"), ["eglink.analysis.bu_origin"],
                    display_filter='eglink.type == "VRPO"')
-    assert set(streams.values()) == {("4097",), ("4098",)}
+    assert set(streams.values()) == {("0x1001",), ("0x1002",)}
 
 
 def test_bu_state_changes(tshark, cap):

@@ -989,7 +989,7 @@ eglink_analysis_register(int proto, module_t *prefs)
             "Number of the BU (multicast group or address pair, and input port) this packet "
             "belongs to, from 0 in order of appearance", HFILL } },
         { &hf_bu_origin,
-          { "BU origin", "eglink.analysis.bu_origin", FT_UINT16, BASE_DEC, NULL, 0x0,
+          { "BU origin", "eglink.analysis.bu_origin", FT_UINT16, BASE_HEX, NULL, 0x0,
             "Unique ID of the BU this packet belongs to, learned from its VRPI/VRCI/VRAI "
             "(also on the machine controller's packets, which carry origin 0)", HFILL } },
         { &hf_expected_serial,
