@@ -14,3 +14,5 @@ read_globals = {
     "DESEGMENT_ONE_MORE_SEGMENT", "persconffile_path", "datafile_path", "all_field_infos",
     "dissect_tcp_pdus", "Dir", "report_failure", "critical", "warn", "message", "info", "debug",
 }
+-- Lua 5.4 (Wireshark 4.4 and later) has no bit32: use the bit library.
+not_globals = { "bit32" }
