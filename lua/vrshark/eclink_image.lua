@@ -177,8 +177,8 @@ end
 
 local LINKS = { { "eg_link_status", 23, "EG-Link" }, { "ec_link_status", 24, "EC-Link" },
                 { "c_link_status", 25, "C-Link" } }
-local BOOLS = { { "ru_cable", 31, "RU cable" }, { "ru_docked", 32, "RU docked" },
-                { "encoder_switch", 59, "Encoder switch" } }
+local BOOLS = { { "ru_cable", 31, "RU cable" }, { "ru_docked", 32, "RU docked" } }
+local ENCODER_SWITCH = { "encoder_switch", 59, "Encoder switch" }
 
 local function check_input(get, first, last, out)
     local function add(field, expert, text, invalid)
@@ -218,11 +218,12 @@ local function check_input(get, first, last, out)
     if has(30, 1) and get(30) > 100 then
         add("ru_rssi", "percent_range", string.format("RU C-Link RSSI %d %% is over 100 %%", get(30)), true)
     end
-    for _, b in ipairs(BOOLS) do
+    local function check_bool(b)
         if has(b[2], 1) and get(b[2]) > 1 then
             add(b[1], "bool_range", string.format("%s %d is not 0 or 1", b[3], get(b[2])), true)
         end
     end
+    for _, b in ipairs(BOOLS) do check_bool(b) end
     if has(33, 1) and get(33) > 3 then
         add("ru_disabled", "ru_disabled_range", string.format("RU disabled %d is undefined (0..3)", get(33)),
             true)
@@ -237,6 +238,7 @@ local function check_input(get, first, last, out)
             end
         end
     end
+    check_bool(ENCODER_SWITCH)
     if has(26, 2) and u16(get, 26) == 0 then
         for _, e in ipairs(input) do
             if e.off >= 28 and e.off < 60 and has(e.off, e.len) then
@@ -261,9 +263,6 @@ local function check_output(get, first, last, out)
         out[#out + 1] = { field = field, expert = expert, text = text, invalid = invalid }
     end
     local function has(off, len) return covered(first, last, off, len) end
-    if has(23, 1) and get(23) ~= 0 then
-        add("spare", "spare_not_zero", string.format("Spare byte 23 is 0x%02x, not 0", get(23)), true)
-    end
     if has(20, 2) then
         local size = u16(get, 20)
         if size > M.PERIODIC_MAX then
@@ -279,6 +278,9 @@ local function check_output(get, first, last, out)
                         block, size, blocks - 1), true)
             end
         end
+    end
+    if has(23, 1) and get(23) ~= 0 then
+        add("spare", "spare_not_zero", string.format("Spare byte 23 is 0x%02x, not 0", get(23)), true)
     end
 end
 
