@@ -47,18 +47,19 @@ def test_fuzz_short_run_finds_nothing(out_dir):
 
 
 def test_fuzz_catches_injected_bugs(out_dir):
-    """A deliberately broken C plugin (heap overflow, oversized shift) and Lua
-    postdissector (error()) are fuzzed; each kind must be caught and the kept
-    capture must fail again on replay."""
+    """A deliberately broken C plugin (heap overflow, oversized shift, failed
+    DISSECTOR_ASSERT) and Lua postdissector (error()) are fuzzed; each kind must
+    be caught and the kept capture must fail again on replay."""
     proc = subprocess.run([FUZZ, "--self-test", "--seed", "1", "--out", str(out_dir)],
                           capture_output=True, text=True, timeout=900)
     report = proc.stdout + proc.stderr
     assert proc.returncode == 0, report[-6000:]
     caught = re.search(r"caught: (.*)", report).group(1).split(", ")
-    assert {"asan", "ubsan", "lua-error"} <= set(caught), report
+    assert {"asan", "ubsan", "lua-error", "dissector-bug"} <= set(caught), report
     assert "fails again" in report
     logs = list((out_dir / "selftest").glob("fail-*.txt"))
     assert any("heap-buffer-overflow" in p.read_text() for p in logs)
     assert any("shift exponent" in p.read_text() for p in logs)
+    assert any("failed assertion" in p.read_text() for p in logs)
     scripts = list((out_dir / "selftest").glob("fail-*.sh"))
     assert len(scripts) == len(logs) > 0
