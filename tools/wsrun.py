@@ -8,6 +8,7 @@ runtime). As in tools/tshark: Wireshark ignores WIRESHARK_PLUGIN_DIR when it
 runs as root, so as root tshark runs as nobody (VRSHARK_RUN_UID) with a
 private HOME, and every file it reads must be readable by that user.
 """
+import fcntl
 import glob
 import os
 import shutil
@@ -24,8 +25,14 @@ def build(build_dir, cmake_args=""):
     env = dict(os.environ)
     if cmake_args:
         env["VRSHARK_CMAKE_ARGS"] = cmake_args
-    subprocess.run([str(ROOT / "tools" / "build"), "--quiet", str(build_dir)], env=env, check=True)
-    return Path(build_dir) / "wsplugins"
+    build_dir = Path(build_dir)
+    build_dir.mkdir(parents=True, exist_ok=True)
+    # One build at a time per folder (the test suite and a manual run may overlap).
+    with open(build_dir / ".build-lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        subprocess.run([str(ROOT / "tools" / "build"), "--quiet", str(build_dir)], env=env,
+                       check=True)
+    return build_dir / "wsplugins"
 
 
 def system_plugin_dir(dest):
