@@ -5,10 +5,15 @@ Transport: PROFINET RT, EtherType 0x8892 (optionally 802.1Q tagged):
 
   FrameID (2) | C-SDU (40..1440) | CycleCounter (2) | DataStatus (1) | TransferStatus (1)
 
-Wireshark's own pn_rt/pn_io dissectors decode the frame as always; this
-plugin runs after them (a postdissector: it adds nothing to frames that are
-not ours and leaves Wireshark's tree, columns and protocol list of every
-other frame untouched) and decodes the C-SDU of the FrameIDs it knows.
+Wireshark's own pn_rt/pn_io dissectors decode the frame as always: the
+carrier protocol "vrshark_pnio" takes EtherType 0x8892 (tagged frames reach it
+through the same table), calls Wireshark's PN-RT dissector first and then
+decodes the C-SDU of the FrameIDs it knows (an unknown FrameID costs a table
+lookup). The Connect request/response (DCE/RPC over UDP, PNIO-CM) reaches the
+carrier through UDP port 34964 and, for the response coming from the device's
+own port, through the controller's port learned from the request; it hands the
+datagram to the UDP heuristics (where Wireshark finds DCE/RPC) and reads the
+blocks from the bytes. Other traffic never reaches the plugin.
 
 Inside the C-SDU every submodule's data is followed by its IOPS byte; the
 IOCS bytes of the other direction's submodules sit at offsets of their own.
@@ -49,8 +54,13 @@ image.proto()
 ------------------------------------------------------------------------
 local mcmb2 = Proto("mcmb2", "MC-MB2-PN radio base unit (PROFINET IO)")
 local eclp = Proto("eclink_pnio", "EC-Link over PROFINET IO")
--- The carrier: learns layouts from the Connect and finds our cyclic frames.
+-- The carrier: wraps PN-RT (EtherType 0x8892) and PNIO-CM (UDP), learns
+-- layouts from the Connect and finds our cyclic frames.
 local carrier = Proto("vrshark_pnio", "vrshark PROFINET IO cyclic data")
+local ethertype_table = DissectorTable.get("ethertype")
+local udp_table = DissectorTable.get("udp.port")
+local pn_rt = ethertype_table:get_dissector(0x8892)
+local ETH_PNRT, UDP_PNIO_CM = 0x8892, 34964
 
 ------------------------------------------------------------------------
 -- Value tables
@@ -210,8 +220,9 @@ local HEUR_TRIES = 64
 ------------------------------------------------------------------------
 -- Per-capture state
 ------------------------------------------------------------------------
-local by_fid      -- FrameID -> { [sender hex or "any"] = plan }
-local pending_down -- "src..dst" hex -> downlink plan waiting for its FrameID
+local by_fid      -- FrameID -> { plan, ... } (plan.sender: Ethernet source Address, or nil = any)
+local pending_down -- { { ctl = Address, dev = Address, plan = downlink plan waiting for its FrameID }, ... }
+local cm_ports    -- UDP port -> true: controller ports added to udp.port for Connect responses
 local tries       -- FrameID -> failed header checks
 local devs        -- device key -> analysis state
 local frames      -- frame number -> record
@@ -225,7 +236,23 @@ local function register(plan)
         t = {}
         by_fid[plan.fid] = t
     end
-    t[plan.sender or "any"] = plan
+    for i, p in ipairs(t) do
+        if p.sender == plan.sender then -- Addresses compare by value; nil is "any sender"
+            t[i] = plan
+            return
+        end
+    end
+    t[#t + 1] = plan
+end
+
+-- The plan of FrameID `fid` sent by `src`: the one for that sender, else
+-- the one for any sender.
+local function lookup(t, src)
+    local any
+    for _, p in ipairs(t) do
+        if p.sender == nil then any = p elseif p.sender == src then return p end
+    end
+    return any
 end
 
 local function build_table_plans()
@@ -250,7 +277,8 @@ local function build_table_plans()
 end
 
 function carrier.init()
-    by_fid, pending_down, tries, devs, frames, ars = {}, {}, {}, {}, {}, {}
+    for port in pairs(cm_ports or {}) do udp_table:remove(port, carrier) end
+    by_fid, pending_down, tries, devs, frames, ars, cm_ports = {}, {}, {}, {}, {}, {}, {}
     if not table_plans then build_table_plans() end
     for _, p in ipairs(table_plans) do register(p) end
 end
@@ -262,43 +290,26 @@ end
 ------------------------------------------------------------------------
 -- Learning from the Connect
 ------------------------------------------------------------------------
-local f_block_type = Field.new("pn_io.block_type")
-
--- The EtherType and payload offset of an Ethernet frame (802.1Q / 802.1ad
--- tags skipped).
-local function ethertype(tvb)
-    local n = tvb:len()
-    if n < 18 then return nil end
-    local et, off = tvb:range(12, 2):uint(), 14
-    while (et == 0x8100 or et == 0x88A8) and off + 6 <= n do
-        et, off = tvb:range(off + 2, 2):uint(), off + 4
-    end
-    return et, off
+-- A DCE/RPC connectionless PDU (version 4, request or response): the
+-- datagrams the carrier hands to the UDP heuristics.
+local function is_dcerpc_dg(tvb)
+    if tvb:len() < 80 or tvb:range(0, 1):uint() ~= 4 then return false end
+    local ptype = tvb:range(1, 1):uint()
+    return ptype == 0 or ptype == 2
 end
 
--- The PNIO blocks of a Connect request/response: the fields of Wireshark's
--- pn_io dissector when there is a tree, else (the first pass of tshark -2
--- without a filter builds none) the bytes of an unfragmented DCE/RPC
--- datagram on UDP 34964 (PNIO-CM).
-local function raw_connect_blocks(tvb)
-    local et, off = ethertype(tvb)
-    if et ~= 0x0800 or tvb:len() < off + 28 then return nil end
-    if tvb:range(off + 9, 1):uint() ~= 17 then return nil end
-    local ihl = bit.band(tvb:range(off, 1):uint(), 0x0F) * 4
-    local u = off + ihl
-    if tvb:len() < u + 8 + 100 then return nil end
-    if tvb:range(u, 2):uint() ~= 34964 and tvb:range(u + 2, 2):uint() ~= 34964 then return nil end
-    local r = u + 8
-    local ptype = tvb:range(r + 1, 1):uint()
-    local flags1 = tvb:range(r + 2, 1):uint()
-    if tvb:range(r, 1):uint() ~= 4 or (ptype ~= 0 and ptype ~= 2) or bit.band(flags1, 0x04) ~= 0 then
-        return nil
-    end
-    local le = bit.band(tvb:range(r + 4, 1):uint(), 0x10) ~= 0
+-- The PNIO blocks of an unfragmented Connect request/response (opnum 0) in
+-- a DCE/RPC datagram: { { source = tvb, offset = o, value = block type }, ... },
+-- and whether it is the request.
+local function connect_blocks(tvb)
+    if tvb:len() < 80 + 20 then return nil end
+    local ptype = tvb:range(1, 1):uint()
+    if bit.band(tvb:range(2, 1):uint(), 0x04) ~= 0 then return nil end -- a fragment
+    local le = bit.band(tvb:range(4, 1):uint(), 0x10) ~= 0
     local function u16(o) return le and tvb:range(o, 2):le_uint() or tvb:range(o, 2):uint() end
     local function u32(o) return le and tvb:range(o, 4):le_uint() or tvb:range(o, 4):uint() end
-    if u16(r + 68) ~= 0 then return nil end -- opnum 0: Connect
-    local p = r + 80
+    if u16(68) ~= 0 then return nil end -- opnum 0: Connect
+    local p = 80
     if ptype == 2 and u32(p) ~= 0 then return nil end -- PNIO status not OK
     local args = u32(p + 4)
     local start, stop = p + 20, math.min(p + 20 + args, tvb:len())
@@ -307,10 +318,10 @@ local function raw_connect_blocks(tvb)
         list[#list + 1] = { source = tvb, offset = start, value = tvb:range(start, 2):uint() }
         start = start + 4 + tvb:range(start + 2, 2):uint()
     end
-    return list
+    return list, ptype == 0
 end
 
-local function learn_connect(tvb, pinfo, blocks)
+local function learn_connect(pinfo, blocks)
     local ar = {}
     local any = false
     for _, fi in ipairs(blocks) do
@@ -324,15 +335,17 @@ local function learn_connect(tvb, pinfo, blocks)
     end
     if not any or not ar.uuid then return nil end
     local known = ars[ar.uuid]
+    -- The senders of the cyclic frames: the Ethernet addresses of the two
+    -- ends of the Connect (compared with those of the cyclic frames).
     if ar.subs then
-        -- A request: remember it (the device MAC is where it goes).
-        ar.dev_mac = ar.dev_mac or layout.mac_hex(tvb, 0)
+        -- A request: from the controller to the device.
+        ar.ctl_mac, ar.dev_mac = pinfo.dl_src, pinfo.dl_dst
         ar.frame = pinfo.number
         ars[ar.uuid] = ar
         known = ar
     elseif known and (ar.res_fids or ar.dev_mac) then
         known.res_fids = ar.res_fids or known.res_fids
-        known.dev_mac = ar.dev_mac or known.dev_mac
+        known.dev_mac = pinfo.dl_src
     else
         return nil
     end
@@ -348,10 +361,6 @@ end
 ------------------------------------------------------------------------
 -- Helpers
 ------------------------------------------------------------------------
-local function hexmac(tvb, off)
-    return tostring(tvb:range(off, 6):bytes():tohex()):lower()
-end
-
 local function all_zero(ba, objs)
     for _, o in ipairs(objs) do
         for i = o.off, o.off + o.len - 1 do
@@ -587,15 +596,16 @@ end
 
 -- An unknown cyclic FrameID: a polled uplink header, or the downlink that
 -- belongs to one seen before (same two MAC addresses, the other way).
-local function try_heuristic(fid, tvb, base, size, frame)
-    if next(pending_down) then
-        local key = hexmac(tvb, 6) .. hexmac(tvb, 0)
-        local down = pending_down[key]
-        if down and size >= down.need then
-            pending_down[key] = nil
-            down.fid = fid
-            register(down)
-            return down
+local function try_heuristic(fid, tvb, base, size, pinfo)
+    if #pending_down > 0 then
+        local src, dst = pinfo.dl_src, pinfo.dl_dst
+        for i, w in ipairs(pending_down) do
+            if w.ctl == src and w.dev == dst and size >= w.plan.need then
+                table.remove(pending_down, i)
+                w.plan.fid = fid
+                register(w.plan)
+                return w.plan
+            end
         end
     end
     local n = tries[fid] or 0
@@ -606,28 +616,29 @@ local function try_heuristic(fid, tvb, base, size, frame)
         tries[fid] = n + 1
         return nil
     end
-    local dev_mac, ctl_mac = hexmac(tvb, 6), hexmac(tvb, 0)
+    local dev_mac, ctl_mac = pinfo.dl_src, pinfo.dl_dst
     local up, down = layout.mcmb2_plans("polled", h.used, h.up_mods, h.down_mods, h.dap,
-        "polled header in frame " .. frame, "hdr" .. dev_mac)
+        "polled header in frame " .. pinfo.number, "hdr" .. pinfo.number)
     up.fid, up.sender, up.from_header = fid, dev_mac, true
     down.sender, down.from_header = ctl_mac, true
     register(up)
-    pending_down[ctl_mac .. dev_mac] = down
+    pending_down[#pending_down + 1] = { ctl = ctl_mac, dev = dev_mac, plan = down }
     return up
 end
 
-local function first_pass(fid, fid_off, tvb, pinfo)
+-- tvb: the PN-RT frame from the FrameID on.
+local function first_pass(fid, tvb, pinfo)
     local cands = by_fid[fid]
-    local base = fid_off + 2
+    local base = 2
     local size = tvb:len() - base - 4
     if size <= 0 then return nil end
     local plan
     if cands then
-        plan = cands[hexmac(tvb, 6)] or cands.any
+        plan = lookup(cands, pinfo.dl_src)
     end
     if not plan then
         if not mcmb2.prefs.heuristic or fid < 0x8000 or fid > 0xFBFF then return nil end
-        plan = try_heuristic(fid, tvb, base, size, pinfo.number)
+        plan = try_heuristic(fid, tvb, base, size, pinfo)
         if not plan then return nil end
     end
     local rec = { plan = plan, base = base, size = size, findings = {} }
@@ -812,14 +823,19 @@ end
 local function show_connect(rec, tvb, tree)
     local p = (rec.system == "eclink") and eclp or mcmb2
     local item = tree:add(p, tvb:range(0, 0))
-    local function fid(plan) return plan and plan.fid and string.format("0x%04x", plan.fid) or "none" end
+    local function fid(plan)
+        if not plan or not plan.fid then return "none" end
+        if plan.fid == 0xFFFF then return "assigned in the response" end
+        return string.format("0x%04x", plan.fid)
+    end
     local text = string.format("%s device: uplink FrameID %s, downlink FrameID %s", rec.system, fid(rec.up),
         fid(rec.down))
     item:append_text(": layout learned, " .. text)
     if p == mcmb2 then
         item:add(pf.system, rec.system):set_generated()
-        if rec.up and rec.up.fid then item:add(pf.frame_id, rec.up.fid):set_generated() end
-        if rec.down and rec.down.fid then item:add(pf.frame_id, rec.down.fid):set_generated() end
+        for _, plan in ipairs({ rec.up or false, rec.down or false }) do
+            if plan and plan.fid and plan.fid ~= 0xFFFF then item:add(pf.frame_id, plan.fid):set_generated() end
+        end
         item:add_proto_expert_info(ef.learned, "Cyclic data layout learned: " .. text)
     else
         item:add_proto_expert_info(eef.learned, "Cyclic data layout learned: " .. text)
@@ -827,29 +843,9 @@ local function show_connect(rec, tvb, tree)
 end
 
 ------------------------------------------------------------------------
--- The postdissector
+-- The carrier
 ------------------------------------------------------------------------
-function carrier.dissector(tvb, pinfo, tree)
-    local rec
-    if pinfo.visited then
-        rec = frames[pinfo.number]
-        if not rec then return end
-    else
-        local et, off = ethertype(tvb)
-        if et == 0x8892 then
-            rec = first_pass(tvb:range(off, 2):uint(), off, tvb, pinfo)
-        elseif mcmb2.prefs.connect then
-            local blocks = { f_block_type() }
-            if #blocks == 0 then
-                if et ~= 0x0800 then return end
-                blocks = raw_connect_blocks(tvb)
-                if not blocks then return end
-            end
-            rec = learn_connect(tvb, pinfo, blocks)
-        end
-        if not rec then return end
-        frames[pinfo.number] = rec
-    end
+local function show(rec, tvb, pinfo, tree)
     if rec.kind == "connect" then
         show_connect(rec, tvb, tree)
     elseif rec.plan.system == "eclink" then
@@ -859,4 +855,55 @@ function carrier.dissector(tvb, pinfo, tree)
     end
 end
 
-register_postdissector(carrier)
+-- EtherType 0x8892: Wireshark's PN-RT first, then our cyclic data.
+local function cyclic(tvb, pinfo, tree)
+    local consumed = pn_rt:call(tvb, pinfo, tree)
+    local rec
+    if pinfo.visited then
+        rec = frames[pinfo.number]
+    elseif tvb:len() >= 2 then
+        local fid = tvb:range(0, 2):uint()
+        if by_fid[fid] or (fid >= 0x8000 and fid <= 0xFBFF and mcmb2.prefs.heuristic
+                           and ((tries[fid] or 0) < HEUR_TRIES or #pending_down > 0)) then
+            rec = first_pass(fid, tvb, pinfo)
+            frames[pinfo.number] = rec
+        end
+    end
+    if rec then show(rec, tvb, pinfo, tree) end
+    return consumed
+end
+
+-- UDP 34964 (and the controllers' ports): the UDP heuristics (DCE/RPC)
+-- first, then the Connect blocks.
+local function connect(tvb, pinfo, tree)
+    if not is_dcerpc_dg(tvb) then return 0 end
+    if not DissectorTable.try_heuristics("udp", tvb, pinfo, tree) then return 0 end
+    local rec
+    if pinfo.visited then
+        rec = frames[pinfo.number]
+    elseif mcmb2.prefs.connect then
+        local blocks, request = connect_blocks(tvb)
+        if blocks then
+            if request and pinfo.src_port ~= UDP_PNIO_CM and pinfo.src_port ~= ETH_PNRT
+                    and not cm_ports[pinfo.src_port] and not udp_table:get_dissector(pinfo.src_port) then
+                -- The response comes from the device's own port to this one.
+                cm_ports[pinfo.src_port] = true
+                udp_table:add(pinfo.src_port, carrier)
+            end
+            rec = learn_connect(pinfo, blocks)
+            frames[pinfo.number] = rec
+        end
+    end
+    if rec then show(rec, tvb, pinfo, tree) end
+    return tvb:len()
+end
+
+function carrier.dissector(tvb, pinfo, tree)
+    -- No controller port is ever 0x8892 (see connect), so match_uint tells
+    -- the two tables apart.
+    if pinfo.match_uint == ETH_PNRT then return cyclic(tvb, pinfo, tree) end
+    return connect(tvb, pinfo, tree)
+end
+
+ethertype_table:add(ETH_PNRT, carrier)
+udp_table:add(UDP_PNIO_CM, carrier)

@@ -5,7 +5,7 @@
 --   system   "duplex" | "polled" | "eclink"
 --   dir      "up" (input CR, device -> controller) | "down" (output CR)
 --   source   where the layout comes from (text, shown in the tree)
---   fid      FrameID; sender: Ethernet source as 12 hex digits, or nil (any)
+--   fid      FrameID; sender: Ethernet source (an Address, compared with ==), or nil (any)
 --   dev      key of the device (shared by both directions; analysis state)
 --   header   { off, len, slot, subslot }   MC-MB2 header submodule
 --   modules  { obj, ... }                   MC-MB2 data modules, slot order

@@ -130,7 +130,7 @@ class Device:
                 API=0, SlotNumber=slot, ModuleIdentNumber=subs[0].module_ident, Submodules=esubs)]))
         return blocks
 
-    def _rpc(self, ptype, payload, src_is_ctl, seq):
+    def _rpc(self, ptype, payload, src_is_ctl, seq, device_port=PNIO_CM_PORT):
         act = uuid.UUID("a0c1e2f3-0000-4000-8000-%012x" % seq)
         obj = uuid.UUID("dea00000-6c97-11d1-8271-000100010130")
         if_id = uuid.UUID("dea00001-6c97-11d1-8271-00a02442df7d")
@@ -139,15 +139,15 @@ class Device:
         body = bytes(rpc / payload)
         src_mac, dst_mac = (self.ctl_mac, self.dev_mac) if src_is_ctl else (self.dev_mac, self.ctl_mac)
         src_ip, dst_ip = (CONTROLLER_IP, DEVICE_IP) if src_is_ctl else (DEVICE_IP, CONTROLLER_IP)
-        sport, dport = (0xC001, PNIO_CM_PORT) if src_is_ctl else (PNIO_CM_PORT, 0xC001)
+        sport, dport = (0xC001, PNIO_CM_PORT) if src_is_ctl else (device_port, 0xC001)
         eth = Ether(src=src_mac, dst=dst_mac)
         if self.vlan is not None:
             eth = eth / Dot1Q(prio=0, vlan=self.vlan)
         return bytes(eth / IP(src=src_ip, dst=dst_ip, ttl=64, id=0x100 + seq)
                      / UDP(sport=sport, dport=dport) / body)
 
-    def connect(self, cap, t, seq=1, response_in_fid=None):
-        """Add the Connect request and its response; returns their frame numbers."""
+    def connect(self, cap, t, seq=1, response_in_fid=None, device_port=PNIO_CM_PORT):
+        """Add the Connect request and its response (sent from device_port); returns their frame numbers."""
         ar = uuid.UUID(self.ar_uuid)
         blocks = [ARBlockReq(ARType=1, ARUUID=ar, SessionKey=1, CMInitiatorMacAdd=self.ctl_mac,
                              CMInitiatorObjectUUID=uuid.UUID("dea00000-6c97-11d1-8271-000100010130"),
@@ -163,7 +163,7 @@ class Device:
                       IOCRBlockRes(IOCRType=2, IOCRReference=2, FrameID=self.out_fid)]
         res = PNIOServiceResPDU(status=0, blocks=res_blocks)
         a = cap.add(t, self._rpc(0, req, True, seq))
-        b = cap.add(t + 0.01, self._rpc(2, res, False, seq))
+        b = cap.add(t + 0.01, self._rpc(2, res, False, seq, device_port))
         return a, b
 
     # -- cyclic data -----------------------------------------------------------
@@ -282,6 +282,22 @@ def duplex_connect():
         d.uplink(cap, t, [status, i + 1], [data], iops=iops)
         d.downlink(cap, t + 0.001, [1, i + 1], [_duplex_payload(30, 100 + i)], iocs=iocs)
         t += 0.1
+    return cap
+
+
+@capture("mcmb2_duplex_cm_port.pcap",
+         "MC-MB2-PN duplex whose Connect response comes from the device's own UDP port and assigns the "
+         "input FrameID (0x8101); an unrelated datagram to the controller's port")
+def duplex_cm_port():
+    cap = Capture()
+    d = Mcmb2("duplex", 8, 4, in_fid=0x8101, out_fid=0x8102)
+    d.connect(cap, 0.0, response_in_fid=0x8101, device_port=0xC005)     # frames 1, 2
+    for i in range(3):                                                   # frames 3..8
+        d.uplink(cap, 0.1 + i * 0.1, [0x11, i + 1], [_duplex_payload(8, i)])
+        d.downlink(cap, 0.101 + i * 0.1, [1, i + 1], [_duplex_payload(4, 50 + i)])
+    # frame 9: not DCE/RPC, to the controller's port: left to Wireshark
+    cap.add(0.5, bytes(Ether(src=DEVICE_MAC, dst=CONTROLLER_MAC) / IP(src=DEVICE_IP, dst=CONTROLLER_IP)
+                       / UDP(sport=0xC006, dport=0xC001) / b"hello"))
     return cap
 
 
