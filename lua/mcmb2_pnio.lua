@@ -83,6 +83,7 @@ local SLOT_STATUS = {
 local DUPLEX_OK = { [0x0] = true, [0x1] = true, [0x2] = true, [0x7] = true, [0xA] = true }
 local POLLED_OK = { [0xA] = true, [0xF] = true }
 local SLOT_OK = { [0x0] = true, [0x1] = true, [0x2] = true, [0x7] = true, [0xF] = true }
+local SLOT_ANCHOR = { "slot1", "slot2", "slot3", "slot4" }
 local IOXS = {
     [0x80] = "Good",
     [0x00] = "Bad (by subslot)",
@@ -404,26 +405,32 @@ end
 ------------------------------------------------------------------------
 -- First pass: the analysis of one cyclic frame
 ------------------------------------------------------------------------
-local function check_ioxs(rec, plan, ba, ex_iops, ex_iocs)
-    local objs = {}
-    for _, o in ipairs(plan.dap) do objs[#objs + 1] = o end
-    if plan.header then objs[#objs + 1] = plan.header end
-    if plan.image then objs[#objs + 1] = plan.image end
-    for _, o in ipairs(plan.modules) do objs[#objs + 1] = o end
-    for _, o in ipairs(objs) do
-        local v = ba:get_index(o.off + o.len)
-        if v ~= 0x80 then
-            add_finding(rec, "iops", ex_iops, string.format("IOPS of slot %d/0x%x is %s (0x%02x)", o.slot,
-                o.subslot, IOXS[v] or "not GOOD", v))
-        end
+-- The IOPS and IOCS bytes of a plan, in display order, built once per plan:
+-- { off, is_iocs, slot, subslot, label suffix }.
+local function ioxs_list(plan)
+    local list = plan.ioxs_cache
+    if list then return list end
+    list = {}
+    local function one(off, iocs, slot, subslot)
+        list[#list + 1] = { off = off, iocs = iocs, slot = slot, subslot = subslot,
+                            suffix = string.format(" (%s of slot %d/0x%x)", iocs and "IOCS" or "IOPS", slot, subslot) }
     end
-    if ex_iocs then
-        for _, c in ipairs(plan.iocs) do
-            local v = ba:get_index(c.off)
-            if v ~= 0x80 then
-                add_finding(rec, "iocs", ex_iocs, string.format("IOCS of slot %d/0x%x is %s (0x%02x)", c.slot,
-                    c.subslot, IOXS[v] or "not GOOD", v))
-            end
+    for _, o in ipairs(plan.dap) do one(o.off + o.len, false, o.slot, o.subslot) end
+    if plan.header then one(plan.header.off + plan.header.len, false, plan.header.slot, 1) end
+    if plan.image then one(plan.image.off + plan.image.len, false, plan.image.slot, 1) end
+    for _, o in ipairs(plan.modules) do one(o.off + o.len, false, o.slot, o.subslot) end
+    for _, c in ipairs(plan.iocs) do one(c.off, true, c.slot, c.subslot) end
+    plan.ioxs_cache = list
+    return list
+end
+
+local function check_ioxs(rec, plan, ba, ex_iops, ex_iocs)
+    for _, x in ipairs(ioxs_list(plan)) do
+        local v = ba:get_index(x.off)
+        if v ~= 0x80 and (ex_iocs or not x.iocs) then
+            add_finding(rec, x.iocs and "iocs" or "iops", x.iocs and ex_iocs or ex_iops, string.format(
+                "%s of slot %d/0x%x is %s (0x%02x)", x.iocs and "IOCS" or "IOPS", x.slot, x.subslot,
+                IOXS[v] or "not GOOD", v))
         end
     end
 end
@@ -506,7 +513,7 @@ local function analyse_mcmb2(rec, plan, ba, t, frame)
         for k = 1, 4 do
             local s = ba:get_index(h + 3 + k)
             local sst, term = bit.band(s, 0x0F), bit.rshift(s, 4)
-            local anchor = "slot" .. k
+            local anchor = SLOT_ANCHOR[k]
             if not SLOT_OK[sst] then
                 add_finding(rec, anchor, ef.slot_status_undefined, string.format(
                     "Slot %d: undefined terminal status 0x%X: bring the system to a safe state", k, sst))
@@ -626,6 +633,10 @@ local function try_heuristic(fid, tvb, base, size, pinfo)
     return up
 end
 
+-- The C-SDU as a Lua string with ByteArray's get_index (0-based): one copy
+-- per frame instead of a C call per byte read.
+local RawBytes = { __index = { get_index = function(self, i) return string.byte(self.s, i + 1) end } }
+
 -- tvb: the PN-RT frame from the FrameID on.
 local function first_pass(fid, tvb, pinfo)
     local cands = by_fid[fid]
@@ -647,7 +658,7 @@ local function first_pass(fid, tvb, pinfo)
             "C-SDU has %d bytes, the layout needs %d", size, plan.need))
         return rec
     end
-    local ba = tvb:range(base, size):bytes()
+    local ba = setmetatable({ s = tvb:raw(base, size) }, RawBytes)
     local t = pinfo.abs_ts
     if plan.system == "eclink" then
         analyse_eclink(rec, plan, ba, t, pinfo.number)
@@ -661,7 +672,9 @@ end
 -- Display
 ------------------------------------------------------------------------
 local function attach(rec, anchor, item)
-    for _, f in ipairs(rec.findings) do
+    local findings = rec.findings
+    if #findings == 0 then return end
+    for _, f in ipairs(findings) do
         if f.anchor == anchor then
             item:add_proto_expert_info(f.ex, f.text)
             f.shown = true
@@ -678,22 +691,16 @@ end
 local function data_range(tvb, base, objs, name)
     if #objs == 0 then return nil end
     if #objs == 1 then return tvb:range(base + objs[1].off, objs[1].len) end
-    local ba = ByteArray.new()
-    for _, o in ipairs(objs) do ba:append(tvb:range(base + o.off, o.len):bytes()) end
-    return ba:tvb(name):range()
+    local parts = {}
+    for i, o in ipairs(objs) do parts[i] = tvb:raw(base + o.off, o.len) end
+    return ByteArray.new(table.concat(parts), true):tvb(name):range()
 end
 
 local function add_ioxs(tree, rec, plan, tvb, base, f_iops, f_iocs)
     local sub = tree:add(tvb:range(base, plan.need), "IO status (IOPS / IOCS)")
-    local function one(f, off, what, slot, subslot)
-        local item = sub:add(f, tvb:range(base + off, 1))
-        item:append_text(string.format(" (%s of slot %d/0x%x)", what, slot, subslot))
+    for _, x in ipairs(ioxs_list(plan)) do
+        sub:add(x.iocs and f_iocs or f_iops, tvb:range(base + x.off, 1)):append_text(x.suffix)
     end
-    for _, o in ipairs(plan.dap) do one(f_iops, o.off + o.len, "IOPS", o.slot, o.subslot) end
-    if plan.header then one(f_iops, plan.header.off + plan.header.len, "IOPS", plan.header.slot, 1) end
-    if plan.image then one(f_iops, plan.image.off + plan.image.len, "IOPS", plan.image.slot, 1) end
-    for _, o in ipairs(plan.modules) do one(f_iops, o.off + o.len, "IOPS", o.slot, o.subslot) end
-    for _, c in ipairs(plan.iocs) do one(f_iocs, c.off, "IOCS", c.slot, c.subslot) end
     attach(rec, "iops", sub)
     attach(rec, "iocs", sub)
 end
@@ -714,15 +721,17 @@ local function show_mcmb2(rec, tvb, pinfo, tree)
     end
     local h = base + plan.header.off
     local info
+    local hr, wr = tvb:range(h, 1), tvb:range(h + 1, 1)
+    local wdv = wr:uint()
     if up then
-        local sb = tvb:range(h, 1):uint()
-        local item = root:add(pf.status, tvb:range(h, 1))
+        local sb = hr:uint()
+        local item = root:add(pf.status, hr)
         local known = (plan.system == "duplex") and DUPLEX_OK or POLLED_OK
         if not known[bit.band(sb, 0x0F)] then item:append_text(" [undefined on a " .. plan.system .. " system]") end
         attach(rec, "status", item)
         if plan.system == "duplex" then
-            root:add(pf.terminal, tvb:range(h, 1))
-            local wd = root:add(pf.uplink_watchdog, tvb:range(h + 1, 1))
+            root:add(pf.terminal, hr)
+            local wd = root:add(pf.uplink_watchdog, wr)
             if rec.wd_age then wd:add(pf.watchdog_age, nstime(rec.wd_age)):set_generated() end
             attach(rec, "wd", wd)
             local r = data_range(tvb, base, plan.modules, "MC-MB2 uplink data")
@@ -730,14 +739,15 @@ local function show_mcmb2(rec, tvb, pinfo, tree)
             info = string.format("Uplink duplex: %s, terminal %d, watchdog %d",
                 DUPLEX_OK[bit.band(sb, 0x0F)] and STATUS[bit.band(sb, 0x0F)]
                     or string.format("undefined status 0x%X", bit.band(sb, 0x0F)),
-                bit.rshift(sb, 4), tvb:range(h + 1, 1):uint())
+                bit.rshift(sb, 4), wdv)
         else
-            root:add(pf.terminal, tvb:range(h, 1))
-            local wd = root:add(pf.uplink_watchdog, tvb:range(h + 1, 1))
+            root:add(pf.terminal, hr)
+            local wd = root:add(pf.uplink_watchdog, wr)
             if rec.wd_age then wd:add(pf.watchdog_age, nstime(rec.wd_age)):set_generated() end
             attach(rec, "wd", wd)
-            attach(rec, "size", root:add(pf.uplink_size, tvb:range(h + 2, 1)))
-            root:add(pf.downlink_size, tvb:range(h + 3, 1))
+            local yr, zr = tvb:range(h + 2, 1), tvb:range(h + 3, 1)
+            attach(rec, "size", root:add(pf.uplink_size, yr))
+            root:add(pf.downlink_size, zr)
             local parts = {}
             for k = 1, 4 do
                 local sr = tvb:range(h + 3 + k, 1)
@@ -754,27 +764,25 @@ local function show_mcmb2(rec, tvb, pinfo, tree)
                     local r = data_range(tvb, base, rec.groups[gi], "MC-MB2 slot " .. k .. " uplink data")
                     if r then st:add(pf.slot_uplink_data, r) end
                 end
-                attach(rec, "slot" .. k, st)
+                attach(rec, SLOT_ANCHOR[k], st)
                 if sst ~= 0xF then parts[#parts + 1] = string.format("%d:T%d/%X", k, bit.rshift(s, 4), sst) end
             end
             info = string.format("Uplink polled: status 0x%X, watchdog %d, Y=%d Z=%d, slots %s",
-                bit.band(sb, 0x0F), tvb:range(h + 1, 1):uint(), tvb:range(h + 2, 1):uint(),
-                tvb:range(h + 3, 1):uint(), (#parts > 0) and table.concat(parts, " ") or "none")
+                bit.band(sb, 0x0F), wdv, yr:uint(), zr:uint(), (#parts > 0) and table.concat(parts, " ") or "none")
         end
     else
         if plan.system == "duplex" then
-            root:add(pf.base_unit, tvb:range(h, 1))
+            root:add(pf.base_unit, hr)
         else
-            attach(rec, "reserved", root:add(pf.reserved, tvb:range(h, 1)))
+            attach(rec, "reserved", root:add(pf.reserved, hr))
         end
-        local wd = root:add(pf.downlink_watchdog, tvb:range(h + 1, 1))
+        local wd = root:add(pf.downlink_watchdog, wr)
         if rec.wd_age then wd:add(pf.watchdog_age, nstime(rec.wd_age)):set_generated() end
         attach(rec, "wd", wd)
         if plan.system == "duplex" then
             local r = data_range(tvb, base, plan.modules, "MC-MB2 downlink data")
             if r then root:add(pf.downlink_data, r) end
-            info = string.format("Downlink duplex: base unit %d, watchdog %d", tvb:range(h, 1):uint(),
-                tvb:range(h + 1, 1):uint())
+            info = string.format("Downlink duplex: base unit %d, watchdog %d", hr:uint(), wdv)
         else
             for i, g in ipairs(rec.groups or {}) do
                 local k = rec.slots and rec.slots[i] or i
@@ -785,7 +793,7 @@ local function show_mcmb2(rec, tvb, pinfo, tree)
                     st:add(pf.slot_downlink_data, r)
                 end
             end
-            info = string.format("Downlink polled: watchdog %d, %d slot(s)", tvb:range(h + 1, 1):uint(),
+            info = string.format("Downlink polled: watchdog %d, %d slot(s)", wdv,
                 #(rec.groups or {}))
         end
     end
