@@ -229,6 +229,7 @@ local devs        -- device key -> analysis state
 local frames      -- frame number -> record
 local ars         -- AR UUID -> parsed Connect
 local table_plans -- plans from the preference table (kept across captures)
+local up_limit, down_limit -- watchdog timeouts (s), read from the preferences in init()
 
 local function register(plan)
     if not plan or not plan.fid or plan.fid == 0xFFFF then return end
@@ -280,6 +281,7 @@ end
 function carrier.init()
     for port in pairs(cm_ports or {}) do udp_table:remove(port, carrier) end
     by_fid, pending_down, tries, devs, frames, ars, cm_ports = {}, {}, {}, {}, {}, {}, {}
+    up_limit, down_limit = mcmb2.prefs.uplink_timeout / 1000, mcmb2.prefs.downlink_timeout / 1000
     if not table_plans then build_table_plans() end
     for _, p in ipairs(table_plans) do register(p) end
 end
@@ -466,10 +468,10 @@ local function analyse_mcmb2(rec, plan, ba, t, frame)
                 add_finding(rec, "data", ef.data_not_zero, string.format(
                     "Status 0x%X is not 'Terminal present' but the uplink data is not all 0", st))
             end
-            watchdog(rec, d.up_wd, ba:get_index(h + 1), t, frame, mcmb2.prefs.uplink_timeout / 1000,
+            watchdog(rec, d.up_wd, ba:get_index(h + 1), t, frame, up_limit,
                 ef.uplink_stalled, "Uplink")
         else
-            watchdog(rec, d.down_wd, ba:get_index(h + 1), t, frame, mcmb2.prefs.downlink_timeout / 1000,
+            watchdog(rec, d.down_wd, ba:get_index(h + 1), t, frame, down_limit,
                 ef.downlink_stalled, "Downlink")
         end
         rec.groups = { plan.modules }
@@ -492,7 +494,7 @@ local function analyse_mcmb2(rec, plan, ba, t, frame)
             add_finding(rec, "status", ef.terminal_not_zero, string.format(
                 "Terminal number bits are %d, not 0, on a polled system", bit.rshift(sb, 4)))
         end
-        watchdog(rec, d.up_wd, ba:get_index(h + 1), t, frame, mcmb2.prefs.uplink_timeout / 1000,
+        watchdog(rec, d.up_wd, ba:get_index(h + 1), t, frame, up_limit,
             ef.uplink_stalled, "Uplink")
         local y, z = ba:get_index(h + 2), ba:get_index(h + 3)
         local used = {}
@@ -539,7 +541,7 @@ local function analyse_mcmb2(rec, plan, ba, t, frame)
         if r ~= 0 then
             add_finding(rec, "reserved", ef.reserved_not_zero, string.format("Reserved byte is 0x%02x, not 0", r))
         end
-        watchdog(rec, d.down_wd, ba:get_index(h + 1), t, frame, mcmb2.prefs.downlink_timeout / 1000,
+        watchdog(rec, d.down_wd, ba:get_index(h + 1), t, frame, down_limit,
             ef.downlink_stalled, "Downlink")
         local z = d.z or cfg.z
         local groups = group_by(plan.modules, z) or group_by(plan.modules, cfg.z) or {}
