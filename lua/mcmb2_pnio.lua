@@ -382,10 +382,6 @@ local function dev_state(key)
     return d
 end
 
-local function add_finding(rec, anchor, ex, text)
-    rec.findings[#rec.findings + 1] = { anchor = anchor, ex = ex, text = text }
-end
-
 -- Splits modules into groups of `size` bytes; nil if they do not add up.
 local function group_by(mods, size, count)
     local groups, cur, acc = {}, {}, 0
@@ -402,6 +398,42 @@ local function group_by(mods, size, count)
     end
     if acc ~= 0 or (count and #groups ~= count) then return nil end
     return groups
+end
+
+local NO_FINDINGS = {} -- shared by the records without findings; never added to
+
+local function add_finding(rec, anchor, ex, text)
+    if rec.findings == NO_FINDINGS then rec.findings = {} end
+    rec.findings[#rec.findings + 1] = { anchor = anchor, ex = ex, text = text }
+end
+
+-- group_by() for the modules of a plan, cached in the plan (the records
+-- share the result and only read it).
+local function plan_groups(plan, size, count)
+    local cache = plan.groups_cache
+    if not cache then
+        cache = {}
+        plan.groups_cache = cache
+    end
+    local key = size * 8 + (count or 7)
+    local g = cache[key]
+    if g == nil then
+        g = group_by(plan.modules, size, count) or false
+        cache[key] = g
+    end
+    return g or nil
+end
+
+-- The used slots of a polled header as a shared list, by bit mask.
+local used_lists = {}
+local function used_slots(mask)
+    local l = used_lists[mask]
+    if not l then
+        l = {}
+        for k = 1, 4 do if bit.band(mask, bit.lshift(1, k - 1)) ~= 0 then l[#l + 1] = k end end
+        used_lists[mask] = l
+    end
+    return l
 end
 
 ------------------------------------------------------------------------
@@ -474,7 +506,8 @@ local function analyse_mcmb2(rec, plan, ba, t, frame)
             watchdog(rec, d.down_wd, ba:get_index(h + 1), t, frame, down_limit,
                 ef.downlink_stalled, "Downlink")
         end
-        rec.groups = { plan.modules }
+        plan.one_group = plan.one_group or { plan.modules }
+        rec.groups = plan.one_group
         return
     end
     -- polled
@@ -497,18 +530,19 @@ local function analyse_mcmb2(rec, plan, ba, t, frame)
         watchdog(rec, d.up_wd, ba:get_index(h + 1), t, frame, up_limit,
             ef.uplink_stalled, "Uplink")
         local y, z = ba:get_index(h + 2), ba:get_index(h + 3)
-        local used = {}
+        local mask = 0
         for k = 1, 4 do
             local s = ba:get_index(h + 3 + k)
-            if bit.band(s, 0x0F) ~= 0x0F then used[#used + 1] = k end
+            if bit.band(s, 0x0F) ~= 0x0F then mask = mask + bit.lshift(1, k - 1) end
         end
-        local groups = group_by(plan.modules, y, #used)
+        local used = used_slots(mask)
+        local groups = plan_groups(plan, y, #used)
         local mismatch = not groups or (not plan.from_header and (y ~= cfg.y or z ~= cfg.z))
         if mismatch then
             add_finding(rec, "size", ef.layout_mismatch, string.format(
                 "Y=%d, Z=%d, %d used slot(s) differ from the configured layout (Y=%d, Z=%d, %d slot(s)): "
                 .. "bring the system to a safe state", y, z, #used, cfg.y, cfg.z, cfg.n))
-            groups = group_by(plan.modules, cfg.y) or {}
+            groups = plan_groups(plan, cfg.y) or {}
         end
         rec.groups, rec.slots = groups, used
         d.z, d.used = z, used
@@ -544,9 +578,11 @@ local function analyse_mcmb2(rec, plan, ba, t, frame)
         watchdog(rec, d.down_wd, ba:get_index(h + 1), t, frame, down_limit,
             ef.downlink_stalled, "Downlink")
         local z = d.z or cfg.z
-        local groups = group_by(plan.modules, z) or group_by(plan.modules, cfg.z) or {}
+        local groups = plan_groups(plan, z) or plan_groups(plan, cfg.z) or {}
         local slots = d.used
-        if not slots then
+        if not slots and #groups <= 4 then
+            slots = used_slots(bit.lshift(1, #groups) - 1)
+        elseif not slots then
             slots = {}
             for i = 1, #groups do slots[i] = i end
         end
@@ -654,7 +690,7 @@ local function first_pass(fid, tvb, pinfo)
         plan = try_heuristic(fid, tvb, base, size, pinfo)
         if not plan then return nil end
     end
-    local rec = { plan = plan, base = base, size = size, findings = {} }
+    local rec = { plan = plan, base = base, size = size, findings = NO_FINDINGS }
     if size < plan.need then
         add_finding(rec, "top", plan.system == "eclink" and eef.short or ef.short, string.format(
             "C-SDU has %d bytes, the layout needs %d", size, plan.need))
