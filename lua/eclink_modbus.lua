@@ -28,7 +28,8 @@ decodes every connection on the port; "off" leaves Modbus alone.
 Per connection, on the first pass, the latest value of every image byte is
 kept (so each frame can show the assembled images as of that frame), the
 handshake is analysed (PCI/PCO stalls, CCI -> CAO and CCO -> CAI echoes,
-BU state changes) and multiplexed periodic output blocks are reassembled.
+BU state changes: vrshark/eclink_handshake.lua, shared with EC-Link over
+PROFINET) and multiplexed periodic output blocks are reassembled.
 Everything is stored per frame, so a second pass and random access show
 the same.
 ]]
@@ -36,6 +37,7 @@ the same.
 local dir = debug.getinfo(1, "S").source:match("^@(.*)[/\\]")
 package.path = dir .. "/?.lua;" .. package.path
 local image = require("vrshark.eclink_image")
+local handshake = require("vrshark.eclink_handshake")
 
 image.proto()  -- the single Proto("eclink"), shared with the other EC-Link plugins
 local proto = Proto("eclink_modbus", "EC-Link over Modbus/TCP")
@@ -74,33 +76,15 @@ local pf = {
 }
 proto.fields = pf
 
-local ef = {
-    pci_stalled = ProtoExpert.new("eclink_modbus.pci_stalled", "PCI stalled over 500 ms",
-        expert.group.SEQUENCE, expert.severity.WARN),
-    pco_stalled = ProtoExpert.new("eclink_modbus.pco_stalled", "PCO stalled over 2000 ms",
-        expert.group.SEQUENCE, expert.severity.WARN),
-    cmd_from_ru = ProtoExpert.new("eclink_modbus.cmd_from_ru", "New command from RU (CCI)",
-        expert.group.SEQUENCE, expert.severity.CHAT),
-    cmd_from_ru_ack = ProtoExpert.new("eclink_modbus.cmd_from_ru.ack", "Command from RU acknowledged by CAO",
-        expert.group.SEQUENCE, expert.severity.CHAT),
-    cmd_from_ru_late = ProtoExpert.new("eclink_modbus.cmd_from_ru.late",
-        "Command from RU not acknowledged by CAO within 2000 ms", expert.group.SEQUENCE, expert.severity.WARN),
-    cmd_to_ru = ProtoExpert.new("eclink_modbus.cmd_to_ru", "New command to RU (CCO)",
-        expert.group.SEQUENCE, expert.severity.CHAT),
-    cmd_to_ru_ack = ProtoExpert.new("eclink_modbus.cmd_to_ru.ack", "Command to RU acknowledged by CAI",
-        expert.group.SEQUENCE, expert.severity.CHAT),
-    cmd_to_ru_late = ProtoExpert.new("eclink_modbus.cmd_to_ru.late",
-        "Command to RU not acknowledged by CAI within 2000 ms", expert.group.SEQUENCE, expert.severity.WARN),
-    bu_state_change = ProtoExpert.new("eclink_modbus.bu_state_change", "BU state changed",
-        expert.group.SEQUENCE, expert.severity.NOTE),
-    periodic_reassembled = ProtoExpert.new("eclink_modbus.periodic.reassembled", "Periodic data reassembled",
-        expert.group.REASSEMBLE, expert.severity.CHAT),
-    no_request = ProtoExpert.new("eclink_modbus.no_request", "Response without a request in the capture",
-        expert.group.SEQUENCE, expert.severity.NOTE),
-}
-proto.experts = { ef.pci_stalled, ef.pco_stalled, ef.cmd_from_ru, ef.cmd_from_ru_ack, ef.cmd_from_ru_late,
-    ef.cmd_to_ru, ef.cmd_to_ru_ack, ef.cmd_to_ru_late, ef.bu_state_change, ef.periodic_reassembled,
-    ef.no_request }
+-- the handshake experts (same wording as over PROFINET) come from vrshark.eclink_handshake
+local ef, hs_experts = handshake.experts("eclink_modbus")
+ef.periodic_reassembled = ProtoExpert.new("eclink_modbus.periodic.reassembled", "Periodic data reassembled",
+    expert.group.REASSEMBLE, expert.severity.CHAT)
+ef.no_request = ProtoExpert.new("eclink_modbus.no_request", "Response without a request in the capture",
+    expert.group.SEQUENCE, expert.severity.NOTE)
+hs_experts[#hs_experts + 1] = ef.periodic_reassembled
+hs_experts[#hs_experts + 1] = ef.no_request
+proto.experts = hs_experts
 
 ------------------------------------------------------------------------
 -- Value tables
@@ -123,10 +107,6 @@ local FC_TABLE = {
     [23] = "holding_registers",
 }
 local IS_BITS = { coils = true, discrete_inputs = true }
-
-local PCI_LIMIT = 0.5
-local PCO_LIMIT = 2.0
-local ACK_LIMIT = 2.0
 
 ------------------------------------------------------------------------
 -- Preferences
@@ -199,6 +179,7 @@ local function get_conn(key)
             output = new_image(224),
             accepted = nil,
             periodic = nil,
+            hs = handshake.new(),
         }
         conns[key] = c
     end
@@ -305,99 +286,20 @@ end
 local function analyse(c, rec, t, frame, touched)
     local inp, out = c.input, c.output
     local f = rec.findings
-    local links = rec.links
-    if touched.input and known(inp, 0, 4) then
-        local pci, cci, cai = inp.val[0], inp.val[1], inp.val[3]
-        if c.pci == nil or c.pci ~= pci then
-            c.pci, c.pci_t, c.pci_flagged = pci, t, false
-        end
-        if c.cci ~= nil and c.cci ~= cci then
-            c.cmd_in = { cci = cci, frame = frame, t = t, rec = rec }
-            f[#f + 1] = { ef.cmd_from_ru, string.format("New command from RU: CCI %d -> %d", c.cci, cci) }
-        end
-        c.cci = cci
-        if c.cmd_out and not c.cmd_out.acked and cai == c.cmd_out.cco then
-            local lat = t - c.cmd_out.t
-            c.cmd_out.acked = true
-            links.cmd_to_ru_in = c.cmd_out.frame
-            links.cmd_to_ru_latency = lat
-            c.cmd_out.rec.links.cai_in = frame
-            if lat > ACK_LIMIT then
-                f[#f + 1] = { ef.cmd_to_ru_late, string.format(
-                    "CAI echoed CCO %d after %.0f ms (limit 2000 ms)", cai, lat * 1000) }
-            else
-                f[#f + 1] = { ef.cmd_to_ru_ack, string.format(
-                    "CAI %d acknowledges the command to RU of frame %d after %.0f ms", cai, c.cmd_out.frame,
-                    lat * 1000) }
-            end
-        end
-    end
-    if touched.input and known(inp, 20, 1) then
-        local s = inp.val[20]
-        if c.bu_state ~= nil and c.bu_state ~= s then
-            rec.bu_state_prev = c.bu_state
-            f[#f + 1] = { ef.bu_state_change, string.format("BU state %s -> %s",
-                image.vs.bu_state[c.bu_state] or string.format("0x%02x", c.bu_state),
-                image.vs.bu_state[s] or string.format("0x%02x", s)) }
-        end
-        c.bu_state = s
+    local iv, ov
+    if touched.input then
+        iv = {}
+        if known(inp, 0, 4) then iv.pci, iv.cci, iv.cai = inp.val[0], inp.val[1], inp.val[3] end
+        if known(inp, 20, 1) then iv.bu = inp.val[20] end
     end
     if touched.output and known(out, 0, 4) then
-        local pco, cco, cao = out.val[0], out.val[1], out.val[3]
-        if c.pco == nil or c.pco ~= pco then
-            c.pco, c.pco_t, c.pco_flagged = pco, t, false
-        end
-        if c.cco ~= nil and c.cco ~= cco then
-            c.cmd_out = { cco = cco, frame = frame, t = t, rec = rec }
-            f[#f + 1] = { ef.cmd_to_ru, string.format("New command to RU: CCO %d -> %d", c.cco, cco) }
-        end
-        c.cco = cco
-        if c.cmd_in and not c.cmd_in.acked and cao == c.cmd_in.cci then
-            local lat = t - c.cmd_in.t
-            c.cmd_in.acked = true
-            links.cmd_from_ru_in = c.cmd_in.frame
-            links.cmd_from_ru_latency = lat
-            c.cmd_in.rec.links.cao_in = frame
-            if lat > ACK_LIMIT then
-                f[#f + 1] = { ef.cmd_from_ru_late, string.format(
-                    "CAO echoed CCI %d after %.0f ms (limit 2000 ms)", cao, lat * 1000) }
-            else
-                f[#f + 1] = { ef.cmd_from_ru_ack, string.format(
-                    "CAO %d acknowledges the command from RU of frame %d after %.0f ms", cao, c.cmd_in.frame,
-                    lat * 1000) }
-            end
-        end
+        ov = { pco = out.val[0], cco = out.val[1], cao = out.val[3] }
     end
-    -- commands still waiting for their echo
-    if c.cmd_in and not c.cmd_in.acked and not c.cmd_in.late and t - c.cmd_in.t > ACK_LIMIT then
-        c.cmd_in.late = true
-        f[#f + 1] = { ef.cmd_from_ru_late, string.format(
-            "Command from RU (CCI %d, frame %d) not acknowledged by CAO within 2000 ms", c.cmd_in.cci,
-            c.cmd_in.frame) }
-    end
-    if c.cmd_out and not c.cmd_out.acked and not c.cmd_out.late and t - c.cmd_out.t > ACK_LIMIT then
-        c.cmd_out.late = true
-        f[#f + 1] = { ef.cmd_to_ru_late, string.format(
-            "Command to RU (CCO %d, frame %d) not acknowledged by CAI within 2000 ms", c.cmd_out.cco,
-            c.cmd_out.frame) }
-    end
-    -- stalls
-    if c.pci_t and touched.input then
-        rec.pci_age = t - c.pci_t
-        if rec.pci_age > PCI_LIMIT and not c.pci_flagged then
-            c.pci_flagged = true
-            f[#f + 1] = { ef.pci_stalled, string.format("PCI %d has not changed for %.0f ms (limit 500 ms)",
-                c.pci, rec.pci_age * 1000) }
-        end
-    end
-    if c.pco_t then
-        rec.pco_age = t - c.pco_t
-        if rec.pco_age > PCO_LIMIT and not c.pco_flagged then
-            c.pco_flagged = true
-            f[#f + 1] = { ef.pco_stalled, string.format("PCO %d has not changed for %.0f ms (limit 2000 ms)",
-                c.pco, rec.pco_age * 1000) }
-        end
-    end
+    local r = handshake.update(c.hs, iv, ov, t, frame, rec)
+    for _, fd in ipairs(r.findings) do f[#f + 1] = { ef[fd[1]], fd[2] } end
+    for k, v in pairs(r.links) do rec.links[k] = v end
+    for _, b in ipairs(r.back) do b[1].links[b[2]] = b[3] end
+    rec.pci_age, rec.pco_age, rec.bu_state_prev = r.pci_age, r.pco_age, r.bu_state_prev
     -- periodic output multiplexing
     if touched.output and known(out, 0, 1) and known(out, 20, 3) then
         local size = out.val[20] * 256 + out.val[21]

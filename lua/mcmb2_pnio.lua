@@ -36,7 +36,8 @@ Polled uplink:
 Polled downlink:
   0 reserved (0) | 1 watchdog | Z bytes per used slot
 EC-Link: slot 1 input image (64), slot 2 output image (20 or 224), decoded by
-vrshark/eclink_image.lua; the handshake counters are supervised here.
+vrshark/eclink_image.lua; the handshake counters are supervised by
+vrshark/eclink_handshake.lua (the same rules and messages as over Modbus/TCP).
 
 All analysis runs on the first pass in frame order and is stored per frame,
 so tshark -2 and clicking around show the same as one pass.
@@ -46,6 +47,7 @@ local dir = debug.getinfo(1, "S").source:match("^@(.*)[/\\]")
 package.path = dir .. "/?.lua;" .. package.path
 local layout = require("vrshark.pnio_layout")
 local handshake = require("vrshark.handshake")
+local eclink_handshake = require("vrshark.eclink_handshake")
 local image = require("vrshark.eclink_image")
 image.proto()
 
@@ -169,35 +171,16 @@ local epf = {
     iocs = ProtoField.uint8("eclink_pnio.iocs", "IOCS", base.HEX, IOXS),
 }
 eclp.fields = epf
-local eef = {
-    pci_stalled = ProtoExpert.new("eclink_pnio.pci_stalled", "PCI stalled over 500 ms", expert.group.SEQUENCE,
-        expert.severity.ERROR),
-    pco_stalled = ProtoExpert.new("eclink_pnio.pco_stalled", "PCO stalled over 2000 ms", expert.group.SEQUENCE,
-        expert.severity.ERROR),
-    cmd_from_ru = ProtoExpert.new("eclink_pnio.cmd_from_ru", "New command from RU (CCI)",
-        expert.group.SEQUENCE, expert.severity.CHAT),
-    cmd_from_ru_ack = ProtoExpert.new("eclink_pnio.cmd_from_ru.ack", "Command from RU acknowledged by CAO",
-        expert.group.SEQUENCE, expert.severity.CHAT),
-    cmd_from_ru_late = ProtoExpert.new("eclink_pnio.cmd_from_ru.late",
-        "Command from RU not acknowledged by CAO within 2000 ms", expert.group.SEQUENCE, expert.severity.ERROR),
-    cmd_to_ru = ProtoExpert.new("eclink_pnio.cmd_to_ru", "New command to RU (CCO)", expert.group.SEQUENCE,
-        expert.severity.CHAT),
-    cmd_to_ru_ack = ProtoExpert.new("eclink_pnio.cmd_to_ru.ack", "Command to RU acknowledged by CAI",
-        expert.group.SEQUENCE, expert.severity.CHAT),
-    cmd_to_ru_late = ProtoExpert.new("eclink_pnio.cmd_to_ru.late",
-        "Command to RU not acknowledged by CAI within 2000 ms", expert.group.SEQUENCE, expert.severity.WARN),
-    bu_state_change = ProtoExpert.new("eclink_pnio.bu_state_change", "BU state changed", expert.group.SEQUENCE,
-        expert.severity.NOTE),
-    iops_bad = ProtoExpert.new("eclink_pnio.iops.bad", "IOPS is not GOOD (0x80)", expert.group.PROTOCOL,
-        expert.severity.WARN),
-    short = ProtoExpert.new("eclink_pnio.short", "C-SDU shorter than the layout", expert.group.MALFORMED,
-        expert.severity.ERROR),
-    learned = ProtoExpert.new("eclink_pnio.layout.learned", "Cyclic data layout learned from this Connect",
-        expert.group.SEQUENCE, expert.severity.CHAT),
-}
-eclp.experts = { eef.pci_stalled, eef.pco_stalled, eef.cmd_from_ru, eef.cmd_from_ru_ack, eef.cmd_from_ru_late,
-                 eef.cmd_to_ru, eef.cmd_to_ru_ack, eef.cmd_to_ru_late, eef.bu_state_change, eef.iops_bad,
-                 eef.short, eef.learned }
+-- the handshake experts (same wording as over Modbus/TCP) come from vrshark.eclink_handshake
+local eef, eclp_experts = eclink_handshake.experts("eclink_pnio")
+eef.iops_bad = ProtoExpert.new("eclink_pnio.iops.bad", "IOPS is not GOOD (0x80)", expert.group.PROTOCOL,
+    expert.severity.WARN)
+eef.short = ProtoExpert.new("eclink_pnio.short", "C-SDU shorter than the layout", expert.group.MALFORMED,
+    expert.severity.ERROR)
+eef.learned = ProtoExpert.new("eclink_pnio.layout.learned", "Cyclic data layout learned from this Connect",
+    expert.group.SEQUENCE, expert.severity.CHAT)
+for _, k in ipairs({ "iops_bad", "short", "learned" }) do eclp_experts[#eclp_experts + 1] = eef[k] end
+eclp.experts = eclp_experts
 
 ------------------------------------------------------------------------
 -- Preferences
@@ -215,7 +198,6 @@ mcmb2.prefs.uplink_timeout = Pref.uint("Uplink watchdog timeout (ms)", 1000,
 mcmb2.prefs.downlink_timeout = Pref.uint("Downlink watchdog timeout (ms)", 2000,
     "Flag a downlink watchdog that keeps its value longer than this (the base shows E010)")
 
-local LIMITS = { pci = 0.5, pco = 2.0, cmd = 2.0 }
 local HEUR_TRIES = 64
 
 ------------------------------------------------------------------------
@@ -376,7 +358,7 @@ end
 local function dev_state(key)
     local d = devs[key]
     if not d then
-        d = { up_wd = {}, down_wd = {}, slot_term = {}, pci = {}, pco = {}, from_ru = {}, to_ru = {} }
+        d = { up_wd = {}, down_wd = {}, slot_term = {}, hs = eclink_handshake.new() }
         devs[key] = d
     end
     return d
@@ -594,49 +576,15 @@ local function analyse_eclink(rec, plan, ba, t, frame)
     local d = dev_state(plan.dev)
     local o = plan.image.off
     check_ioxs(rec, plan, ba, eef.iops_bad, nil)
-    local function note(list, ex_new, ex_ack, ex_late, what, req, ans)
-        for _, r in ipairs(list) do
-            if r.kind == "new" then
-                add_finding(rec, "image", ex_new, string.format("New command %s (%s = %d)", what, req, r.value))
-            elseif r.kind == "acked" or r.kind == "acked_late" then
-                add_finding(rec, "image", ex_ack, string.format("Command %s acknowledged by %s after %.0f ms "
-                    .. "(frame %d)", what, ans, r.delay * 1000, r.since))
-            elseif r.kind == "late" then
-                add_finding(rec, "image", ex_late, string.format("Command %s (frame %d) not acknowledged by %s "
-                    .. "within 2000 ms", what, r.since, ans))
-            end
-        end
-    end
+    local inp, out
     if plan.dir == "up" then
-        local pci, cci, cai, bu = ba:get_index(o), ba:get_index(o + 1), ba:get_index(o + 3), ba:get_index(o + 20)
-        local r = handshake.stall(d.pci, pci, t, frame, LIMITS.pci)
-        rec.pci_age = t - d.pci.t
-        if r and r.kind == "stalled" then
-            add_finding(rec, "image", eef.pci_stalled, string.format(
-                "PCI %d has not changed for %.0f ms (since frame %d, limit 500 ms)", r.value, r.age * 1000, r.since))
-        end
-        note(handshake.echo(d.from_ru, cci, nil, t, frame, LIMITS.cmd), eef.cmd_from_ru, eef.cmd_from_ru_ack,
-            eef.cmd_from_ru_late, "from RU", "CCI", "CAO")
-        note(handshake.echo(d.to_ru, nil, cai, t, frame, LIMITS.cmd), eef.cmd_to_ru, eef.cmd_to_ru_ack,
-            eef.cmd_to_ru_late, "to RU", "CCO", "CAI")
-        if d.bu ~= nil and d.bu ~= bu then
-            add_finding(rec, "image", eef.bu_state_change, string.format("BU state 0x%02x -> 0x%02x (%s)", d.bu, bu,
-                image.vs.bu_state[bu] or "unknown"))
-        end
-        d.bu = bu
+        inp = { pci = ba:get_index(o), cci = ba:get_index(o + 1), cai = ba:get_index(o + 3), bu = ba:get_index(o + 20) }
     else
-        local pco, cco, cao = ba:get_index(o), ba:get_index(o + 1), ba:get_index(o + 3)
-        local r = handshake.stall(d.pco, pco, t, frame, LIMITS.pco)
-        rec.pco_age = t - d.pco.t
-        if r and r.kind == "stalled" then
-            add_finding(rec, "image", eef.pco_stalled, string.format(
-                "PCO %d has not changed for %.0f ms (since frame %d, limit 2000 ms)", r.value, r.age * 1000, r.since))
-        end
-        note(handshake.echo(d.to_ru, cco, nil, t, frame, LIMITS.cmd), eef.cmd_to_ru, eef.cmd_to_ru_ack,
-            eef.cmd_to_ru_late, "to RU", "CCO", "CAI")
-        note(handshake.echo(d.from_ru, nil, cao, t, frame, LIMITS.cmd), eef.cmd_from_ru, eef.cmd_from_ru_ack,
-            eef.cmd_from_ru_late, "from RU", "CCI", "CAO")
+        out = { pco = ba:get_index(o), cco = ba:get_index(o + 1), cao = ba:get_index(o + 3) }
     end
+    local r = eclink_handshake.update(d.hs, inp, out, t, frame)
+    for _, f in ipairs(r.findings) do add_finding(rec, "image", eef[f[1]], f[2]) end
+    rec.pci_age, rec.pco_age = r.pci_age, r.pco_age
 end
 
 -- An unknown cyclic FrameID: a polled uplink header, or the downlink that

@@ -34,15 +34,17 @@ def test_stalls_and_late_echoes(tshark, capture_file):
     exp = tshark.experts(cap)
     assert exp[9] == ["New command from RU: CCI 1 -> 2"]
     assert exp[10] == ["New command to RU: CCO 1 -> 2"]
-    assert exp[13] == ["PCI 2 has not changed for 700 ms (limit 500 ms)"]
+    assert exp[13] == ["PCI 2 has not changed for 700 ms (since frame 9, limit 500 ms)"]
+    # a missing echo shows on the first frame after the deadline (a read request here) ...
     assert exp[20] == ["Command from RU (CCI 2, frame 9) not acknowledged by CAO within 2000 ms",
-                       "Command to RU (CCO 2, frame 10) not acknowledged by CAI within 2000 ms",
-                       "PCO 4 has not changed for 2040 ms (limit 2000 ms)"]
+                       "Command to RU (CCO 2, frame 10) not acknowledged by CAI within 2000 ms"]
+    # ... a stall on the first frame after the limit that carries the unchanged counter
+    assert exp[22] == ["PCO 4 has not changed for 2050 ms (since frame 18, limit 2000 ms)"]
     assert exp[26] == ["CAO echoed CCI 2 after 3007 ms (limit 2000 ms)"]
     r = tshark.fields(cap, ["frame.number", "eclink_modbus.pci_age"], display_filter="frame.number == 13")
     assert r == [["13", "0.700000000"]]
     warn = tshark.field(cap, "frame.number", display_filter="_ws.expert.severity == warning && eclink_modbus")
-    assert "13" in warn and "20" in warn and "26" in warn
+    assert "13" in warn and "20" in warn and "22" in warn and "26" in warn
 
 
 def test_value_checks_over_modbus(tshark, capture_file):

@@ -21,15 +21,15 @@ def test_connect_learned(tshark, capture_file):
 
 def test_handshake_experts(tshark, capture_file):
     ex = tshark.experts(capture_file(CAP))
-    assert "BU state 0x10 -> 0x11 (Armed)" in ex[7]
-    assert "New command from RU (CCI = 1)" in ex[9]
-    assert "Command from RU acknowledged by CAO after 251 ms (frame 9)" in ex[14]
-    assert "New command to RU (CCO = 1)" in ex[20]
-    assert "Command to RU acknowledged by CAI after 124 ms (frame 20)" in ex[21]
+    assert "BU state Disarmed -> Armed" in ex[7]
+    assert "New command from RU: CCI 0 -> 1" in ex[9]
+    assert "CAO 1 acknowledges the command from RU of frame 9 after 251 ms" in ex[14]
+    assert "New command to RU: CCO 0 -> 1" in ex[20]
+    assert "CAI 1 acknowledges the command to RU of frame 20 after 124 ms" in ex[21]
     assert "PCI 10 has not changed for 625 ms (since frame 21, limit 500 ms)" in ex[31]
-    assert "New command from RU (CCI = 2)" in ex[43]
+    assert "New command from RU: CCI 1 -> 2" in ex[43]
     assert "PCO 18 has not changed for 2125 ms (since frame 38, limit 2000 ms)" in ex[72]
-    assert "Command from RU (frame 43) not acknowledged by CAO within 2000 ms" in ex[76]
+    assert "Command from RU (CCI 2, frame 43) not acknowledged by CAO within 2000 ms" in ex[76]
     stalls = [n for n, m in ex.items() if any("has not changed" in x for x in m)]
     assert stalls == [31, 72]
 
