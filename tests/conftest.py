@@ -23,7 +23,8 @@ SHARED = ROOT.parent / "shared"
 PUBLIC_CAPTURES = SHARED / "captures" / "public"
 
 # Text that must never appear in tshark's output for our captures.
-FORBIDDEN = ("Lua Error", "Dissector bug", "dissector bug", "[Malformed Packet: eglink]")
+FORBIDDEN = ("Lua Error", "Lua: Error during loading", "Dissector bug", "dissector bug",
+             "[Malformed Packet: eglink]")
 
 
 def _world_dir(prefix, mode=0o755):

@@ -18,3 +18,12 @@ def test_captures_match_generator():
     proc = subprocess.run([str(ROOT / "tools" / "gen-captures"), "--check"],
                           capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
+
+
+def test_every_lua_file_loads(tshark):
+    """Each .lua file under lua/ is run as a plugin at start-up (modules too)
+    and loads without error."""
+    out = tshark.run(["-G", "plugins"]).stdout
+    loaded = {line.split("\t")[0].strip() for line in out.splitlines() if "\tlua script\t" in line}
+    expected = {p.name for p in (ROOT / "lua").rglob("*.lua")}
+    assert expected <= loaded, "not loaded: %s" % sorted(expected - loaded)
