@@ -38,6 +38,7 @@ local dir = debug.getinfo(1, "S").source:match("^@(.*)[/\\]")
 package.path = dir .. "/?.lua;" .. package.path
 local image = require("vrshark.eclink_image")
 local handshake = require("vrshark.eclink_handshake")
+local wrap = require("vrshark.wrap")
 
 image.proto()  -- the single Proto("eclink"), shared with the other EC-Link plugins
 local proto = Proto("eclink_modbus", "EC-Link over Modbus/TCP")
@@ -586,7 +587,9 @@ end
 function proto.dissector(tvb, pinfo, tree)
     -- let mbtcp use TCP desegmentation as if TCP had called it directly
     if pinfo.can_desegment > 0 then pinfo.can_desegment = pinfo.can_desegment + 1 end
-    local consumed = mbtcp:call(tvb, pinfo, tree)
+    local consumed = wrap.call(mbtcp, tvb, pinfo, tree)
+    -- a malformed Modbus/TCP PDU: Wireshark's report stands, no EC-Link view
+    if consumed == nil then return tvb:len() end
     if proto.prefs.detection == DETECT_OFF then return consumed end
     local is_request = (pinfo.dst_port == pinfo.match_uint) and (pinfo.src_port ~= pinfo.match_uint)
     local n = tvb:len()

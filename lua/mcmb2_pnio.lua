@@ -49,6 +49,7 @@ local layout = require("vrshark.pnio_layout")
 local handshake = require("vrshark.handshake")
 local eclink_handshake = require("vrshark.eclink_handshake")
 local image = require("vrshark.eclink_image")
+local wrap = require("vrshark.wrap")
 image.proto()
 
 ------------------------------------------------------------------------
@@ -851,7 +852,9 @@ end
 
 -- EtherType 0x8892: Wireshark's PN-RT first, then our cyclic data.
 local function cyclic(tvb, pinfo, tree)
-    local consumed = pn_rt:call(tvb, pinfo, tree)
+    local consumed = wrap.call(pn_rt, tvb, pinfo, tree)
+    -- a malformed PN-RT frame: Wireshark's report stands, nothing of ours
+    if consumed == nil then return tvb:len() end
     local rec
     if pinfo.visited then
         rec = frames[pinfo.number]

@@ -24,6 +24,6 @@ def test_every_lua_file_loads(tshark):
     """Each .lua file under lua/ is run as a plugin at start-up (modules too)
     and loads without error."""
     out = tshark.run(["-G", "plugins"]).stdout
-    loaded = {line.split("\t")[0].strip() for line in out.splitlines() if "\tlua script\t" in line}
+    loaded = {line.split("\t")[0].strip() for line in out.splitlines() if "\tlua script\t" in line.lower()}
     expected = {p.name for p in (ROOT / "lua").rglob("*.lua")}
     assert expected <= loaded, "not loaded: %s" % sorted(expected - loaded)
