@@ -21,23 +21,12 @@
 
 static int st_node_root = -1;
 
-static const value_string bu_state_names[] = {
-    { 0x00, "Initial" },
-    { 0x01, "Stopped" },
-    { 0x02, "External link error" },
-    { 0x03, "Blocked" },
-    { 0x04, "Failed" },
-    { 0x10, "Disarmed" },
-    { 0x11, "Armed" },
-    { 0, NULL }
-};
-
 static const char *const type_names[] = { "VRPI", "VRPO", "VRCI", "VRCO", "VRAI", "VRAO" };
 
 const char *
 eglink_bu_state_name(guint8 state)
 {
-    return val_to_str_const(state, bu_state_names, "Unknown");
+    return val_to_str_const(state, eglink_bu_state_vals, "Unknown");
 }
 
 static int

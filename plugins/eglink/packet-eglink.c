@@ -186,7 +186,8 @@ static const value_string eglink_type_descr[] = {
     { 0, NULL }
 };
 
-static const value_string eglink_bu_state_vals[] = {
+/* Shared with the analysis and the statistics (packet-eglink.h). */
+const value_string eglink_bu_state_vals[] = {
     { 0x00, "Initial" },
     { 0x01, "Stopped" },
     { 0x02, "External link error" },

@@ -51,6 +51,9 @@ typedef struct {
     int periodic_len;
 } eglink_info_t;
 
+/* BU state names (TS-0006 4.1.1), defined in packet-eglink.c. */
+extern const value_string eglink_bu_state_vals[];
+
 /* eglink-analysis.c: called from proto_register_eglink() with the protocol
  * and its preferences module, so it registers its own fields, expert info,
  * preferences, reassembly table and tap under "eglink". */
