@@ -482,6 +482,8 @@ M.IOXS_OK = IOXS_OK
 
 function M.polled_header(get, size)
     for dap = 1, 8 do
+        -- the DAP IOPS, the 8-byte header and its IOPS must fit
+        if dap + 9 > size then return nil end
         local ok = true
         for i = 0, dap - 1 do
             if not IOXS_OK[get(i)] then ok = false break end
