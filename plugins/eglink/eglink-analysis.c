@@ -4,8 +4,10 @@
  * timeouts, reassembly of split VRPO bursts, and the "eglink" tap.
  *
  * Everything is computed on the first pass, in frame order, and stored per
- * frame (p_add_proto_data in file scope), so a single pass, "tshark -2" and
- * clicking around in the GUI show the same findings. A finding that depends
+ * frame in file scope, so a single pass, "tshark -2" and clicking around in
+ * the GUI show the same findings. Most frames need only a 16-byte record in a
+ * table indexed by frame number; a frame with findings, a command link or a
+ * reassembly ID keeps its full record with p_add_proto_data. A finding that depends
  * on time passing (a missing VRPI/VRPO, an unacknowledged command) is
  * reported on the first packet of the BU that arrives after the deadline:
  * that is the earliest packet at which a one-pass reader knows it.
@@ -207,8 +209,13 @@ typedef enum {
 #define FF_FIRST_ACK    0x0010  /* first VRAO/VRAI of its command */
 #define FF_PREV_STATE   0x0020  /* prev_bu_state is set (VRPI after a VRPI) */
 #define FF_BURST_LAST   0x0040  /* the last fragment of its burst */
+#define FF_FLAGS_MASK   0x00FF  /* the flags above (the full record's) */
+/* Only in the compact record: */
+#define FF_USED         0x0100  /* the slot holds a frame's record */
+#define FF_FULL         0x0200  /* the full record is in p_add_proto_data */
+#define FF_STATUS_SHIFT 12      /* serial_status in bits 12-14 */
 
-/* Per frame: a few dozen bytes. */
+/* The full record of one EG-Link layer of a frame. */
 typedef struct {
     eglink_bu_t *bu;
     eglink_cmd_t *cmd;          /* VRCI/VRCO: its command; VRAO/VRAI: the one it acknowledges */
@@ -222,9 +229,30 @@ typedef struct {
     guint8 prev_bu_state;
 } eglink_frame_t;
 
+/* What most frames store: 16 bytes in a table indexed by frame number. Only
+ * the first EG-Link layer of a frame has a slot; the record of any other
+ * layer, and of a frame whose full record does not fit, is stored with
+ * p_add_proto_data (FF_FULL). */
+typedef struct {
+    guint32 bu_index;
+    guint32 delta_ns;           /* delta_ns of the full record when FF_DELTA */
+    guint16 flags;              /* FF_*, serial_status << FF_STATUS_SHIFT */
+    guint16 expected_serial;
+    guint16 bu_origin;
+    guint8 layer;               /* pinfo->curr_layer_num of the layer stored */
+    guint8 prev_bu_state;
+} eglink_slot_t;
+
+#define EGLINK_SLOT_PAGE_BITS 12
+#define EGLINK_SLOT_PAGE_SIZE (1u << EGLINK_SLOT_PAGE_BITS)
+
 static wmem_map_t *eglink_bus;
 static guint32 eglink_bu_count;
 static guint32 eglink_burst_count;
+/* File scope: the BUs by index, and the pages of slots by frame number. */
+static wmem_array_t *eglink_bu_by_index;
+static eglink_slot_t **eglink_slot_pages;
+static guint32 eglink_slot_page_count;
 
 /* ---------------------------------------------------------------------- */
 
@@ -233,6 +261,96 @@ eglink_analysis_init(void)
 {
     eglink_bu_count = 0;
     eglink_burst_count = 0;
+    eglink_bu_by_index = NULL;
+    eglink_slot_pages = NULL;
+    eglink_slot_page_count = 0;
+}
+
+/* The slot of a frame; NULL when its page does not exist and !create. */
+static eglink_slot_t *
+eglink_slot(guint32 frame, gboolean create)
+{
+    guint32 page = frame >> EGLINK_SLOT_PAGE_BITS;
+
+    if (page >= eglink_slot_page_count) {
+        guint32 count = eglink_slot_page_count ? eglink_slot_page_count : 64;
+
+        if (!create)
+            return NULL;
+        while (count <= page)
+            count *= 2;
+        if (eglink_slot_pages)
+            eglink_slot_pages = (eglink_slot_t **)wmem_realloc(wmem_file_scope(), eglink_slot_pages,
+                                                                count * sizeof(eglink_slot_t *));
+        else
+            eglink_slot_pages = wmem_alloc_array(wmem_file_scope(), eglink_slot_t *, count);
+        memset(eglink_slot_pages + eglink_slot_page_count, 0,
+               (count - eglink_slot_page_count) * sizeof(eglink_slot_t *));
+        eglink_slot_page_count = count;
+    }
+    if (!eglink_slot_pages[page]) {
+        if (!create)
+            return NULL;
+        eglink_slot_pages[page] = wmem_alloc0_array(wmem_file_scope(), eglink_slot_t,
+                                                    EGLINK_SLOT_PAGE_SIZE);
+    }
+    return &eglink_slot_pages[page][frame & (EGLINK_SLOT_PAGE_SIZE - 1)];
+}
+
+static gboolean
+eglink_frame_is_compact(const eglink_frame_t *fd)
+{
+    return !fd->findings && !fd->cmd && !fd->burst_id &&
+           (!(fd->flags & FF_DELTA) || (fd->delta_ns >= 0 && fd->delta_ns <= G_MAXUINT32));
+}
+
+/* Stores the record of the current layer, computed on the first pass. */
+static void
+eglink_frame_store(packet_info *pinfo, guint32 key, const eglink_frame_t *fd)
+{
+    eglink_slot_t *slot = eglink_slot(pinfo->num, TRUE);
+    gboolean compact = eglink_frame_is_compact(fd);
+
+    if (!(slot->flags & FF_USED)) {
+        slot->flags = FF_USED | (compact ? 0 : FF_FULL);
+        slot->layer = (guint8)pinfo->curr_layer_num;
+        if (compact) {
+            slot->flags |= (guint16)((fd->flags & FF_FLAGS_MASK) |
+                                     (fd->serial_status << FF_STATUS_SHIFT));
+            slot->bu_index = fd->bu->index;
+            slot->delta_ns = (fd->flags & FF_DELTA) ? (guint32)fd->delta_ns : 0;
+            slot->expected_serial = fd->expected_serial;
+            slot->bu_origin = fd->bu_origin;
+            slot->prev_bu_state = fd->prev_bu_state;
+            return;
+        }
+    }
+    p_add_proto_data(wmem_file_scope(), pinfo, proto_eglink, key,
+                     wmem_memdup(wmem_file_scope(), fd, sizeof(*fd)));
+}
+
+/* The record of the current layer, or NULL if it has none (yet). A compact
+ * one is expanded into *buf. */
+static const eglink_frame_t *
+eglink_frame_fetch(packet_info *pinfo, guint32 key, eglink_frame_t *buf)
+{
+    const eglink_slot_t *slot = eglink_slot(pinfo->num, FALSE);
+
+    if (slot && (slot->flags & FF_USED) && !(slot->flags & FF_FULL) &&
+        slot->layer == (guint8)pinfo->curr_layer_num) {
+        memset(buf, 0, sizeof(*buf));
+        buf->bu = *(eglink_bu_t **)wmem_array_index(eglink_bu_by_index, slot->bu_index);
+        buf->delta_ns = slot->delta_ns;
+        buf->flags = slot->flags & FF_FLAGS_MASK;
+        buf->serial_status = (guint8)((slot->flags >> FF_STATUS_SHIFT) & 0x7);
+        buf->expected_serial = slot->expected_serial;
+        buf->bu_origin = slot->bu_origin;
+        buf->prev_bu_state = slot->prev_bu_state;
+        return buf;
+    }
+    if (!slot || !(slot->flags & FF_USED))
+        return NULL;
+    return (const eglink_frame_t *)p_get_proto_data(wmem_file_scope(), pinfo, proto_eglink, key);
 }
 
 static gint64
@@ -335,6 +453,9 @@ eglink_bu_lookup(packet_info *pinfo, eglink_type_t type)
     stored->port = key.port;
     bu = wmem_new0(wmem_file_scope(), eglink_bu_t);
     bu->index = eglink_bu_count++;
+    if (!eglink_bu_by_index)
+        eglink_bu_by_index = wmem_array_new(wmem_file_scope(), sizeof(eglink_bu_t *));
+    wmem_array_append_one(eglink_bu_by_index, bu);
     if (key.b.type == AT_NONE)
         bu->name = wmem_strdup_printf(wmem_file_scope(), "BU %s port %u",
                                       address_to_str(pinfo->pool, &key.a), key.port);
@@ -612,11 +733,10 @@ track_periodic(eglink_bu_t *bu, eglink_frame_t *fd, packet_info *pinfo, const eg
     }
 }
 
-static eglink_frame_t *
-analyse_packet(packet_info *pinfo, const eglink_info_t *info)
+static void
+analyse_packet(packet_info *pinfo, const eglink_info_t *info, eglink_frame_t *fd)
 {
     eglink_bu_t *bu = eglink_bu_lookup(pinfo, info->type);
-    eglink_frame_t *fd = wmem_new0(wmem_file_scope(), eglink_frame_t);
     gboolean input = eglink_is_input(info->type);
     int dir = input ? EGLINK_DIR_IN : EGLINK_DIR_OUT;
 
@@ -624,7 +744,7 @@ analyse_packet(packet_info *pinfo, const eglink_info_t *info)
     /* Receivers silently drop illegal packets (TS-0006 5.1.5); so does the analysis. */
     if (!info->crc_ok || !info->size_ok) {
         fd->flags |= FF_INVALID;
-        return fd;
+        return;
     }
 
     if (input) {
@@ -643,7 +763,7 @@ analyse_packet(packet_info *pinfo, const eglink_info_t *info)
 
     track_serial(bu, fd, pinfo, info->serial, dir);
     if (fd->serial_status == SERIAL_REPEAT)
-        return fd;
+        return;
 
     check_deadlines(bu, fd, pinfo, info->type);
 
@@ -665,7 +785,6 @@ analyse_packet(packet_info *pinfo, const eglink_info_t *info)
     default:
         break;
     }
-    return fd;
 }
 
 /* ---------------------------------------------------------------------- */
@@ -934,7 +1053,8 @@ eglink_analysis_dissect(tvbuff_t *tvb, packet_info *pinfo, proto_tree *eglink_tr
                         proto_item *eglink_item _U_, const eglink_info_t *info)
 {
     guint32 key = EGLINK_ANALYSIS_KEY_BASE + pinfo->curr_layer_num;
-    eglink_frame_t *fd;
+    const eglink_frame_t *fd;
+    eglink_frame_t buf;
     proto_item *aitem;
     proto_tree *at;
 
@@ -943,12 +1063,14 @@ eglink_analysis_dissect(tvbuff_t *tvb, packet_info *pinfo, proto_tree *eglink_tr
     if (info->type == EGLINK_TYPE_UNKNOWN || pinfo->flags.in_error_pkt)
         return;
 
-    fd = (eglink_frame_t *)p_get_proto_data(wmem_file_scope(), pinfo, proto_eglink, key);
+    fd = eglink_frame_fetch(pinfo, key, &buf);
     if (!fd) {
         if (PINFO_FD_VISITED(pinfo))
             return;
-        fd = analyse_packet(pinfo, info);
-        p_add_proto_data(wmem_file_scope(), pinfo, proto_eglink, key, fd);
+        memset(&buf, 0, sizeof(buf));
+        analyse_packet(pinfo, info, &buf);
+        eglink_frame_store(pinfo, key, &buf);
+        fd = &buf;
     }
 
     aitem = proto_tree_add_item(eglink_tree, hf_analysis, tvb, 0, 0, ENC_NA);
