@@ -125,8 +125,15 @@ proto.prefs.assembled = Pref.bool("Show assembled images", false,
 
 local tcp_port_table = DissectorTable.get("tcp.port")
 local current_port = 0
+-- preference values read once per change, not per ADU
+local opt = {}
+
+local function read_prefs()
+    opt.detection, opt.swap, opt.assembled = proto.prefs.detection, proto.prefs.swap, proto.prefs.assembled
+end
 
 local function prefs_changed()
+    read_prefs()
     local port = proto.prefs.port
     if port ~= current_port then
         if current_port ~= 0 then
@@ -151,13 +158,24 @@ local function nstime(secs)
     return NSTime.new(math.floor(us / 1e6), (us % 1000000) * 1000)
 end
 
+-- An image: its bytes as one string (shared by reference with the per-frame
+-- snapshots while it does not change), which bits of each byte have been
+-- seen (mask) and how many bytes are fully known.
 local function new_image(len)
-    local img = { len = len, val = {}, mask = {} }
-    for i = 0, len - 1 do img.val[i] = 0; img.mask[i] = 0 end
+    local img = { len = len, data = string.rep("\0", len), mask = {}, nknown = 0 }
+    for i = 0, len - 1 do img.mask[i] = 0 end
     return img
 end
 
+local function val(img, i) return img.data:byte(i + 1) end
+
+-- record of an ADU of a connection that is not decoded (nothing to show)
+local NOT_DECODED = { decode = false }
+local unpack = table.unpack or unpack  -- luacheck: ignore 113 (Lua 5.1/5.2 global)
+local NONE = {}
+
 local function init_state()
+    read_prefs()
     conns = {}
     adus = {}
 end
@@ -194,7 +212,7 @@ end
 -- bits = {[bytepos] = {mask, value}} , reg = {tvb offset of first data byte} }
 local function map_access(tname, start, count, tvb, data_off, coil_value)
     local pieces = {}
-    local swap = proto.prefs.swap
+    local swap = opt.swap
     for _, r in ipairs(REGIONS[tname]) do
         local kind, lo_a, hi_a = r[1], r[2], r[3]
         local lo = math.max(start, lo_a)
@@ -206,12 +224,9 @@ local function map_access(tname, start, count, tvb, data_off, coil_value)
                 p.length = 2 * (hi - lo + 1)
                 p.tvb_off = data_off + 2 * (lo - start)
                 p.swap = swap
-                p.bytes = {}
-                for i = 0, p.length - 1 do
-                    local rel = i
-                    if swap then rel = (i % 2 == 0) and i + 1 or i - 1 end
-                    p.bytes[p.first + i] = tvb(p.tvb_off + rel, 1):uint()
-                end
+                -- the image bytes first .. first + length - 1, as one string
+                p.data = tvb:raw(p.tvb_off, p.length)
+                if swap then p.data = p.data:gsub("(.)(.)", "%2%1") end
             else
                 -- bits lo..hi (addresses) = image bits (lo - lo_a) .. (hi - lo_a)
                 local b0, b1 = lo - lo_a, hi - lo_a
@@ -235,8 +250,9 @@ local function map_access(tname, start, count, tvb, data_off, coil_value)
                 local lb = math.floor((b1 + 1) / 8) - 1
                 p.first = fb
                 p.length = math.max(0, lb - fb + 1)
-                p.bytes = {}
-                for pos = fb, lb do p.bytes[pos] = p.bitmask[pos][2] end
+                local t = {}
+                for pos = fb, lb do t[#t + 1] = string.char(p.bitmask[pos][2]) end
+                p.data = table.concat(t)
                 if p.length > 0 and (fb * 8 + lo_a - start) % 8 == 0 then
                     p.tvb_off = data_off + (fb * 8 + lo_a - start) / 8
                 end
@@ -248,33 +264,70 @@ local function map_access(tname, start, count, tvb, data_off, coil_value)
     return pieces
 end
 
+-- Does an access cover a whole input image (the only kind of access the
+-- heuristic looks at)?
+local function full_input(tname, start, count)
+    for _, r in ipairs(REGIONS[tname]) do
+        if r[1] == "input" and start <= r[2] and start + count - 1 >= r[3] then return true end
+    end
+    return false
+end
+
+-- A quick look at the input image s (a 64-byte string) for values that
+-- image.validate_input always rejects (a subset of its checks, so the
+-- result is the same; it saves the full check on most images of a device
+-- that is not a BU).
+local function surely_invalid(s)
+    local bu, vlaps, eg, ec, cl = s:byte(21, 25)
+    if ec == 0 or vlaps > 3 or eg > 6 or ec > 6 or cl > 6 or not image.vs.bu_state[bu] then return true end
+    local ru, battery, rssi, cable, docked, disabled = s:byte(29, 34)
+    if ru > 4 or battery > 100 or rssi > 100 or cable > 1 or docked > 1 or disabled > 3 then return true end
+    local enc, s0, s1, s2, s3 = s:byte(60, 64)
+    return enc > 1 or s0 ~= 0 or s1 ~= 0 or s2 ~= 0 or s3 ~= 0
+end
+
 -- Apply a piece to the connection's stored image.
 local function store_piece(c, p)
     local img = c[p.kind]
+    local mask = img.mask
     if p.bitmask then
+        local t = { img.data:byte(1, -1) }
         for pos, e in pairs(p.bitmask) do
-            img.val[pos] = bit.bor(bit.band(img.val[pos], bit.bnot(e[1]) % 256), e[2])
-            img.mask[pos] = bit.bor(img.mask[pos], e[1])
+            t[pos + 1] = bit.bor(bit.band(t[pos + 1], bit.bnot(e[1]) % 256), e[2])
+            if mask[pos] ~= 255 then
+                mask[pos] = bit.bor(mask[pos], e[1])
+                if mask[pos] == 255 then img.nknown = img.nknown + 1 end
+            end
         end
-    else
-        for i = p.first, p.first + p.length - 1 do
-            img.val[i] = p.bytes[i]
-            img.mask[i] = 255
+        img.data = string.char(unpack(t))
+    elseif p.length > 0 then
+        local d = img.data
+        img.data = d:sub(1, p.first) .. p.data .. d:sub(p.first + p.length + 1)
+        if img.nknown < img.len then
+            for i = p.first, p.first + p.length - 1 do
+                if mask[i] ~= 255 then
+                    mask[i] = 255
+                    img.nknown = img.nknown + 1
+                end
+            end
         end
     end
 end
 
-local function snapshot(img)
-    local t = {}
-    local n = 0
-    for i = 0, img.len - 1 do
-        if img.mask[i] == 255 then n = n + 1 end
-        t[#t + 1] = string.char(img.val[i])
+-- the assembled image as of now: one snapshot object per image content,
+-- shared by every frame until the image changes
+local function snapshot(c, kind)
+    local img = c[kind]
+    local s = c["snap_" .. kind]
+    if not s or s.data ~= img.data or s.known ~= img.nknown then
+        s = { data = img.data, known = img.nknown }
+        c["snap_" .. kind] = s
     end
-    return { data = table.concat(t), known = n }
+    return s
 end
 
 local function known(img, off, len)
+    if img.nknown == img.len then return true end
     for i = off, off + len - 1 do
         if img.mask[i] ~= 255 then return false end
     end
@@ -284,28 +337,38 @@ end
 ------------------------------------------------------------------------
 -- Handshake analysis and periodic reassembly (first pass only)
 ------------------------------------------------------------------------
+-- per-frame findings and links: tables made when the first one is added
+local function add_finding(rec, fd)
+    if rec.findings == NONE then rec.findings = {} end
+    rec.findings[#rec.findings + 1] = fd
+end
+
+local function set_link(rec, name, v)
+    if rec.links == NONE then rec.links = {} end
+    rec.links[name] = v
+end
+
 local function analyse(c, rec, t, frame, touched)
     local inp, out = c.input, c.output
-    local f = rec.findings
     local iv, ov
     if touched.input then
         iv = {}
-        if known(inp, 0, 4) then iv.pci, iv.cci, iv.cai = inp.val[0], inp.val[1], inp.val[3] end
-        if known(inp, 20, 1) then iv.bu = inp.val[20] end
+        if known(inp, 0, 4) then iv.pci, iv.cci, iv.cai = val(inp, 0), val(inp, 1), val(inp, 3) end
+        if known(inp, 20, 1) then iv.bu = val(inp, 20) end
     end
     if touched.output and known(out, 0, 4) then
-        ov = { pco = out.val[0], cco = out.val[1], cao = out.val[3] }
+        ov = { pco = val(out, 0), cco = val(out, 1), cao = val(out, 3) }
     end
     local r = handshake.update(c.hs, iv, ov, t, frame, rec)
-    for _, fd in ipairs(r.findings) do f[#f + 1] = { ef[fd[1]], fd[2] } end
-    for k, v in pairs(r.links) do rec.links[k] = v end
-    for _, b in ipairs(r.back) do b[1].links[b[2]] = b[3] end
+    for _, fd in ipairs(r.findings) do add_finding(rec, { ef[fd[1]], fd[2] }) end
+    for k, v in pairs(r.links) do set_link(rec, k, v) end
+    for _, b in ipairs(r.back) do set_link(b[1], b[2], b[3]) end
     rec.pci_age, rec.pco_age, rec.bu_state_prev = r.pci_age, r.pco_age, r.bu_state_prev
     -- periodic output multiplexing
     if touched.output and known(out, 0, 1) and known(out, 20, 3) then
-        local size = out.val[20] * 256 + out.val[21]
-        local block = out.val[22]
-        local pco = out.val[0]
+        local size = val(out, 20) * 256 + val(out, 21)
+        local block = val(out, 22)
+        local pco = val(out, 0)
         if size > image.PERIODIC_BLOCK_LEN and size <= image.PERIODIC_MAX then
             local nblocks = math.ceil(size / image.PERIODIC_BLOCK_LEN)
             local blen = math.min(image.PERIODIC_BLOCK_LEN, size - block * image.PERIODIC_BLOCK_LEN)
@@ -317,22 +380,20 @@ local function analyse(c, rec, t, frame, touched)
                     pb = { size = size, n = nblocks, blocks = {}, count = 0 }
                     c.periodic = pb
                 end
-                local t2 = {}
-                for i = 24, 24 + blen - 1 do t2[#t2 + 1] = string.char(out.val[i]) end
                 if not pb.blocks[block] then pb.count = pb.count + 1 end
-                pb.blocks[block] = { data = table.concat(t2), frame = frame, rec = rec }
+                pb.blocks[block] = { data = out.data:sub(25, 24 + blen), frame = frame, rec = rec }
                 if pb.count == pb.n then
                     local parts, frames = {}, {}
                     for b = 0, pb.n - 1 do
                         parts[#parts + 1] = pb.blocks[b].data
                         frames[#frames + 1] = pb.blocks[b].frame
                         if pb.blocks[b].frame ~= frame then
-                            pb.blocks[b].rec.links.periodic_reassembled_in = frame
+                            set_link(pb.blocks[b].rec, "periodic_reassembled_in", frame)
                         end
                     end
                     rec.periodic = { data = table.concat(parts), frames = frames }
-                    f[#f + 1] = { ef.periodic_reassembled, string.format(
-                        "Periodic data reassembled: %d bytes from %d blocks", size, pb.n) }
+                    add_finding(rec, { ef.periodic_reassembled, string.format(
+                        "Periodic data reassembled: %d bytes from %d blocks", size, pb.n) })
                     c.periodic = nil
                 end
             end
@@ -350,7 +411,8 @@ local function parse_request_pdu(tvb, off, len, fc)
     local r = {}
     if len < 5 then return nil end
     if fc == 1 or fc == 2 or fc == 3 or fc == 4 then
-        r.start, r.count = tvb(off + 1, 2):uint(), tvb(off + 3, 2):uint()
+        local a1, a2, c1, c2 = tvb:raw(off + 1, 4):byte(1, 4)
+        r.start, r.count = a1 * 256 + a2, c1 * 256 + c2
     elseif fc == 5 then
         r.start, r.count = tvb(off + 1, 2):uint(), 1
         local v = tvb(off + 3, 2):uint()
@@ -381,20 +443,15 @@ local function parse_request_pdu(tvb, off, len, fc)
 end
 
 -- First pass: work out what this ADU means and update the connection.
-local function first_pass(tvb, pinfo, off, adu_len, is_request)
-    local tid = tvb(off, 2):uint()
-    local unit = tvb(off + 6, 1):uint()
-    local fcb = tvb(off + 7, 1):uint()
+local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb)
     local fc = bit.band(fcb, 0x7F)
     local pdu, plen = off + 7, adu_len - 7
-    local ckey = conn_key(pinfo, is_request)
-    local c = get_conn(ckey)
-    local tkey = tid .. "/" .. unit .. "/" .. fc
-    local t = pinfo.abs_ts
-    local rec = { fc = fc, is_request = is_request, accesses = {}, findings = {}, links = {} }
     local tname = FC_TABLE[fc]
-    if not tname then return rec end
-    rec.table = tname
+    if not tname then return NOT_DECODED end
+    local c = get_conn(conn_key(pinfo, is_request))
+    local tkey = (tid * 256 + unit) * 256 + fc
+    local t = pinfo.abs_ts
+    local rec = { accesses = NONE, findings = NONE, links = NONE }
     local accesses = {}
     if is_request then
         local r = parse_request_pdu(tvb, pdu, plen, fc)
@@ -430,32 +487,41 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request)
         end
     end
     -- detection
-    local det = proto.prefs.detection
-    local touched = {}
-    for _, a in ipairs(accesses) do
-        a.pieces = map_access(a.tname, a.start, a.count, tvb, off + a.data, a.coil)
-        for _, p in ipairs(a.pieces) do
-            if det == DETECT_HEURISTIC and not c.accepted and p.kind == "input" and p.length == 64 then
-                local bytes = {}
-                for i = 0, 63 do bytes[i] = p.bytes[i] end
-                if image.validate_input(bytes) then c.accepted = pinfo.number end
+    local det = opt.detection
+    if det == DETECT_HEURISTIC and not c.accepted then
+        for _, a in ipairs(accesses) do
+            if full_input(a.tname, a.start, a.count) then
+                for _, p in ipairs(map_access(a.tname, a.start, a.count, tvb, off + a.data, a.coil)) do
+                    if p.kind == "input" and p.length == 64 and p.data ~= c.rejected
+                        and not surely_invalid(p.data) then
+                        if image.validate_input(p.data) then
+                            c.accepted = pinfo.number
+                        else
+                            c.rejected = p.data  -- the same image again is rejected without a check
+                        end
+                    end
+                end
             end
         end
     end
-    rec.decode = (det == DETECT_ALWAYS) or (det == DETECT_HEURISTIC and c.accepted ~= nil)
+    if not (det == DETECT_ALWAYS or (det == DETECT_HEURISTIC and c.accepted ~= nil)) then
+        return NOT_DECODED
+    end
+    rec.decode = true
+    rec.fc, rec.table = fc, tname
     rec.accepted_in = c.accepted
-    rec.accesses = accesses
-    if not rec.decode then return rec end
+    if #accesses > 0 then rec.accesses = accesses end
+    local touched = {}
     for _, a in ipairs(accesses) do
-        for _, p in ipairs(a.pieces) do
+        for _, p in ipairs(map_access(a.tname, a.start, a.count, tvb, off + a.data, a.coil)) do
             store_piece(c, p)
             touched[p.kind] = true
         end
     end
     analyse(c, rec, t, pinfo.number, touched)
-    if proto.prefs.assembled then
-        rec.snap_in = snapshot(c.input)
-        rec.snap_out = snapshot(c.output)
+    if opt.assembled then
+        rec.snap_in = snapshot(c, "input")
+        rec.snap_out = snapshot(c, "output")
     end
     return rec
 end
@@ -518,14 +584,11 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec)
     if rec.no_request then item:add_proto_expert_info(ef.no_request) end
     local infos = {}
     for _, a in ipairs(rec.accesses) do
-        for _, p in ipairs(a.pieces) do
+        for _, p in ipairs(map_access(a.tname, a.start, a.count, tvb, off + a.data, a.coil)) do
             if p.length > 0 then
                 local src, soff = tvb, off + (p.tvb_off and (p.tvb_off - off) or 0)
                 if not p.tvb_off then
-                    local ba = ByteArray.new()
-                    ba:set_size(p.length)
-                    for i = 0, p.length - 1 do ba:set_index(i, p.bytes[p.first + i]) end
-                    src = ba:tvb("EC-Link image bytes from bits")
+                    src = ByteArray.new(p.data, true):tvb("EC-Link image bytes from bits")
                     soff = 0
                 end
                 local label = string.format("(%s %d-%d%s)", TABLE_NAMES[a.tname]:lower(), p.addr_lo, p.addr_hi,
@@ -574,7 +637,7 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec)
             pt:add(pf.periodic_block_in, fr):set_generated()
         end
     end
-    if proto.prefs.assembled then
+    if opt.assembled then
         show_assembled(item, pinfo, rec.snap_in, "input")
         show_assembled(item, pinfo, rec.snap_out, "output")
     end
@@ -590,23 +653,32 @@ function proto.dissector(tvb, pinfo, tree)
     local consumed = wrap.call(mbtcp, tvb, pinfo, tree)
     -- a malformed Modbus/TCP PDU: Wireshark's report stands, no EC-Link view
     if consumed == nil then return tvb:len() end
-    if proto.prefs.detection == DETECT_OFF then return consumed end
+    if opt.detection == DETECT_OFF then return consumed end
     local is_request = (pinfo.dst_port == pinfo.match_uint) and (pinfo.src_port ~= pinfo.match_uint)
     local n = tvb:len()
     local off = 0
     local infos = {}
     while off + 8 <= n do
-        local plen = tvb(off + 4, 2):uint()
-        if tvb(off + 2, 2):uint() ~= 0 or plen < 2 then break end
+        local t1, t2, p1, p2, l1, l2, unit, fcb = tvb:raw(off, 8):byte(1, 8)
+        local plen = l1 * 256 + l2
+        if p1 ~= 0 or p2 ~= 0 or plen < 2 then break end
         local adu_len = 6 + plen
         if off + adu_len > n then break end
-        local key = pinfo.number .. ":" .. tvb:reported_len() .. ":" .. off
+        -- one entry per ADU: a number key (frame, length of the buffer) for the
+        -- usual first ADU of a buffer, a string key for the others
+        local rl = tvb:reported_len()
+        local key
+        if off == 0 and rl < 1048576 then
+            key = rl * 4294967296 + pinfo.number
+        else
+            key = pinfo.number .. ":" .. rl .. ":" .. off
+        end
         local rec = adus[key]
         if not rec then
-            rec = first_pass(tvb, pinfo, off, adu_len, is_request)
+            rec = first_pass(tvb, pinfo, off, adu_len, is_request, t1 * 256 + t2, unit, fcb)
             adus[key] = rec
         end
-        if rec.decode and rec.table then
+        if rec.decode then
             for _, s in ipairs(show_adu(tvb, pinfo, tree, off, adu_len, rec)) do infos[#infos + 1] = s end
         end
         off = off + adu_len
