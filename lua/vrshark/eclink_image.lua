@@ -414,8 +414,19 @@ function M.dissect(tvb, pinfo, tree, opts)
         end
         return offset + rel
     end
-    local function get(i) return tvb(pos(i), 1):uint() end
+    -- the image bytes first..last as one string in image order (read once;
+    -- an odd swapped length falls back to reading byte by byte)
+    local img
+    if length > 0 and tvb:len() - offset >= length and not (swap and length % 2 == 1) then
+        img = tvb:raw(offset, length)
+        if swap then img = img:gsub("(.)(.)", "%2%1") end
+    end
+    local function get(i)
+        if img then return img:byte(i - first + 1) end
+        return tvb(pos(i), 1):uint()
+    end
     local function raw(off, len)
+        if img then return ByteArray.new(img:sub(off - first + 1, off - first + len), true) end
         local ba = ByteArray.new()
         ba:set_size(len)
         for i = 0, len - 1 do ba:set_index(i, get(off + i)) end
