@@ -170,7 +170,7 @@ end
 local function val(img, i) return img.data:byte(i + 1) end
 
 -- record of an ADU of a connection that is not decoded (nothing to show)
-local NOT_DECODED = { decode = false }
+local NOT_DECODED = {}
 local unpack = table.unpack or unpack  -- luacheck: ignore 113 (Lua 5.1/5.2 global)
 local NONE = {}
 
@@ -339,12 +339,12 @@ end
 ------------------------------------------------------------------------
 -- per-frame findings and links: tables made when the first one is added
 local function add_finding(rec, fd)
-    if rec.findings == NONE then rec.findings = {} end
+    if not rec.findings then rec.findings = {} end
     rec.findings[#rec.findings + 1] = fd
 end
 
 local function set_link(rec, name, v)
-    if rec.links == NONE then rec.links = {} end
+    if not rec.links then rec.links = {} end
     rec.links[name] = v
 end
 
@@ -442,6 +442,28 @@ local function parse_request_pdu(tvb, off, len, fc)
     return r
 end
 
+-- The image accesses of an ADU: r is its parsed request PDU (a request) or
+-- { start =, count = } of its request (a response), nil when unknown.
+-- Worked out again for the tree rather than stored per frame.
+local function adu_accesses(tvb, off, adu_len, fcb, is_request, r)
+    if not r then return NONE end
+    local fc = bit.band(fcb, 0x7F)
+    local tname = FC_TABLE[fc]
+    if is_request then
+        if r.wstart then
+            return { { tname = tname, start = r.wstart, count = r.wcount, data = r.wdata - off, coil = r.coil,
+                write = true } }
+        end
+    elseif bit.band(fcb, 0x80) == 0 and (fc <= 4 or fc == 23) and adu_len >= 9 then
+        local bc = tvb(off + 8, 1):uint()
+        local need = (fc <= 2) and math.ceil(r.count / 8) or 2 * r.count
+        if bc >= need and adu_len - 7 >= 2 + need then
+            return { { tname = tname, start = r.start, count = r.count, data = 9 } }
+        end
+    end
+    return NONE
+end
+
 -- First pass: work out what this ADU means and update the connection.
 local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb)
     local fc = bit.band(fcb, 0x7F)
@@ -451,41 +473,28 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb)
     local c = get_conn(conn_key(pinfo, is_request))
     local tkey = (tid * 256 + unit) * 256 + fc
     local t = pinfo.abs_ts
-    local rec = { accesses = NONE, findings = NONE, links = NONE }
-    local accesses = {}
+    local rec = {}
+    local r
     if is_request then
-        local r = parse_request_pdu(tvb, pdu, plen, fc)
+        r = parse_request_pdu(tvb, pdu, plen, fc)
         if r then
             r.frame, r.t, r.rec = pinfo.number, t, rec
             c.pending[tkey] = r
             rec.start, rec.count = r.start, r.count
-            if r.wstart then
-                accesses[#accesses + 1] = { tname = tname, start = r.wstart, count = r.wcount,
-                    data = r.wdata - off, coil = r.coil, write = true }
-            end
         end
     else
-        local r = c.pending[tkey]
+        r = c.pending[tkey]
         if r then
             c.pending[tkey] = nil
             rec.request_in = r.frame
             rec.time = t - r.t
             r.rec.response_in = pinfo.number
             rec.start, rec.count = r.start, r.count
-            if bit.band(fcb, 0x80) ~= 0 then
-                rec.exception = true
-            elseif (fc <= 4 or fc == 23) and plen >= 2 then
-                local bc = tvb(pdu + 1, 1):uint()
-                local need = (fc <= 2) and math.ceil(r.count / 8) or 2 * r.count
-                if bc >= need and plen >= 2 + need then
-                    accesses[#accesses + 1] = { tname = tname, start = r.start, count = r.count,
-                        data = 9 }
-                end
-            end
         else
             rec.no_request = true
         end
     end
+    local accesses = adu_accesses(tvb, off, adu_len, fcb, is_request, r)
     -- detection
     local det = opt.detection
     if det == DETECT_HEURISTIC and not c.accepted then
@@ -507,10 +516,8 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb)
     if not (det == DETECT_ALWAYS or (det == DETECT_HEURISTIC and c.accepted ~= nil)) then
         return NOT_DECODED
     end
-    rec.decode = true
-    rec.fc, rec.table = fc, tname
+    rec.table = tname
     rec.accepted_in = c.accepted
-    if #accesses > 0 then rec.accesses = accesses end
     local touched = {}
     for _, a in ipairs(accesses) do
         for _, p in ipairs(map_access(a.tname, a.start, a.count, tvb, off + a.data, a.coil)) do
@@ -565,7 +572,7 @@ local function show_assembled(tree, pinfo, snap, kind)
     image.dissect(tvb, pinfo, ti, { kind = kind, image_len = len, generated = true, quiet = true })
 end
 
-local function show_adu(tvb, pinfo, tree, off, adu_len, rec)
+local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb)
     local item = tree:add(proto, tvb(off, adu_len))
     local tname = rec.table
     local desc = TABLE_NAMES[tname]
@@ -583,7 +590,13 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec)
     if rec.response_in then item:add(pf.response_in, rec.response_in):set_generated() end
     if rec.no_request then item:add_proto_expert_info(ef.no_request) end
     local infos = {}
-    for _, a in ipairs(rec.accesses) do
+    local r
+    if is_request then
+        r = parse_request_pdu(tvb, off + 7, adu_len - 7, bit.band(fcb, 0x7F))
+    elseif rec.request_in then
+        r = rec
+    end
+    for _, a in ipairs(adu_accesses(tvb, off, adu_len, fcb, is_request, r)) do
         for _, p in ipairs(map_access(a.tname, a.start, a.count, tvb, off + a.data, a.coil)) do
             if p.length > 0 then
                 local src, soff = tvb, off + (p.tvb_off and (p.tvb_off - off) or 0)
@@ -614,7 +627,7 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec)
             :set_generated()
     end
     if rec.bu_state_prev then item:add(pf.bu_state_prev, rec.bu_state_prev):set_generated() end
-    local l = rec.links
+    local l = rec.links or NONE
     for _, name in ipairs({ "cmd_from_ru_in", "cao_in", "cmd_to_ru_in", "cai_in", "periodic_reassembled_in" }) do
         if l[name] then item:add(pf[name], l[name]):set_generated() end
     end
@@ -624,7 +637,7 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec)
             item:add(pf[name], nstime(v)):set_generated()
         end
     end
-    for _, fd in ipairs(rec.findings) do
+    for _, fd in ipairs(rec.findings or NONE) do
         item:add_proto_expert_info(fd[1], fd[2])
     end
     if rec.periodic then
@@ -678,8 +691,10 @@ function proto.dissector(tvb, pinfo, tree)
             rec = first_pass(tvb, pinfo, off, adu_len, is_request, t1 * 256 + t2, unit, fcb)
             adus[key] = rec
         end
-        if rec.decode then
-            for _, s in ipairs(show_adu(tvb, pinfo, tree, off, adu_len, rec)) do infos[#infos + 1] = s end
+        if rec ~= NOT_DECODED then
+            for _, s in ipairs(show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb)) do
+                infos[#infos + 1] = s
+            end
         end
         off = off + adu_len
     end
