@@ -171,6 +171,8 @@ local function val(img, i) return img.data:byte(i + 1) end
 
 -- record of an ADU of a connection that is not decoded (nothing to show)
 local NOT_DECODED = {}
+-- slots of a decoded ADU's record (false: none)
+local R_START, R_COUNT, R_REQUEST, R_TIME, R_RESPONSE, R_PCI_AGE, R_PCO_AGE, R_ACCEPTED = 1, 2, 3, 4, 5, 6, 7, 8
 local unpack = table.unpack or unpack  -- luacheck: ignore 113 (Lua 5.1/5.2 global)
 local NONE = {}
 
@@ -363,7 +365,7 @@ local function analyse(c, rec, t, frame, touched)
     for _, fd in ipairs(r.findings) do add_finding(rec, { ef[fd[1]], fd[2] }) end
     for k, v in pairs(r.links) do set_link(rec, k, v) end
     for _, b in ipairs(r.back) do set_link(b[1], b[2], b[3]) end
-    rec.pci_age, rec.pco_age, rec.bu_state_prev = r.pci_age, r.pco_age, r.bu_state_prev
+    rec[R_PCI_AGE], rec[R_PCO_AGE], rec.bu_state_prev = r.pci_age or false, r.pco_age or false, r.bu_state_prev
     -- periodic output multiplexing
     if touched.output and known(out, 0, 1) and known(out, 20, 3) then
         local size = val(out, 20) * 256 + val(out, 21)
@@ -473,23 +475,24 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb)
     local c = get_conn(conn_key(pinfo, is_request))
     local tkey = (tid * 256 + unit) * 256 + fc
     local t = pinfo.abs_ts
-    local rec = {}
+    -- the usual per-frame values in the array part (8 slots, no hash part)
+    local rec = { false, false, false, false, false, false, false, false }
     local r
     if is_request then
         r = parse_request_pdu(tvb, pdu, plen, fc)
         if r then
             r.frame, r.t, r.rec = pinfo.number, t, rec
             c.pending[tkey] = r
-            rec.start, rec.count = r.start, r.count
+            rec[R_START], rec[R_COUNT] = r.start, r.count
         end
     else
         r = c.pending[tkey]
         if r then
             c.pending[tkey] = nil
-            rec.request_in = r.frame
-            rec.time = t - r.t
-            r.rec.response_in = pinfo.number
-            rec.start, rec.count = r.start, r.count
+            rec[R_REQUEST] = r.frame
+            rec[R_TIME] = t - r.t
+            r.rec[R_RESPONSE] = pinfo.number
+            rec[R_START], rec[R_COUNT] = r.start, r.count
         else
             rec.no_request = true
         end
@@ -516,8 +519,7 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb)
     if not (det == DETECT_ALWAYS or (det == DETECT_HEURISTIC and c.accepted ~= nil)) then
         return NOT_DECODED
     end
-    rec.table = tname
-    rec.accepted_in = c.accepted
+    rec[R_ACCEPTED] = c.accepted
     local touched = {}
     for _, a in ipairs(accesses) do
         for _, p in ipairs(map_access(a.tname, a.start, a.count, tvb, off + a.data, a.coil)) do
@@ -574,27 +576,27 @@ end
 
 local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb)
     local item = tree:add(proto, tvb(off, adu_len))
-    local tname = rec.table
+    local tname = FC_TABLE[bit.band(fcb, 0x7F)]
     local desc = TABLE_NAMES[tname]
-    if rec.start then
-        desc = string.format("%s %d-%d", desc, rec.start, rec.start + math.max(rec.count, 1) - 1)
+    if rec[R_START] then
+        desc = string.format("%s %d-%d", desc, rec[R_START], rec[R_START] + math.max(rec[R_COUNT], 1) - 1)
     end
     item:append_text(": " .. desc)
     item:add(pf.table, tvb(off + 7, 1), desc):set_generated()
-    if rec.accepted_in then item:add(pf.accepted_in, rec.accepted_in):set_generated() end
-    if rec.request_in then
-        item:add(pf.request_in, rec.request_in):set_generated()
-        item:add(pf.time, nstime(rec.time))
+    if rec[R_ACCEPTED] then item:add(pf.accepted_in, rec[R_ACCEPTED]):set_generated() end
+    if rec[R_REQUEST] then
+        item:add(pf.request_in, rec[R_REQUEST]):set_generated()
+        item:add(pf.time, nstime(rec[R_TIME]))
             :set_generated()
     end
-    if rec.response_in then item:add(pf.response_in, rec.response_in):set_generated() end
+    if rec[R_RESPONSE] then item:add(pf.response_in, rec[R_RESPONSE]):set_generated() end
     if rec.no_request then item:add_proto_expert_info(ef.no_request) end
     local infos = {}
     local r
     if is_request then
         r = parse_request_pdu(tvb, off + 7, adu_len - 7, bit.band(fcb, 0x7F))
-    elseif rec.request_in then
-        r = rec
+    elseif rec[R_REQUEST] then
+        r = { start = rec[R_START], count = rec[R_COUNT] }
     end
     for _, a in ipairs(adu_accesses(tvb, off, adu_len, fcb, is_request, r)) do
         for _, p in ipairs(map_access(a.tname, a.start, a.count, tvb, off + a.data, a.coil)) do
@@ -618,12 +620,12 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb)
             end
         end
     end
-    if rec.pci_age then
-        item:add(pf.pci_age, nstime(rec.pci_age))
+    if rec[R_PCI_AGE] then
+        item:add(pf.pci_age, nstime(rec[R_PCI_AGE]))
             :set_generated()
     end
-    if rec.pco_age then
-        item:add(pf.pco_age, nstime(rec.pco_age))
+    if rec[R_PCO_AGE] then
+        item:add(pf.pco_age, nstime(rec[R_PCO_AGE]))
             :set_generated()
     end
     if rec.bu_state_prev then item:add(pf.bu_state_prev, rec.bu_state_prev):set_generated() end
