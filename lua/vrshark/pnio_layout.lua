@@ -87,25 +87,22 @@ function M.parse_block(ar, tvb, off)
                          objs = {}, iocs = {} }
             local napi = u16(off + 44)
             local o = off + 46
+            -- A count, then (slot, subslot, frame offset) entries; kept for API 0 only.
+            local function entries(o2, api, list)
+                local n = u16(o2)
+                o2 = o2 + 2
+                for _ = 1, n do
+                    if api == 0 then
+                        list[#list + 1] = { slot = u16(o2), subslot = u16(o2 + 2), off = u16(o2 + 4) }
+                    end
+                    o2 = o2 + 6
+                end
+                return o2
+            end
             for _ = 1, napi do
                 local api = tvb:range(o, 4):uint()
-                o = o + 4
-                local nobj = u16(o)
-                o = o + 2
-                for _ = 1, nobj do
-                    if api == 0 then
-                        cr.objs[#cr.objs + 1] = { slot = u16(o), subslot = u16(o + 2), off = u16(o + 4) }
-                    end
-                    o = o + 6
-                end
-                local ncs = u16(o)
-                o = o + 2
-                for _ = 1, ncs do
-                    if api == 0 then
-                        cr.iocs[#cr.iocs + 1] = { slot = u16(o), subslot = u16(o + 2), off = u16(o + 4) }
-                    end
-                    o = o + 6
-                end
+                o = entries(o + 4, api, cr.objs)     -- IO data objects
+                o = entries(o, api, cr.iocs)         -- IOCS
             end
             ar.iocrs = ar.iocrs or {}
             ar.iocrs[cr.ref] = cr
