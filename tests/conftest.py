@@ -131,9 +131,61 @@ class Tshark:
         rows = self.fields(capture, ["frame.number", "_ws.expert.message"], aggregator="\x1f", **kw)
         return {int(r[0]): r[1].split("\x1f") for r in rows if len(r) > 1 and r[1]}
 
+    def frames(self, capture, names, **kw):
+        """{frame number: {field name: text}} of the displayed frames, for the
+        given fields (an absent field reads ""; repeats are joined with ",")."""
+        rows = self.fields(capture, ["frame.number"] + list(names), **kw)
+        return {int(r[0]): dict(zip(names, r[1:] + [""] * (len(names) + 1 - len(r))))
+                for r in rows}
+
+    def frame(self, capture, number, names, **kw):
+        """{field name: text} of one frame (see frames())."""
+        got = self.frames(capture, names, **kw)
+        assert number in got, "frame %d is not displayed (%s)" % (number, capture)
+        return got[number]
+
+    def expect(self, capture, number, expected, **kw):
+        """Assert the fields of one frame by name: expect(cap, 5, {"eclink.pci": 11,
+        "eclink.image": "input", "eclink.cut": None}). See same_value() for how
+        an expected value is compared; a failure lists every field that differs."""
+        assert_fields(self.frame(capture, number, list(expected), **kw), expected,
+                      "frame %d of %s" % (number, Path(capture).name))
+
     def verbose(self, capture, **kw):
         """The -V text of all displayed frames."""
         return self.run(["-n", "-r", str(capture)] + self._opts(**kw) + ["-V"]).stdout
+
+
+def same_value(text, want):
+    """Does a -T fields cell match an expected value?
+    None: the field is absent; True/False: 1/0; int: the number, whatever the
+    base the field prints in (0x11 == 17); float: within 1e-6; list: the
+    repeated values in order; str: the exact text."""
+    if want is None:
+        return text == ""
+    if isinstance(want, bool):
+        return text == ("1" if want else "0")
+    if isinstance(want, int):
+        try:
+            return int(text, 0) == want
+        except ValueError:
+            return False
+    if isinstance(want, float):
+        try:
+            return abs(float(text) - want) < 1e-6
+        except ValueError:
+            return False
+    if isinstance(want, (list, tuple)):
+        parts = text.split(",") if text else []
+        return len(parts) == len(want) and all(same_value(p, w) for p, w in zip(parts, want))
+    return text == want
+
+
+def assert_fields(got, expected, where=""):
+    """Assert {field: value} by name; the message names each field that differs."""
+    wrong = ["  %s: got %r, want %r" % (k, got.get(k), v) for k, v in expected.items()
+             if not same_value(got.get(k, ""), v)]
+    assert not wrong, "fields differ%s:\n%s" % (" in " + where if where else "", "\n".join(wrong))
 
 
 @pytest.fixture(scope="session")
