@@ -29,10 +29,12 @@ def installed_home():
     shutil.rmtree(home, ignore_errors=True)
 
 
-def plain_tshark(home, args):
+def plain_tshark(home, args, personal_config=False):
+    """tshark as installed; personal_config: with the configuration under
+    ~/.config/wireshark (where the profile is installed) instead of an empty one."""
     env = dict(os.environ, HOME=str(home), TZ="UTC")
     env.pop("WIRESHARK_PLUGIN_DIR", None)
-    env["WIRESHARK_CONFIG_DIR"] = str(home / "config")
+    env["WIRESHARK_CONFIG_DIR"] = str(home / (".config/wireshark" if personal_config else "config"))
     cmd = ["tshark"] + args
     if os.getuid() == 0:
         cmd = ["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups"] + cmd
@@ -55,3 +57,45 @@ def test_installed_plugins_decode(installed_home):
                                          "-c", "1", "-T", "fields", "-e", "eglink.type",
                                          "-e", "eglink.armed_ru", "-e", "eglink.crc.status"])
     assert proc.stdout.splitlines() == ["VRPI\t0xbeef\t1"], proc.stderr
+
+
+def test_install_profile(installed_home):
+    profile = installed_home / ".config" / "wireshark" / "profiles" / "vrshark"
+    assert sorted(p.name for p in profile.iterdir()) == ["colorfilters", "dfilter_buttons", "preferences"]
+    colours = (profile / "colorfilters").read_text()
+    # ours first, then Wireshark's own default rules
+    assert colours.index("@vrshark: ES-Link relays open@") < colours.index("@TCP@")
+    proc = plain_tshark(installed_home, ["-C", "vrshark", "-n", "-r", str(ROOT / "captures" / "eglink_states.pcap"),
+                                         "-c", "2"], personal_config=True)
+    assert proc.stdout.splitlines()[1].split()[4:8] == ["0x1001", "Stopped", "Stopped", "0xbeef"], proc.stderr
+
+
+@pytest.mark.skipif(os.getuid() != 0, reason="needs root to configure as one user and install as another")
+def test_install_by_user_after_root_configured():
+    """tools/setup configures build/ as root; a user then installs from it into
+    their own home (the destination is read when cmake --install runs)."""
+    top = Path(tempfile.mkdtemp(prefix="vrshark-install-user-"))
+    try:
+        root_home, user_home, build = top / "root-home", top / "user-home", top / "build"
+        root_home.mkdir()
+        user_home.mkdir()
+        env = dict(os.environ, HOME=str(root_home))
+        for cmd in (["cmake", "-S", str(ROOT), "-B", str(build)], ["cmake", "--build", str(build), "-j", "2"]):
+            proc = subprocess.run(cmd, env=env, capture_output=True, text=True)
+            assert proc.returncode == 0, proc.stdout + proc.stderr
+        top.chmod(0o755)
+        subprocess.run(["chown", "-R", "65534:65534", str(build), str(user_home)], check=True)
+        proc = subprocess.run(["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups",
+                               "cmake", "--install", str(build)],
+                              env=dict(os.environ, HOME=str(user_home)), capture_output=True, text=True)
+        assert proc.returncode == 0, proc.stdout + proc.stderr
+        # every installed file is reported, and all of them are in the user's home
+        installed = [line.split(": ", 1)[1] for line in proc.stdout.splitlines()
+                     if line.startswith("-- Installing: ")]
+        assert str(user_home / ".local/lib/wireshark/plugins/4.0/epan/eglink.so") in installed \
+            or any(p.endswith("/epan/eglink.so") for p in installed)
+        assert installed and all(p.startswith(str(user_home) + "/") for p in installed), installed
+        assert (user_home / ".config/wireshark/profiles/vrshark/colorfilters").exists()
+        assert not list(root_home.rglob("*"))
+    finally:
+        shutil.rmtree(top, ignore_errors=True)

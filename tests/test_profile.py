@@ -1,0 +1,97 @@
+"""The `vrshark` configuration profile (profile/vrshark/): its columns with
+`tshark -C vrshark`, its colouring rules with `tshark --color`, and its
+filter buttons compile."""
+import os
+import re
+import shutil
+import subprocess
+
+import pytest
+
+from conftest import ROOT, _world_dir
+
+PROFILE = ROOT / "profile" / "vrshark"
+
+
+@pytest.fixture(scope="module")
+def profile_conf():
+    """A configuration folder holding only the vrshark profile."""
+    conf = _world_dir("vrshark-profile-")
+    shutil.copytree(PROFILE, conf / "profiles" / "vrshark")
+    for path in conf.rglob("*"):
+        path.chmod(0o755 if path.is_dir() else 0o644)
+    yield conf
+    shutil.rmtree(conf, ignore_errors=True)
+
+
+def run(conf, args, color=False):
+    env = dict(os.environ, TZ="UTC", LC_ALL="C.UTF-8", WIRESHARK_CONFIG_DIR=str(conf))
+    cmd = [str(ROOT / "tools" / "tshark")] + args
+    if color:
+        # tshark colours only on a terminal that says it has 24-bit colour
+        env["COLORTERM"] = "truecolor"
+        cmd = ["script", "-qc", " ".join(cmd), "/dev/null"]
+    proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert "Lua Error" not in proc.stdout + proc.stderr
+    return proc
+
+
+def rule_colours():
+    """{rule name: (background, foreground)} as 8-bit RGB tuples."""
+    rules = {}
+    for line in (PROFILE / "colorfilters").read_text().splitlines():
+        m = re.match(r"@([^@]+)@[^@]+@\[(\d+),(\d+),(\d+)\]\[(\d+),(\d+),(\d+)\]$", line)
+        if m:
+            c = [int(x) >> 8 for x in m.groups()[1:]]
+            rules[m.group(1)] = (tuple(c[:3]), tuple(c[3:]))
+    return rules
+
+
+def coloured_rows(conf, capture):
+    """{frame number: (background, foreground)} from tshark --color."""
+    out = run(conf, ["-C", "vrshark", "--color", "-n", "-r", str(ROOT / "captures" / capture)],
+              color=True).stdout
+    rows = {}
+    for line in out.splitlines():
+        m = re.match(r"(?:\x1b\[0m)?\x1b\[38;2;(\d+);(\d+);(\d+)m\x1b\[48;2;(\d+);(\d+);(\d+)m\s*(\d+) ", line)
+        if m:
+            c = [int(x) for x in m.groups()]
+            rows[c[6]] = (tuple(c[3:6]), tuple(c[0:3]))
+    return rows
+
+
+def test_columns(profile_conf):
+    out = run(profile_conf, ["-C", "vrshark", "-n", "-r", str(ROOT / "captures" / "eglink_states.pcap"),
+                             "-c", "2"]).stdout.splitlines()
+    # No., Time, Source, Protocol, Device, BU state, RU state, Armed RU, Watchdog, Info
+    assert out[1].split()[:9] == ["2", "0.125000", "192.168.32.10", "EG-Link", "0x1001", "Stopped",
+                                  "Stopped", "0xbeef", "VRPI"]
+
+
+def test_colours_relays_open_and_healthy(profile_conf):
+    rules = rule_colours()
+    rows = coloured_rows(profile_conf, "eglink_states.pcap")
+    for n in (1, 2, 3, 4, 5):  # BU Initial/Stopped/External link error/Blocked/Failed
+        assert rows[n] == rules["vrshark: ES-Link relays open"], n
+    rows = coloured_rows(profile_conf, "eglink_armed.pcap")
+    assert set(rows.values()) == {rules["vrshark: EG-Link"]}
+
+
+def test_colours_e010_and_bad_crc(profile_conf):
+    rules = rule_colours()
+    rows = coloured_rows(profile_conf, "mcmb2_polled_connect.pcap")
+    assert rows[13] == rules["vrshark: E010 / fieldbus failure"]
+    assert rows[11] == rules["vrshark: undefined status"]  # status 0x1 is not defined for polled bases
+    assert rows[5] == rules["vrshark: MC-MB2-PN"]
+    rows = coloured_rows(profile_conf, "eglink_crc_variants.pcap")
+    assert rules["vrshark: bad CRC"] in set(rows.values())
+
+
+def test_filter_buttons_compile(profile_conf):
+    buttons = re.findall(r'^"TRUE","([^"]+)","([^"]+)"', (PROFILE / "dfilter_buttons").read_text(), re.M)
+    assert [b[0] for b in buttons] == ["Safety", "Faults", "Commands", "EG-Link", "EC-Link", "MC-MB2"]
+    for label, expr in buttons:
+        proc = run(profile_conf, ["-n", "-r", str(ROOT / "captures" / "eglink_armed.pcap"), "-c", "1",
+                                  "-Y", expr])
+        assert "isn't a valid" not in proc.stderr, (label, proc.stderr)
