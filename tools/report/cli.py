@@ -12,7 +12,7 @@ import threading
 import time
 
 from . import catalog, jsonout, junit, model, text
-from .rows import ALL_FIELDS, CaptureError, Rows, known_fields, tshark_command
+from .rows import CaptureError, Rows, tshark_command
 
 GATES = {"note": catalog.NOTE, "warn": catalog.WARNING, "warning": catalog.WARNING,
          "error": catalog.ERROR}
@@ -51,9 +51,9 @@ def _init_worker(progress):
     _progress = progress
 
 
-def report_one(index, path, cmd, extra, limits, fields, keep_series):
+def report_one(index, path, cmd, extra, limits, keep_series):
     """Run tshark on one capture and build its report dict (in a worker process)."""
-    rows = Rows(path, cmd, fields, extra)
+    rows = Rows(path, cmd, extra)
     cap = model.Capture(path, limits)
     try:
         rows.open()
@@ -98,7 +98,7 @@ class ProgressBar:
             sys.stderr.flush()
 
 
-def run_all(args, cmd, fields):
+def run_all(args, cmd):
     extra = []
     for pref in args.prefs:
         extra += ["-o", pref]
@@ -112,7 +112,7 @@ def run_all(args, cmd, fields):
     jobs = max(1, min(args.jobs, len(args.captures)))
     with concurrent.futures.ProcessPoolExecutor(jobs, mp_context=ctx, initializer=_init_worker,
                                                 initargs=(progress,)) as pool:
-        futures = {pool.submit(report_one, i, path, cmd, extra, limits, fields, bool(args.html)): i
+        futures = {pool.submit(report_one, i, path, cmd, extra, limits, bool(args.html)): i
                    for i, path in enumerate(args.captures)}
         done = set()
         pending = set(futures)
@@ -124,23 +124,6 @@ def run_all(args, cmd, fields):
             bar.draw(done)
     bar.clear()
     return reports
-
-
-def check_tshark(cmd):
-    """The field list this tshark can run; exits 2 when it lacks our plugins."""
-    try:
-        names = known_fields(cmd)
-    except CaptureError as exc:
-        _die(str(exc))
-    if not {"eglink.type", "eclink.image", "mcmb2.direction"} & names:
-        _die("%s does not know the eglink, eclink and mcmb2 fields: install the vrshark "
-             "plugins (cmake --install) or choose another tshark with --tshark" % " ".join(cmd))
-    return [f if f in names else None for f in ALL_FIELDS]
-
-
-def _die(message):
-    sys.stderr.write("vrshark-report: %s\n" % message)
-    sys.exit(2)
 
 
 def gate(reports, threshold):
@@ -158,8 +141,7 @@ def gate(reports, threshold):
 def main(argv=None):
     args = parse_args(sys.argv[1:] if argv is None else argv)
     cmd = [args.tshark] if args.tshark else tshark_command()
-    fields = check_tshark(cmd)
-    reports = run_all(args, cmd, fields)
+    reports = run_all(args, cmd)
 
     threshold = GATES[args.fail_on] if args.fail_on else None
     count, first = gate(reports, threshold) if threshold else (0, None)

@@ -31,6 +31,12 @@ DEFAULT_LIMITS = {
 
 EXPERT_START = len(COL) - len(EXPERT_FIELDS)
 C = {name.replace(".", "_"): i for name, i in COL.items()}
+# Columns read on every EG-Link row (the busiest protocol).
+EG_TYPE, EG_STREAM, EG_CRC = C["eglink_type"], C["eglink_analysis_bu_stream"], C["eglink_crc_status"]
+EG_BU, EG_RU, EG_ARMED = C["eglink_bu_state"], C["eglink_ru_state"], C["eglink_armed_ru"]
+EG_JOYSTICKS = [(i, C["eglink_joystick%d" % i]) for i in range(1, 5)]
+EG_INTERVALS = [("VRPI", C["eglink_analysis_time_since_prev_vrpi"], "eglink.vrpi_gap_ms"),
+                ("VRPO", C["eglink_analysis_time_since_prev_vrpo"], "eglink.vrpo_gap_ms")]
 
 
 def limits_from_prefs(prefs):
@@ -99,8 +105,25 @@ class Series:
         self.group, self.limit, self.labels = group, limit, labels
         self.width = 0.0
         self.buckets = []   # [t, first, low, high, last]
+        self.value = self.pending = None
 
     def add(self, t, v):
+        """A point; a run of equal values keeps only its first and last point."""
+        if v == self.value:
+            self.pending = t
+            return
+        if self.pending is not None:
+            self._add(self.pending, self.value)
+            self.pending = None
+        self.value = v
+        self._add(t, v)
+
+    def flush(self):
+        if self.pending is not None:
+            self._add(self.pending, self.value)
+            self.pending = None
+
+    def _add(self, t, v):
         b = self.buckets
         if b and (t - b[-1][0] < self.width or t == b[-1][0]):
             cur = b[-1]
@@ -136,6 +159,7 @@ class Series:
         return ts, vs
 
     def to_dict(self):
+        self.flush()
         ts, vs = self.points()
         out = {"group": self.group, "t": ts, "v": vs}
         if self.limit is not None:
@@ -210,7 +234,7 @@ class Device:
         self.last_seen = {}   # what: (frame, time), for gaps
         self.series = {}
         self.terminals = {}   # MC-MB2: number: [first_frame, last_frame, first_t, last_t, frames, slots]
-        self.relays_cause = None
+        self.raw_state = None   # EG-Link: the last VRPI's state columns
 
     def plot(self, name, group, t, v, limit=None, labels=None):
         s = self.series.get(name)
@@ -277,40 +301,50 @@ class Capture:
         return dev
 
     def _eglink(self, c, frame, t):
-        typ = c[C["eglink_type"]]
-        from_bu = typ.endswith("I")
+        typ = c[EG_TYPE]
+        stream = c[EG_STREAM]
+        dev = self.devices.get(stream) if stream else None
+        if dev is None:
+            dev = self._eglink_device(c, typ, stream, frame, t)
+        dev.frames += 1
+        dev.last_frame, dev.last_time = frame, t
+        good = c[EG_CRC] != "0"
+        if typ == "VRPI" and good and c[EG_BU]:
+            raw = (c[EG_BU], c[EG_RU], c[EG_ARMED])
+            if raw != dev.raw_state:  # most VRPI repeat the state: nothing to do
+                dev.raw_state = raw
+                self._safety(dev, frame, t, num(raw[0]), num(raw[1] or "0"), num(raw[2] or "0"))
+            for i, col in EG_JOYSTICKS:
+                if c[col]:
+                    dev.plot("joystick %d" % i, "value", t, num(c[col]))
+        for what, col, limit in EG_INTERVALS:
+            if c[col]:
+                dev.plot(what + " interval", "age", t, float(c[col]), self.limits[limit])
+        self._experts(dev, c, frame, t)
+        if good and (typ == "VRPI" or typ == "VRPO"):
+            dev.last_seen[typ] = (frame, t)
+        if "origin" not in dev.address and typ == "VRPI":
+            origin = num(c[C["eglink_origin"]] or "0")
+            if origin:
+                dev.address["origin"] = "0x%04x" % origin
+                dev.address["bu"] = c[C["ip_src"]]
+
+    def _eglink_device(self, c, typ, stream, frame, t):
+        """A BU by its analysis stream (group or address pair and input port)."""
         port = int(c[C["udp_dstport"]] or 0)
-        port = port if from_bu else port - 2
+        port = port if typ.endswith("I") else port - 2
         group = (c[C["ip_dst"]], port)
-        stream = c[C["eglink_analysis_bu_stream"]]
-        key = ("eglink", stream) if stream else self._eglink_groups.get(group, ("eglink",) + group)
+        key = stream or self._eglink_groups.get(group, group)
         self._eglink_groups.setdefault(group, key)
-        dev = self._device(key, "eglink", frame, t)
-        if not dev.name:
+        dev = self.devices.get(key)
+        if dev is None:
+            dev = self._device(key, "eglink", frame, t)
+            dev.frames -= 1
             dev.address = {"group": group[0], "port": port}
             dev.layout = "TS-0006, UDP port %d" % port
-        origin = c[C["eglink_analysis_bu_origin"]] or (c[C["eglink_origin"]] if from_bu else "")
-        if origin and num(origin) and "origin" not in dev.address:
-            dev.address["origin"] = "0x%04x" % num(origin)
-        if from_bu and "bu" not in dev.address and c[C["ip_src"]]:
-            dev.address["bu"] = c[C["ip_src"]]
-        dev.name = "EG-Link BU %s (%s to %s:%d)" % (
-            dev.address.get("origin", "origin unknown"), dev.address.get("bu", "?"), group[0], port)
-        good = c[C["eglink_crc_status"]] != "0"
-        if typ == "VRPI" and good and c[C["eglink_bu_state"]]:
-            self._safety(dev, frame, t, num(c[C["eglink_bu_state"]]),
-                         num(c[C["eglink_ru_state"]] or "0"), num(c[C["eglink_armed_ru"]] or "0"))
-            for i in range(1, 5):
-                value = c[C["eglink_joystick%d" % i]]
-                if value:
-                    dev.plot("joystick %d" % i, "value", t, num(value))
-        for what, limit in (("VRPI", "eglink.vrpi_gap_ms"), ("VRPO", "eglink.vrpo_gap_ms")):
-            age = c[C["eglink_analysis_time_since_prev_" + what.lower()]]
-            if age:
-                dev.plot("%s interval" % what, "age", t, float(age), self.limits[limit])
-        self._experts(dev, c, frame, t)
-        if typ in ("VRPI", "VRPO") and good:
-            dev.last_seen[typ] = (frame, t)
+        if stream:
+            self.devices[stream] = dev
+        return dev
 
     def _eclink_modbus(self, c, frame, t):
         sport, dport = int(c[C["tcp_srcport"]] or 0), int(c[C["tcp_dstport"]] or 0)
@@ -544,16 +578,21 @@ class Capture:
 
     def finish(self, error=None):
         """Close what is still open at the end; the report as a plain dict."""
-        for dev in self.devices.values():
+        devices = sorted({id(d): d for d in self.devices.values()}.values(), key=lambda d: d.id)
+        for dev in devices:
             for name, entry in dev.open.items():
                 if entry.kind == "stall":
                     entry.duration = self.last_time - dev.counters[name][1]
                 else:
                     entry.duration = self.last_time - entry.time
                 entry.at_least = True
-            for name, series in dev.series.items():
-                if series.group == "state" and series.buckets:
-                    series.add(dev.last_time, series.buckets[-1][4])
+            for series in dev.series.values():
+                if series.group == "state" and series.value is not None:
+                    series.pending = dev.last_time
+            if dev.kind == "eglink":
+                dev.name = "EG-Link BU %s (%s to %s:%d)" % (
+                    dev.address.get("origin", "origin unknown"), dev.address.get("bu", "?"),
+                    dev.address["group"], dev.address["port"])
         entries = sorted(self.entries, key=lambda e: (e.frame, e.time))
         start = (datetime.datetime.fromtimestamp(self.first_epoch, datetime.timezone.utc)
                  if self.first_epoch is not None else None)
@@ -567,7 +606,7 @@ class Capture:
             "start": start.strftime("%Y-%m-%d %H:%M:%S.%f")[:-3] + " UTC" if start else None,
             "start_epoch": self.first_epoch,
             "duration": round(self.last_time, 6),
-            "devices": [d.to_dict() for d in self.devices.values()],
+            "devices": [d.to_dict() for d in devices],
             "timeline": [e.to_dict() for e in entries],
             "counts": counts,
         }

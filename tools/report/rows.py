@@ -62,23 +62,6 @@ def tshark_command(explicit=None):
     return [os.environ.get("TSHARK") or "tshark"]
 
 
-def known_fields(cmd):
-    """The field names this tshark knows (tshark -G fields)."""
-    try:
-        proc = subprocess.run(cmd + ["-G", "fields"], stdout=subprocess.PIPE,
-                              stderr=subprocess.PIPE, text=True, errors="replace")
-    except OSError as exc:
-        raise CaptureError("cannot run %s: %s" % (" ".join(cmd), exc.strerror))
-    if proc.returncode != 0:
-        raise CaptureError("%s -G fields failed: %s" % (" ".join(cmd), first_line(proc.stderr)))
-    names = set()
-    for line in proc.stdout.splitlines():
-        parts = line.split("\t", 3)
-        if len(parts) > 2 and parts[0] == "F":
-            names.add(parts[2])
-    return names
-
-
 def first_line(text):
     lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
     return lines[0] if lines else "no message"
@@ -102,22 +85,27 @@ class Rows:
 
     Iterate once; afterwards `error` holds a one-line description when the
     capture could not be read to its end (rows read before it still count).
+    A field this tshark does not know (an older plugin) is left out and its
+    column stays empty; a tshark without the vrshark plugins is an error.
     """
 
-    def __init__(self, path, cmd, fields=ALL_FIELDS, extra_args=()):
-        """fields: ALL_FIELDS, with None for a field this tshark does not know
-        (its column stays empty)."""
+    def __init__(self, path, cmd, extra_args=()):
         self.path = Path(path)
+        self.cmd = list(cmd)
+        self.extra_args = list(extra_args)
         self.error = None
         self.size = 0
+        self.unknown = []   # fields tshark did not know
         self._file = None
-        self.cmd = list(cmd) + ["-n", "-r", "-", "-T", "fields", "-E", "separator=/t",
-                                "-E", "occurrence=a", "-E", "aggregator=,", "-E", "quote=n"]
-        self.cmd += list(extra_args)
-        for name in fields:
-            if name:
-                self.cmd += ["-e", name]
-        self.missing = [i for i, name in enumerate(fields) if not name]
+
+    def argv(self):
+        argv = self.cmd + ["-n", "-r", "-", "-T", "fields", "-E", "separator=/t",
+                           "-E", "occurrence=a", "-E", "aggregator=,", "-E", "quote=n"]
+        argv += self.extra_args
+        for name in ALL_FIELDS:
+            if name not in self.unknown:
+                argv += ["-e", name]
+        return argv
 
     def open(self):
         p = self.path
@@ -144,21 +132,56 @@ class Rows:
     def __iter__(self):
         if self._file is None:
             self.open()
+        with self._file:
+            while True:
+                stderr, last = yield from self._run()
+                unknown = unknown_fields(stderr) if last == 0 else []
+                if not unknown:
+                    break
+                if {"eglink.type", "eclink.image", "mcmb2.direction"} <= set(unknown):
+                    raise CaptureError(
+                        "%s does not know the eglink, eclink and mcmb2 fields: install the "
+                        "vrshark plugins (cmake --install) or choose a tshark with --tshark"
+                        % " ".join(self.cmd))
+                self.unknown += unknown
+                self._file.seek(0)
+        if self.returncode != 0 or "cut short" in stderr:
+            self.error = explain(stderr, last)
+
+    def _run(self):
+        """One tshark run: yields rows, returns (its stderr, the last frame number)."""
+        missing = [i for i, name in enumerate(ALL_FIELDS) if name in self.unknown]
+        # Most rows carry no expert field: their tail of empty columns is cut
+        # off unsplit (the model reads a short row as "no expert").
+        experts = [n for n in EXPERT_FIELDS if n not in self.unknown]
+        empty_tail = "\t" * len(experts) + "\n"
+        keep = -len(empty_tail)
         last = 0
-        with self._file, tempfile.TemporaryFile() as err:
+        with tempfile.TemporaryFile() as err:
             try:
-                proc = subprocess.Popen(self.cmd, stdin=self._file, stdout=subprocess.PIPE,
-                                        stderr=err, bufsize=1 << 20)
+                proc = subprocess.Popen(self.argv(), stdin=self._file, stdout=subprocess.PIPE,
+                                        stderr=err, bufsize=1 << 20, encoding="utf-8",
+                                        errors="replace")
             except OSError as exc:
                 raise CaptureError("cannot run %s: %s" % (self.cmd[0], exc.strerror))
             with proc:
-                for raw in proc.stdout:
-                    cols = raw.decode("utf-8", "replace").rstrip("\n").split("\t")
-                    for i in self.missing:
-                        cols.insert(i, "")
+                for line in proc.stdout:
+                    if line.endswith(empty_tail):
+                        cols = line[:keep].split("\t")
+                    else:
+                        cols = line[:-1].split("\t")
+                    for i in missing:
+                        if i < len(cols):
+                            cols.insert(i, "")
                     last = cols[0]
                     yield cols
+            self.returncode = proc.returncode
             err.seek(0)
-            stderr = err.read().decode("utf-8", "replace")
-        if proc.returncode != 0 or "cut short" in stderr:
-            self.error = explain(stderr, int(last or 0))
+            return err.read().decode("utf-8", "replace"), int(last or 0)
+
+
+def unknown_fields(stderr):
+    """The names in tshark's "Some fields aren't valid" message."""
+    if "fields aren't valid" not in stderr:
+        return []
+    return [ln.strip() for ln in stderr.splitlines() if ln.startswith("\t") and ln.strip()]
