@@ -12,6 +12,7 @@ from plotly.offline import get_plotlyjs
 from plotly.subplots import make_subplots
 
 COLOURS = {"note": "#3b78b0", "warning": "#e08a00", "error": "#c62828"}
+SHADED = ("relays", "stall", "gap", "poll_gap")  # shaded over their span in the plots
 SEVERITY_Y = {"note": 1, "warning": 2, "error": 3}
 TIMELINE_ROWS = 3000  # timeline lines per capture in the page (all are in --json)
 PALETTE = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#8c564b", "#e377c2", "#17becf", "#bcbd22"]
@@ -102,6 +103,10 @@ def figure(dev, timeline, t_end):
                 fig.add_trace(go.Scatter(
                     x=[0, t_end], y=[s["limit"], s["limit"]], mode="lines", name=name + " limit",
                     line=dict(color=c, width=1, dash="dash"), hoverinfo="skip"), row=r, col=1)
+    for e in timeline:  # conditions with a length: shaded across all rows
+        if e["kind"] in SHADED and e["duration"]:
+            fig.add_vrect(x0=e["end_time"] - e["duration"], x1=e["end_time"], line_width=0,
+                          fillcolor=COLOURS[e["severity"]], opacity=0.15, layer="below")
     fig.update_xaxes(range=[0, max(t_end, 0.001)])
     fig.update_xaxes(title_text="seconds from the first frame", row=len(rows), col=1)
     fig.update_layout(height=110 + 170 * sum(heights), margin=dict(l=60, r=20, t=40, b=40),

@@ -173,19 +173,20 @@ class Entry:
     """One timeline line: a state change, a condition with its length, or a
     finding (a burst of the same finding counts its occurrences)."""
     __slots__ = ("time", "frame", "device", "severity", "kind", "field", "what", "detail",
-                 "count", "last_frame", "last_time", "duration", "end_frame", "at_least", "lost")
+                 "count", "last_frame", "last_time", "duration", "end_frame", "end_time", "at_least",
+                 "lost")
 
     def __init__(self, device, frame, t, severity, kind, what, field=None, detail=""):
         self.device, self.frame, self.time = device, frame, t
         self.severity, self.kind, self.what, self.field = severity, kind, what, field
         self.detail = detail
         self.count, self.last_frame, self.last_time = 1, frame, t
-        self.duration = self.end_frame = None
+        self.duration = self.end_frame = self.end_time = None
         self.at_least = False
         self.lost = 0
 
     def close(self, frame, t, duration=None):
-        self.end_frame = frame
+        self.end_frame, self.end_time = frame, t
         self.duration = t - self.time if duration is None else duration
 
     def text(self):
@@ -210,7 +211,8 @@ class Entry:
                 "severity": self.severity, "kind": self.kind, "field": self.field,
                 "text": self.text(), "count": self.count, "last_frame": self.last_frame,
                 "duration": None if self.duration is None else round(self.duration, 6),
-                "end_frame": self.end_frame}
+                "end_frame": self.end_frame,
+                "end_time": None if self.end_time is None else round(self.end_time, 6)}
 
 
 ENDED = {"relays": "closed in frame %d", "stall": "moving again in frame %d",
@@ -466,7 +468,7 @@ class Capture:
         what = (change(state[0], value) if change
                 else "%s %s -> %s" % (name, fmt(state[0]), fmt(value)))
         entry = Entry(dev, frame, t, NOTE, "state", what)
-        entry.duration, entry.at_least = t - state[1], state[3]
+        entry.duration, entry.at_least, entry.end_time = t - state[1], state[3], t
         self.entries.append(entry)
         dev.states[name] = [value, t, frame, False]
 
@@ -585,7 +587,7 @@ class Capture:
                     entry.duration = self.last_time - dev.counters[name][1]
                 else:
                     entry.duration = self.last_time - entry.time
-                entry.at_least = True
+                entry.end_time, entry.at_least = self.last_time, True
             for series in dev.series.values():
                 if series.group == "state" and series.value is not None:
                     series.pending = dev.last_time
