@@ -126,6 +126,11 @@ def run_all(args, cmd):
     return reports
 
 
+def _die(message):
+    sys.stderr.write("vrshark-report: %s\n" % message)
+    sys.exit(2)
+
+
 def gate(reports, threshold):
     """(findings at or above threshold, the first of them with its capture)."""
     count, first = 0, None
@@ -155,7 +160,10 @@ def main(argv=None):
     if args.junit:
         junit.write(reports, args.junit, threshold or catalog.WARNING)
     if args.html:
-        from . import html  # plotly is needed for this output only
+        try:
+            from . import html  # plotly is needed for this output only
+        except ImportError as exc:
+            _die("the HTML report needs plotly (%s): pip install -r requirements.txt" % exc)
         html.write(reports, args.html)
     for rep in reports:
         if rep["error"]:
