@@ -393,7 +393,8 @@ def test_unknown_field_is_left_out(monkeypatch):
     col = fields.index("eglink.command_id")
     fields[col] = "eglink.no_such_field"
     monkeypatch.setattr(report_rows, "ALL_FIELDS", fields)
-    rows = report_rows.Rows(CAPTURES / "eglink_armed.pcap", report_rows.tshark_command())
+    cmd, env = report_rows.tshark_command()
+    rows = report_rows.Rows(CAPTURES / "eglink_armed.pcap", cmd, env=env)
     got = list(rows)
     assert rows.unknown == ["eglink.no_such_field"] and rows.error is None
     assert len(got) == 58

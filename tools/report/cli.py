@@ -51,9 +51,9 @@ def _init_worker(progress):
     _progress = progress
 
 
-def report_one(index, path, cmd, extra, limits, keep_series):
+def report_one(index, path, tshark, extra, limits, keep_series):
     """Run tshark on one capture and build its report dict (in a worker process)."""
-    rows = Rows(path, cmd, extra)
+    rows = Rows(path, tshark[0], extra, tshark[1])
     cap = model.Capture(path, limits)
     try:
         rows.open()
@@ -98,7 +98,7 @@ class ProgressBar:
             sys.stderr.flush()
 
 
-def run_all(args, cmd):
+def run_all(args, tshark):
     extra = []
     for pref in args.prefs:
         extra += ["-o", pref]
@@ -112,7 +112,7 @@ def run_all(args, cmd):
     jobs = max(1, min(args.jobs, len(args.captures)))
     with concurrent.futures.ProcessPoolExecutor(jobs, mp_context=ctx, initializer=_init_worker,
                                                 initargs=(progress,)) as pool:
-        futures = {pool.submit(report_one, i, path, cmd, extra, limits, bool(args.html)): i
+        futures = {pool.submit(report_one, i, path, tshark, extra, limits, bool(args.html)): i
                    for i, path in enumerate(args.captures)}
         done = set()
         pending = set(futures)
@@ -145,8 +145,7 @@ def gate(reports, threshold):
 
 def main(argv=None):
     args = parse_args(sys.argv[1:] if argv is None else argv)
-    cmd = [args.tshark] if args.tshark else tshark_command()
-    reports = run_all(args, cmd)
+    reports = run_all(args, tshark_command(args.tshark))
 
     threshold = GATES[args.fail_on] if args.fail_on else None
     count, first = gate(reports, threshold) if threshold else (0, None)

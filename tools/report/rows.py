@@ -53,13 +53,16 @@ def in_checkout():
 
 
 def tshark_command(explicit=None):
-    """The tshark to run: --tshark, else the checkout's tools/tshark (which
-    honours TSHARK as the binary to wrap), else $TSHARK, else tshark."""
+    """(argv, environment) of the tshark to run: --tshark, else the checkout's
+    tools/tshark (which runs $TSHARK, default tshark, with the checkout's
+    plugins), else $TSHARK, else tshark. A $TSHARK used here is not passed on,
+    so that a wrapper that reads it (tools/tshark) does not start itself."""
+    env = dict(os.environ)
     if explicit:
-        return [explicit]
+        return [explicit], env
     if in_checkout():
-        return [str(PACKAGE_DIR.parent / "tshark")]
-    return [os.environ.get("TSHARK") or "tshark"]
+        return [str(PACKAGE_DIR.parent / "tshark")], env
+    return [env.pop("TSHARK", "") or "tshark"], env
 
 
 def first_line(text):
@@ -89,9 +92,10 @@ class Rows:
     column stays empty; a tshark without the vrshark plugins is an error.
     """
 
-    def __init__(self, path, cmd, extra_args=()):
+    def __init__(self, path, cmd, extra_args=(), env=None):
         self.path = Path(path)
         self.cmd = list(cmd)
+        self.env = env
         self.extra_args = list(extra_args)
         self.error = None
         self.size = 0
@@ -161,7 +165,7 @@ class Rows:
             try:
                 proc = subprocess.Popen(self.argv(), stdin=self._file, stdout=subprocess.PIPE,
                                         stderr=err, bufsize=1 << 20, encoding="utf-8",
-                                        errors="replace")
+                                        errors="replace", env=self.env)
             except OSError as exc:
                 raise CaptureError("cannot run %s: %s" % (self.cmd[0], exc.strerror))
             with proc:
