@@ -450,3 +450,24 @@ def test_junit(report, tmp_path, bad_files):
     error = suites[2].find("testcase/error")
     assert error.get("message") == "not a capture file (pcap or pcapng expected)"
     assert suites[3].find("testcase").get("name") == "no vrshark traffic"
+
+
+@pytest.mark.parametrize("name, frames, want", [
+    ("mcmb2_duplex_watchdog.pcap", "1-25", [
+        (23, "error", 1, "uplink watchdog stalled at 5 for 1.400 s or more (unchanged since frame 11, "
+         "limit 1000 ms), until the end of the capture")]),
+    ("eglink_analysis_vrpo_gap.pcap", "1-38", [
+        (35, "note", 1, "BU state Armed -> External link error (after 3.000 s or more)"),
+        (35, "warning", 1, "ES-Link relays open (BU state External link error) for 0.375 s or more, "
+         "until the end of the capture"),
+        (35, "warning", 1, "no VRPO for 2.435 s or more (after frame 18, limit 2000 ms), "
+         "until the end of the capture")]),
+])
+def test_open_at_the_end(report, tmp_path, name, frames, want):
+    """A relay, stall or gap still open when the capture ends: its length so far."""
+    cut = tmp_path / name
+    subprocess.run(["editcap", "-r", str(CAPTURES / name), str(cut), frames], check=True)
+    doc = as_json(report("--json", cut))
+    assert [(e["frame"], e["severity"], e["device"], e["text"])
+            for e in doc["captures"][0]["timeline"]] == want
+    assert all(e["end_frame"] is None for e in doc["captures"][0]["timeline"] if e["kind"] != "state")

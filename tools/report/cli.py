@@ -8,7 +8,6 @@ import concurrent.futures
 import multiprocessing
 import os
 import sys
-import threading
 import time
 
 from . import catalog, jsonout, junit, model, text

@@ -94,9 +94,9 @@ def figure(dev, timeline, t_end):
             y = [pos[v] for v in s["v"]] if kind == "state" else s["v"]
             hover = ([labels.get(str(v), "0x%02X" % v) for v in s["v"]] if kind == "state"
                      else None)
+            shape = "hv" if kind == "state" else "linear"
             fig.add_trace(go.Scatter(
-                x=s["t"], y=y, name=name, mode="lines", line=dict(color=c, width=2,
-                                                                  shape="hv" if kind == "state" else "linear"),
+                x=s["t"], y=y, name=name, mode="lines", line=dict(color=c, width=2, shape=shape),
                 text=hover, hovertemplate="%{x:.3f} s " + ("%{text}" if hover else "%{y}")
                 + "<extra>" + H.escape(name) + "</extra>"), row=r, col=1)
             if kind == "age" and s.get("limit") is not None:

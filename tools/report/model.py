@@ -174,7 +174,7 @@ class Entry:
     finding (a burst of the same finding counts its occurrences)."""
     __slots__ = ("time", "frame", "device", "severity", "kind", "field", "what", "detail",
                  "count", "last_frame", "last_time", "duration", "end_frame", "end_time", "at_least",
-                 "lost")
+                 "lost", "since")
 
     def __init__(self, device, frame, t, severity, kind, what, field=None, detail=""):
         self.device, self.frame, self.time = device, frame, t
@@ -184,6 +184,7 @@ class Entry:
         self.duration = self.end_frame = self.end_time = None
         self.at_least = False
         self.lost = 0
+        self.since = t   # when the condition began (a stall or gap: before it was flagged)
 
     def close(self, frame, t, duration=None):
         self.end_frame, self.end_time = frame, t
@@ -549,15 +550,18 @@ class Capture:
         if counter in dev.open:
             return
         cur = dev.counters.get(counter)
-        if cur is None:
-            return
         limit = {"PCI": "eclink.pci", "PCO": "eclink.pco", "uplink watchdog": "mcmb2.uplink_timeout",
                  "downlink watchdog": "mcmb2.downlink_timeout"}[counter]
-        detail = "unchanged since frame %d, limit %s" % (cur[2], fmt_ms(self.limits[limit]))
+        detail = "limit " + fmt_ms(self.limits[limit])
+        what, since = counter + " stalled", t
+        if cur is not None:
+            what += " at %d" % cur[0]
+            since = cur[1]
+            detail = "unchanged since frame %d, %s" % (cur[2], detail)
         if counter == "downlink watchdog":
             detail += ": the base shows E010"
-        entry = Entry(dev, frame, t, severity, "stall", "%s stalled at %d" % (counter, cur[0]),
-                      field, detail)
+        entry = Entry(dev, frame, t, severity, "stall", what, field, detail)
+        entry.since = since
         dev.open[counter] = entry
         self.entries.append(entry)
 
@@ -569,6 +573,7 @@ class Capture:
             limit = self.limits["eglink.%s_gap_ms" % what.lower()]
             detail = ("after frame %d, " % prev[0] if prev else "") + "limit " + fmt_ms(limit)
             entry = Entry(dev, frame, t, severity, "gap", "no " + what, field, detail)
+            entry.since = prev[1] if prev else t
             dev.open[name] = entry
             self.entries.append(entry)
         if field.endswith("_gap"):
@@ -582,11 +587,8 @@ class Capture:
         """Close what is still open at the end; the report as a plain dict."""
         devices = sorted({id(d): d for d in self.devices.values()}.values(), key=lambda d: d.id)
         for dev in devices:
-            for name, entry in dev.open.items():
-                if entry.kind == "stall":
-                    entry.duration = self.last_time - dev.counters[name][1]
-                else:
-                    entry.duration = self.last_time - entry.time
+            for entry in dev.open.values():
+                entry.duration = self.last_time - entry.since
                 entry.end_time, entry.at_least = self.last_time, True
             for series in dev.series.values():
                 if series.group == "state" and series.value is not None:
