@@ -40,7 +40,8 @@ def as_json(proc):
 
 
 def timeline(report, name, *args):
-    doc = as_json(report("--json", *args, "captures/" + name))
+    """(frame, severity, device, text) of each entry; name: a capture under captures/ or a path."""
+    doc = as_json(report("--json", *args, name if "/" in str(name) else "captures/" + name))
     return [(e["frame"], e["severity"], e["device"], e["text"]) for e in doc["captures"][0]["timeline"]]
 
 
@@ -471,3 +472,12 @@ def test_open_at_the_end(report, tmp_path, name, frames, want):
     assert [(e["frame"], e["severity"], e["device"], e["text"])
             for e in doc["captures"][0]["timeline"]] == want
     assert all(e["end_frame"] is None for e in doc["captures"][0]["timeline"] if e["kind"] != "state")
+
+
+def test_pcapng_and_gzip(report, tmp_path):
+    ng, gz = tmp_path / "crc.pcapng", tmp_path / "crc.pcap.gz"
+    subprocess.run(["editcap", "-F", "pcapng", str(CAPTURES / "eglink_bad_crc.pcap"), str(ng)], check=True)
+    subprocess.run("gzip -c %s > %s" % (CAPTURES / "eglink_bad_crc.pcap", gz), shell=True, check=True)
+    for path in (ng, gz):
+        assert timeline(report, path) == [
+            (1, "error", 1, "bad CRC (6x, frames 1-6 over 0.050 s)")]
