@@ -326,11 +326,12 @@ class Capture:
         self._experts(dev, c, frame, t)
         if good and (typ == "VRPI" or typ == "VRPO"):
             dev.last_seen[typ] = (frame, t)
-        if "origin" not in dev.address and typ == "VRPI":
-            origin = num(c[C["eglink_origin"]] or "0")
-            if origin:
-                dev.address["origin"] = "0x%04x" % origin
-                dev.address["bu"] = c[C["ip_src"]]
+        if "bu" not in dev.address and typ.endswith("I"):  # the BU's own packets
+            dev.address["bu"] = c[C["ip_src"]]
+        if "origin" not in dev.address:  # the BU's, or as the analysis learned it
+            origin = c[C["eglink_origin"]] if typ.endswith("I") else c[C["eglink_analysis_bu_origin"]]
+            if origin and num(origin):
+                dev.address["origin"] = "0x%04x" % num(origin)
 
     def _eglink_device(self, c, typ, stream, frame, t):
         """A BU by its analysis stream (group or address pair and input port)."""
@@ -594,9 +595,11 @@ class Capture:
                 if series.group == "state" and series.value is not None:
                     series.pending = dev.last_time
             if dev.kind == "eglink":
-                dev.name = "EG-Link BU %s (%s to %s:%d)" % (
-                    dev.address.get("origin", "origin unknown"), dev.address.get("bu", "?"),
-                    dev.address["group"], dev.address["port"])
+                a = dev.address
+                dev.name = ("EG-Link BU %s (%s to %s:%d)" % (a["origin"], a.get("bu", "?"), a["group"],
+                                                             a["port"])
+                            if "origin" in a else
+                            "EG-Link BU, origin unknown (%s:%d)" % (a["group"], a["port"]))
         entries = sorted(self.entries, key=lambda e: (e.frame, e.time))
         start = (datetime.datetime.fromtimestamp(self.first_epoch, datetime.timezone.utc)
                  if self.first_epoch is not None else None)
