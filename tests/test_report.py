@@ -1,0 +1,483 @@
+"""vrshark-report: exact safety timelines of the fault captures, the devices
+found, the text output, the gate and its exit codes, JSON, JUnit, bad input.
+
+Each run goes through tools/vrshark-report (and so tools/tshark) with the
+hermetic configuration of the other tests; runs are cached by arguments.
+"""
+import json
+import os
+import shutil
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+
+import pytest
+
+from conftest import CAPTURES, ROOT
+
+REPORT = ROOT / "tools" / "vrshark-report"
+sys.path.insert(0, str(ROOT / "tools"))
+from report import rows as report_rows  # noqa: E402
+
+
+@pytest.fixture(scope="session")
+def report(conf_dir):
+    """report(*args) -> CompletedProcess of tools/vrshark-report ARGS (cwd: the checkout)."""
+    cache = {}
+    env = dict(os.environ, TZ="UTC", LC_ALL="C.UTF-8", WIRESHARK_CONFIG_DIR=str(conf_dir))
+
+    def run(*args):
+        key = tuple(str(a) for a in args)
+        if key not in cache:
+            cache[key] = subprocess.run([str(REPORT)] + list(key), env=env, cwd=str(ROOT),
+                                        capture_output=True, text=True, timeout=600)
+        return cache[key]
+    return run
+
+
+def as_json(proc):
+    return json.loads(proc.stdout)
+
+
+def timeline(report, name, *args):
+    """(frame, severity, device, text) of each entry; name: a capture under captures/ or a path."""
+    doc = as_json(report("--json", *args, name if "/" in str(name) else "captures/" + name))
+    return [(e["frame"], e["severity"], e["device"], e["text"]) for e in doc["captures"][0]["timeline"]]
+
+
+# (frame, severity, device, text) of every timeline entry, in order.
+TIMELINES = {
+    "eglink_analysis_session.pcap": [
+        (1, 'warning', 1, 'ES-Link relays open (BU state Initial) for 0.500 s, closed in frame 10'),
+        (10, 'note', 1, 'BU state Initial -> Disarmed (after 0.500 s or more)'),
+        (19, 'note', 1, 'BU state Disarmed -> Armed (after 0.500 s)'),
+        (19, 'note', 1, 'RU state Initial (no RU armed) -> Enabled (RU 0xbeef) (after 1.000 s or more)'),
+        (26, 'note', 1, 'command retransmitted'),
+        (32, 'warning', 1, '1 packet lost'),
+        (41, 'note', 1, 'BU state Armed -> Stopped (after 1.000 s)'),
+        (41, 'note', 1, 'RU 0xbeef state Enabled -> Stopped (after 1.000 s)'),
+        (41, 'warning', 1, 'ES-Link relays open (BU state Stopped) for 0.500 s, closed in frame 52'),
+        (52, 'note', 1, 'BU state Stopped -> Armed (after 0.500 s)'),
+        (52, 'note', 1, 'RU 0xbeef state Stopped -> Enabled (after 0.500 s)'),
+    ],
+    "eglink_states.pcap": [
+        (1, 'warning', 1, 'ES-Link relays open (BU state Initial) for 0.625 s, closed in frame 6'),
+        (2, 'note', 1, 'BU state Initial -> Stopped (after 0.125 s or more)'),
+        (2, 'note', 1, 'RU state Initial (no RU armed) -> Stopped (RU 0xbeef) (after 0.125 s or more)'),
+        (3, 'note', 1, 'BU state Stopped -> External link error (after 0.125 s)'),
+        (3, 'note', 1, 'RU state Stopped (RU 0xbeef) -> Initial (no RU armed) (after 0.125 s)'),
+        (4, 'note', 1, 'BU state External link error -> Blocked (after 0.125 s)'),
+        (5, 'note', 1, 'BU state Blocked -> Failed (after 0.125 s)'),
+        (6, 'note', 1, 'BU state Failed -> Disarmed (after 0.125 s)'),
+        (7, 'note', 1, 'BU state Disarmed -> Armed (after 0.125 s)'),
+        (7, 'note', 1, 'RU state Initial (no RU armed) -> Initial (RU 0xbeef) (after 0.500 s)'),
+        (8, 'note', 1, 'RU 0xbeef state Initial -> Disarmed (after 0.125 s)'),
+        (9, 'note', 1, 'RU 0xbeef state Disarmed -> Armed (after 0.125 s)'),
+        (12, 'note', 1, 'RU 0xbeef state Armed -> Enabled (after 0.375 s)'),
+    ],
+    "eglink_analysis_vrpo_gap.pcap": [
+        (35, 'note', 1, 'BU state Armed -> External link error (after 3.000 s or more)'),
+        (35, 'warning', 1, 'ES-Link relays open (BU state External link error) for 0.750 s, closed in frame 44'),
+        (35, 'warning', 1, 'no VRPO for 2.600 s (after frame 18, limit 2000 ms), received again in frame 40'),
+        (44, 'note', 1, 'BU state External link error -> Armed (after 0.750 s)'),
+    ],
+    "eglink_analysis_lost.pcap": [
+        (13, 'warning', 1, '3 packets lost (2x, frames 13-15 over 0.190 s)'),
+    ],
+    "eglink_analysis_repeated.pcap": [
+        (9, 'warning', 1, 'repeated packet (2x, frames 9-15 over 0.325 s)'),
+    ],
+    "eglink_analysis_vrci_unacked.pcap": [
+        (8, 'note', 1, 'command retransmitted (19x, frames 8-58 over 1.800 s)'),
+        (61, 'warning', 1, 'VRCI of frame 5 not acknowledged in time: the command failed'),
+    ],
+    "eglink_analysis_vrco_unacked.pcap": [
+        (8, 'note', 1, 'command retransmitted (4x, frames 8-16 over 0.300 s)'),
+        (46, 'warning', 1, 'VRCO of frame 5 not acknowledged in time'),
+        (89, 'warning', 1, 'VRCO of frame 52 not acknowledged in time'),
+        (94, 'warning', 1, 'command 5 acknowledged after 2.300 s (late)'),
+    ],
+    "eglink_analysis_vrpi_gap.pcap": [
+        (16, 'warning', 1, 'no VRPI for 0.875 s (after frame 10, limit 500 ms), received again in frame 20'),
+    ],
+    "eglink_bad_crc.pcap": [
+        (1, 'error', 1, 'bad CRC (6x, frames 1-6 over 0.050 s)'),
+    ],
+    "eglink_analysis_two_bus.pcap": [
+        (27, 'warning', 2, '1 packet lost'),
+    ],
+    "eclink_modbus_faults.pcap": [
+        (13, 'warning', 1, 'no input image for 0.700 s (after frame 9, limit 500 ms)'),
+        (13, 'warning', 1, 'PCI stalled at 2 for 0.825 s (unchanged since frame 9, limit 500 ms), moving again in frame 17'),
+        (20, 'warning', 1, 'command from RU not echoed by CAO in time (2x, frames 20-26 over 0.135 s)'),
+        (20, 'warning', 1, 'command to RU not echoed by CAI in time'),
+        (21, 'warning', 1, 'no input image for 2.050 s (after frame 17, limit 500 ms)'),
+        (22, 'warning', 1, 'PCO stalled at 4 for 2.175 s (unchanged since frame 18, limit 2000 ms), moving again in frame 26'),
+        (29, 'note', 1, 'RU 0x1234 state Enabled -> undefined 0x05 (after 3.250 s or more)'),
+        (29, 'error', 1, 'VLAPs out of range'),
+        (29, 'error', 1, 'undefined link status'),
+        (29, 'error', 1, 'undefined RU state'),
+        (29, 'error', 1, 'percentage over 100'),
+        (29, 'error', 1, 'flag not 0 or 1'),
+        (29, 'error', 1, 'undefined RU disabled reason'),
+        (29, 'error', 1, 'joystick out of range'),
+        (29, 'warning', 1, 'spare not 0 (2x, frames 29-32 over 0.097 s)'),
+        (31, 'note', 1, 'BU state Armed -> undefined 0x42 (after 3.300 s or more)'),
+        (31, 'note', 1, 'RU state undefined 0x05 (RU 0x1234) -> Initial (no RU armed) (after 0.050 s)'),
+        (31, 'error', 1, 'undefined BU state'),
+        (31, 'error', 1, 'RU fields not 0 while no RU is armed'),
+        (32, 'error', 1, 'periodic data size over 51200'),
+    ],
+    "eclink_pnio_connect.pcap": [
+        (7, 'note', 1, 'BU state Disarmed -> Armed (after 0.250 s or more)'),
+        (31, 'warning', 1, 'PCI stalled at 10 for 0.875 s (unchanged since frame 21, limit 500 ms), moving again in frame 35'),
+        (72, 'warning', 1, 'PCO stalled at 18 for 2.625 s (unchanged since frame 38, limit 2000 ms), moving again in frame 80'),
+        (76, 'warning', 1, 'command from RU not echoed by CAO in time'),
+    ],
+    "mcmb2_polled_connect.pcap": [
+        (5, 'note', 1, 'slot 2 terminal 2 present -> terminal 2 absent (after 0.100 s or more)'),
+        (7, 'note', 1, 'slot 2 terminal 2 absent -> terminal 5 present (after 0.100 s)'),
+        (9, 'note', 1, 'slot 3 terminal 3 present -> terminal 3 undefined 0x03 (after 0.300 s or more)'),
+        (9, 'error', 1, 'undefined slot status'),
+        (11, 'note', 1, 'status normal mode -> undefined 0x01 (after 0.400 s or more)'),
+        (11, 'note', 1, 'slot 3 terminal 3 undefined 0x03 -> terminal 3 present (after 0.100 s)'),
+        (11, 'error', 1, 'undefined status'),
+        (13, 'note', 1, 'status undefined 0x01 -> fieldbus update failure (E010) (after 0.100 s)'),
+        (13, 'note', 1, 'slot 1 terminal 1 present -> terminal 1 absent (after 0.500 s or more)'),
+        (13, 'note', 1, 'slot 2 terminal 5 present -> terminal 5 absent (after 0.300 s)'),
+        (13, 'note', 1, 'slot 3 terminal 3 present -> terminal 3 absent (after 0.100 s)'),
+        (13, 'warning', 1, 'no valid terminal data'),
+        (15, 'note', 1, 'status fieldbus update failure (E010) -> normal mode (after 0.100 s)'),
+        (15, 'note', 1, 'slot 1 terminal 1 absent -> terminal 1 present (after 0.100 s)'),
+        (15, 'note', 1, 'slot 2 terminal 5 absent -> terminal 5 present (after 0.100 s)'),
+        (15, 'note', 1, 'slot 3 terminal 3 absent -> terminal 3 present (after 0.100 s)'),
+        (15, 'error', 1, 'Y, Z or slots differ from the configured layout'),
+        (17, 'note', 1, 'slot 2 terminal 5 present -> terminal 5 active stop (after 0.100 s)'),
+        (17, 'warning', 1, 'terminal bits set in a polled status'),
+        (17, 'warning', 1, 'data not 0 while the terminal is not present'),
+        (18, 'warning', 1, 'reserved byte not 0'),
+    ],
+    "mcmb2_duplex_watchdog.pcap": [
+        (23, 'error', 1, 'uplink watchdog stalled at 5 for 1.600 s (unchanged since frame 11, limit 1000 ms), moving again in frame 27'),
+        (34, 'error', 1, 'downlink watchdog stalled at 5 for 2.600 s (unchanged since frame 12, limit 2000 ms: the base shows E010), moving again in frame 38'),
+    ],
+    "mcmb2_duplex_connect.pcap": [
+        (3, 'warning', 1, 'no valid terminal data (4x, frames 3-13 over 0.500 s)'),
+        (5, 'note', 1, 'status absent -> blocked (after 0.100 s or more)'),
+        (7, 'note', 1, 'status blocked -> present (after 0.100 s)'),
+        (9, 'warning', 1, 'IOPS not GOOD'),
+        (11, 'note', 1, 'status present -> active stop (after 0.200 s)'),
+        (11, 'warning', 1, 'data not 0 while the terminal is not present'),
+        (13, 'note', 1, 'status active stop -> fieldbus update failure (E010) (after 0.100 s)'),
+        (15, 'note', 1, 'status fieldbus update failure (E010) -> present (after 0.100 s)'),
+        (16, 'warning', 1, 'IOCS not GOOD'),
+        (17, 'note', 1, 'status present -> undefined 0x03 (after 0.100 s)'),
+        (17, 'error', 1, 'undefined status (11x, frames 17-37 over 1.000 s)'),
+        (19, 'note', 1, 'status undefined 0x03 -> undefined 0x04 (after 0.100 s)'),
+        (21, 'note', 1, 'status undefined 0x04 -> undefined 0x05 (after 0.100 s)'),
+        (23, 'note', 1, 'status undefined 0x05 -> undefined 0x06 (after 0.100 s)'),
+        (25, 'note', 1, 'status undefined 0x06 -> undefined 0x08 (after 0.100 s)'),
+        (27, 'note', 1, 'status undefined 0x08 -> undefined 0x09 (after 0.100 s)'),
+        (29, 'note', 1, 'status undefined 0x09 -> undefined 0x0B (after 0.100 s)'),
+        (31, 'note', 1, 'status undefined 0x0B -> undefined 0x0C (after 0.100 s)'),
+        (33, 'note', 1, 'status undefined 0x0C -> undefined 0x0D (after 0.100 s)'),
+        (35, 'note', 1, 'status undefined 0x0D -> undefined 0x0E (after 0.100 s)'),
+        (37, 'note', 1, 'status undefined 0x0E -> undefined 0x0F (after 0.100 s)'),
+    ],
+    "eglink_header.pcap": [
+        (1, 'warning', 1, 'unknown layout revision'),
+        (2, 'warning', 1, 'origin not 0 in a controller packet (3x, frames 2-4 over 0.020 s)'),
+        (4, 'note', 1, 'acknowledges a command not in the capture'),
+        (5, 'note', 1, 'origin 0 in a BU packet (2x, frames 5-6 over 0.010 s)'),
+        (5, 'warning', 1, 'another origin on the same group and port (2x, frames 5-7 over 0.020 s)'),
+        (7, 'warning', 1, 'header spare not 0'),
+        (8, 'warning', 1, 'payload spare not 0 (2x, frames 8-9 over 0.010 s)'),
+    ],
+}
+
+
+@pytest.mark.parametrize("name", sorted(TIMELINES))
+def test_timeline(report, name):
+    assert timeline(report, name) == TIMELINES[name]
+
+
+def test_devices_two_bus(report):
+    devs = as_json(report("--json", "captures/eglink_analysis_two_bus.pcap"))["captures"][0]["devices"]
+    got = [(d["id"], d["kind"], d["name"], d["frames"], d["first_frame"], d["last_frame"],
+            d["layout"], d["initial"]) for d in devs]
+    assert got == [
+        (1, "eglink", "EG-Link BU 0x1001 (192.168.32.10 to 239.255.42.20:5825)", 20, 1, 38,
+         "TS-0006, UDP port 5825", {"BU state": "Armed", "RU state": "Enabled (RU 0xbeef)"}),
+        (2, "eglink", "EG-Link BU 0x1002 (192.168.32.11 to 239.255.42.21:5825)", 19, 2, 39,
+         "TS-0006, UDP port 5825", {"BU state": "Disarmed", "RU state": "Initial (no RU armed)"}),
+    ]
+    assert devs[0]["address"] == {"group": "239.255.42.20", "port": 5825, "origin": "0x1001",
+                                  "bu": "192.168.32.10"}
+
+
+def test_devices_mcmb2_terminals(report):
+    dev = as_json(report("--json", "captures/mcmb2_polled_connect.pcap"))["captures"][0]["devices"][0]
+    assert (dev["name"], dev["layout"], dev["frames"]) == (
+        "MC-MB2-PN polled base 00:30:11:00:00:02", "Connect in frame 1", 16)
+    assert [(t["terminal"], t["slots"], t["first_frame"], t["last_frame"], t["frames"])
+            for t in dev["terminals"]] == [(1, [1], 3, 17, 8), (2, [2], 3, 5, 2),
+                                           (3, [3], 3, 17, 8), (5, [2], 7, 17, 6)]
+    assert dev["final"]["slot 2"] == "terminal 5 active stop"
+
+
+@pytest.mark.parametrize("name, kind, device, layout", [
+    ("eclink_modbus_faults.pcap", "eclink_modbus", "EC-Link BU, Modbus/TCP server 192.168.2.41:502",
+     "heuristic, recognised in frame 5"),
+    ("eclink_pnio_connect.pcap", "eclink_pnio", "EC-Link BU, PROFINET device 00:30:11:00:00:02",
+     "Connect in frame 1"),
+    ("mcmb2_duplex_watchdog.pcap", "mcmb2", "MC-MB2-PN duplex base 00:30:11:00:00:02",
+     "Connect in frame 1"),
+    ("eglink_heuristic.pcap", "eglink", "EG-Link BU 0x1001 (192.168.32.10 to 239.255.42.20:6100)",
+     "TS-0006, UDP port 6100"),
+])
+def test_device_names_and_layouts(report, name, kind, device, layout):
+    devs = as_json(report("--json", "captures/" + name))["captures"][0]["devices"]
+    assert [(d["kind"], d["name"], d["layout"]) for d in devs] == [(kind, device, layout)]
+
+
+def test_preference_changes_limit(report):
+    """-o goes to tshark and to the report's own limits."""
+    got = timeline(report, "eglink_analysis_vrpi_gap.pcap", "-o", "eglink.vrpi_gap_ms:300")
+    assert (16, "warning", 1, "no VRPI for 0.875 s (after frame 10, limit 300 ms), "
+            "received again in frame 20") not in got
+    assert any("limit 300 ms" in text for _, _, _, text in got)
+
+
+def test_decode_as(report):
+    without = as_json(report("--json", "captures/eclink_modbus_port5020.pcap"))["captures"][0]
+    assert without["devices"] == []
+    with_rule = as_json(report("--json", "-d", "tcp.port==5020,eclink_modbus",
+                               "captures/eclink_modbus_port5020.pcap"))["captures"][0]
+    assert [d["name"] for d in with_rule["devices"]] == ["EC-Link BU, Modbus/TCP server 192.168.2.41:5020"]
+
+
+# --- text output and the gate ---------------------------------------------------
+
+VRPO_GAP_TEXT = """\
+== captures/eglink_analysis_vrpo_gap.pcap
+56 frames, 4.440 s from 2026-01-01 00:00:00.000 UTC
+1 device:
+  [1] EG-Link BU 0x1001 (192.168.32.10 to 239.255.42.20:5825)
+      frames 1-56 (56), 0.000 s to 4.440 s; layout: TS-0006, UDP port 5825
+      first: BU state Armed, RU state Enabled (RU 0xbeef)
+timeline (4 entries: 0 error, 2 warning, 2 note; seconds from the first frame):
+      time   frame  severity  device
+     3.000      35  note      [1]  BU state Armed -> External link error (after 3.000 s or more)
+     3.000      35  warning   [1]  ES-Link relays open (BU state External link error) for 0.750 s, closed in frame 44
+     3.000      35  warning   [1]  no VRPO for 2.600 s (after frame 18, limit 2000 ms), received again in frame 40
+     3.750      44  note      [1]  BU state External link error -> Armed (after 0.750 s)
+"""
+
+
+def test_text_output(report):
+    proc = report("captures/eglink_analysis_vrpo_gap.pcap")
+    assert (proc.returncode, proc.stdout, proc.stderr) == (0, VRPO_GAP_TEXT, "")
+
+
+def test_faults_gate_warn(report):
+    """The acceptance run: one timeline per capture, exit 1, one line saying why."""
+    captures = sorted(str(p.relative_to(ROOT)) for p in CAPTURES.glob("*faults*.pcap"))
+    proc = report(*captures, "--fail-on", "warn")
+    assert proc.returncode == 1
+    assert [ln for ln in proc.stdout.splitlines() if ln.startswith("== ")] == \
+        ["== " + c for c in captures]
+    assert "     0.928      13  warning   [1]  PCI stalled at 2 for 0.825 s (unchanged since " \
+        "frame 9, limit 500 ms), moving again in frame 17" in proc.stdout.splitlines()
+    assert proc.stderr.splitlines() == [
+        "vrshark-report: FAIL (--fail-on warn): 17 finding(s) at warning or above; first: "
+        "captures/eclink_modbus_faults.pcap frame 13: no input image for 0.700 s (after frame 9, "
+        "limit 500 ms)"]
+
+
+@pytest.mark.parametrize("gate, status", [(None, 0), ("note", 1), ("warn", 1), ("error", 0)])
+def test_gate_levels(report, gate, status):
+    """eglink_analysis_vrpo_gap has notes and warnings, no error."""
+    args = ["--fail-on", gate] if gate else []
+    proc = report(*args, "captures/eglink_analysis_vrpo_gap.pcap")
+    assert proc.returncode == status
+    assert len(proc.stderr.splitlines()) == status
+
+
+def test_clean_capture_passes_every_gate(report):
+    proc = report("--fail-on", "note", "captures/eglink_armed.pcap")
+    assert proc.returncode == 0, proc.stderr
+    assert "timeline: no state change and no finding" in proc.stdout
+
+
+def test_no_vrshark_traffic(report):
+    proc = report("--fail-on", "note", "captures/modbus_plain_devices.pcap")
+    assert proc.returncode == 0
+    assert proc.stdout.splitlines()[-1] == "  no EG-Link, EC-Link or MC-MB2-PN traffic found"
+    doc = as_json(report("--json", "captures/modbus_plain_devices.pcap"))
+    assert doc["captures"][0]["frames"] == 113
+    assert doc["captures"][0]["devices"] == [] and doc["captures"][0]["timeline"] == []
+
+
+@pytest.mark.parametrize("args", [[], ["--fail-on", "warning2", "captures/eglink_armed.pcap"],
+                                  ["--no-such-option", "captures/eglink_armed.pcap"]])
+def test_usage_errors(report, args):
+    proc = report(*args)
+    assert proc.returncode == 2
+    assert proc.stdout == "" and "usage: vrshark-report" in proc.stderr
+
+
+def test_several_captures_in_order(report):
+    names = ["captures/mcmb2_duplex_watchdog.pcap", "captures/eglink_bad_crc.pcap",
+             "captures/eclink_pnio_connect.pcap"]
+    doc = as_json(report("--json", "-j", "2", *names))
+    assert [c["capture"] for c in doc["captures"]] == names
+    assert doc["exit_status"] == 0 and doc["schema"] == 1
+
+
+# --- bad input ------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def bad_files(tmp_path_factory):
+    d = tmp_path_factory.mktemp("report-bad")
+    good = (CAPTURES / "eglink_armed.pcap").read_bytes()
+    (d / "truncated.pcap").write_bytes(good[:3000])
+    (d / "text.pcap").write_text("this is not a capture\n")
+    (d / "empty.pcap").write_bytes(b"")
+    (d / "header.pcap").write_bytes(good[:10])
+    shutil.copy(CAPTURES / "eglink_bad_crc.pcap", d / "ok.pcap")
+    return d
+
+
+def test_bad_input(report, bad_files):
+    names = ["missing.pcap", "text.pcap", "ok.pcap", "empty.pcap", "header.pcap", "truncated.pcap"]
+    proc = report(*[bad_files / n for n in names])
+    assert proc.returncode == 2
+    assert proc.stderr.splitlines() == ["vrshark-report: %s: %s" % (bad_files / n, msg) for n, msg in [
+        ("missing.pcap", "no such file"),
+        ("text.pcap", "not a capture file (pcap or pcapng expected)"),
+        ("empty.pcap", "empty file, not a capture"),
+        ("header.pcap", "truncated: the file ends before its first packet"),
+        ("truncated.pcap", "truncated: the capture ends in the middle of a packet (after frame 22)"),
+    ]]
+    # The readable captures still report, the truncated one up to its cut.
+    assert "  [1] EG-Link BU 0x1001 (192.168.32.10 to 239.255.42.20:5825)" in proc.stdout
+    assert "     0.000       1  error     [1]  bad CRC (6x, frames 1-6 over 0.050 s)" in proc.stdout
+    assert "22 frames, 1.140 s from 2026-01-01 00:00:00.000 UTC" in proc.stdout
+
+
+def test_bad_input_wins_over_findings(report, bad_files):
+    proc = report("--fail-on", "note", bad_files / "ok.pcap", bad_files / "missing.pcap")
+    assert proc.returncode == 2
+    assert len(proc.stderr.splitlines()) == 2  # the unreadable capture and the gate
+
+
+def test_directory(report, tmp_path):
+    proc = report(tmp_path)
+    assert proc.returncode == 2
+    assert proc.stderr == "vrshark-report: %s: is a directory, not a capture file\n" % tmp_path
+
+
+def test_tshark_without_plugins(report, tmp_path):
+    """A tshark that lacks the plugins is named in one line, exit 2."""
+    proc = subprocess.run([str(REPORT), "--tshark", "/usr/bin/tshark", "captures/eglink_armed.pcap"],
+                          cwd=str(ROOT), capture_output=True, text=True,
+                          env=dict(os.environ, HOME=str(tmp_path), WIRESHARK_CONFIG_DIR=str(tmp_path)))
+    assert proc.returncode == 2
+    assert proc.stderr == ("vrshark-report: captures/eglink_armed.pcap: /usr/bin/tshark does not "
+                           "know the eglink, eclink and mcmb2 fields: install the vrshark plugins "
+                           "(cmake --install) or choose a tshark with --tshark\n")
+
+
+def test_unknown_field_is_left_out(monkeypatch):
+    """A field an older plugin does not register: its column stays empty, the rest is read."""
+    fields = list(report_rows.ALL_FIELDS)
+    col = fields.index("eglink.command_id")
+    fields[col] = "eglink.no_such_field"
+    monkeypatch.setattr(report_rows, "ALL_FIELDS", fields)
+    cmd, env = report_rows.tshark_command()
+    rows = report_rows.Rows(CAPTURES / "eglink_armed.pcap", cmd, env=env)
+    got = list(rows)
+    assert rows.unknown == ["eglink.no_such_field"] and rows.error is None
+    assert len(got) == 58
+    assert all(r[col] == "" for r in got)
+    assert got[24][report_rows.COL["eglink.type"]] == "VRCI"
+
+
+def test_piped_output_has_no_progress_bar(report):
+    proc = report("captures/eglink_analysis_vrci_unacked.pcap")
+    assert "\r" not in proc.stderr and "[" not in proc.stderr
+
+
+# --- JSON and JUnit ---------------------------------------------------------------------
+
+def test_json_schema(report):
+    doc = as_json(report("--json", "--fail-on", "error", "captures/mcmb2_duplex_watchdog.pcap"))
+    assert set(doc) == {"schema", "fail_on", "exit_status", "captures"}
+    assert (doc["fail_on"], doc["exit_status"]) == ("error", 1)
+    cap = doc["captures"][0]
+    assert set(cap) == {"capture", "error", "frames", "start", "start_epoch", "duration",
+                        "devices", "timeline", "counts"}
+    assert cap["counts"] == {"note": 0, "warning": 0, "error": 2}
+    assert set(cap["devices"][0]) == {"id", "kind", "name", "address", "layout", "frames",
+                                      "first_frame", "last_frame", "start", "end", "initial",
+                                      "final", "terminals"}
+    stall = cap["timeline"][1]
+    assert stall == {"time": 3.201, "frame": 34, "device": 1, "severity": "error", "kind": "stall",
+                     "field": "mcmb2.downlink_watchdog.stalled", "text": stall["text"], "count": 1,
+                     "last_frame": 34, "duration": 2.6, "end_frame": 38, "end_time": 3.601}
+
+
+def test_junit(report, tmp_path, bad_files):
+    out = tmp_path / "report.xml"
+    proc = report("--junit", out, "--fail-on", "warn", "captures/eglink_analysis_two_bus.pcap",
+                  "captures/eglink_armed.pcap", bad_files / "text.pcap",
+                  "captures/modbus_plain_devices.pcap")
+    assert proc.returncode == 2
+    root = ET.parse(out).getroot()
+    assert root.tag == "testsuites"
+    assert (root.get("tests"), root.get("failures"), root.get("errors")) == ("5", "1", "1")
+    suites = root.findall("testsuite")
+    assert [s.get("name") for s in suites] == ["captures/eglink_analysis_two_bus.pcap",
+                                               "captures/eglink_armed.pcap", str(bad_files / "text.pcap"),
+                                               "captures/modbus_plain_devices.pcap"]
+    cases = suites[0].findall("testcase")
+    assert [c.get("name") for c in cases] == [
+        "EG-Link BU 0x1001 (192.168.32.10 to 239.255.42.20:5825)",
+        "EG-Link BU 0x1002 (192.168.32.11 to 239.255.42.21:5825)"]
+    assert cases[0].find("failure") is None
+    failure = cases[1].find("failure")
+    assert failure.get("message") == "1 finding(s) at or above warning; first in frame 27: 1 packet lost"
+    assert failure.text == "frame 27  0.635 s  warning  1 packet lost"
+    error = suites[2].find("testcase/error")
+    assert error.get("message") == "not a capture file (pcap or pcapng expected)"
+    assert suites[3].find("testcase").get("name") == "no vrshark traffic"
+
+
+@pytest.mark.parametrize("name, frames, want", [
+    ("mcmb2_duplex_watchdog.pcap", "1-25", [
+        (23, "error", 1, "uplink watchdog stalled at 5 for 1.400 s or more (unchanged since frame 11, "
+         "limit 1000 ms), until the end of the capture")]),
+    ("eglink_analysis_vrpo_gap.pcap", "1-38", [
+        (35, "note", 1, "BU state Armed -> External link error (after 3.000 s or more)"),
+        (35, "warning", 1, "ES-Link relays open (BU state External link error) for 0.375 s or more, "
+         "until the end of the capture"),
+        (35, "warning", 1, "no VRPO for 2.435 s or more (after frame 18, limit 2000 ms), "
+         "until the end of the capture")]),
+])
+def test_open_at_the_end(report, tmp_path, name, frames, want):
+    """A relay, stall or gap still open when the capture ends: its length so far."""
+    cut = tmp_path / name
+    subprocess.run(["editcap", "-r", str(CAPTURES / name), str(cut), frames], check=True)
+    doc = as_json(report("--json", cut))
+    assert [(e["frame"], e["severity"], e["device"], e["text"])
+            for e in doc["captures"][0]["timeline"]] == want
+    assert all(e["end_frame"] is None for e in doc["captures"][0]["timeline"] if e["kind"] != "state")
+
+
+def test_pcapng_and_gzip(report, tmp_path):
+    ng, gz = tmp_path / "crc.pcapng", tmp_path / "crc.pcap.gz"
+    subprocess.run(["editcap", "-F", "pcapng", str(CAPTURES / "eglink_bad_crc.pcap"), str(ng)], check=True)
+    subprocess.run("gzip -c %s > %s" % (CAPTURES / "eglink_bad_crc.pcap", gz), shell=True, check=True)
+    for path in (ng, gz):
+        assert timeline(report, path) == [
+            (1, "error", 1, "bad CRC (6x, frames 1-6 over 0.050 s)")]

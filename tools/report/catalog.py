@@ -1,0 +1,114 @@
+"""The expert fields the report reads, by name, with their severity and role.
+
+tshark -T fields prints an expert field (FT_NONE) as 1 on the frames that
+carry it, so the report asks for each one by name and never reads message
+texts. The severities are those the dissectors give (README's expert tables;
+tests/test_report_catalog.py checks them against the captures).
+
+Roles:
+  finding   listed in the timeline; bursts of it collapse into one line
+  relays    means "ES-Link relays open": shown as the relay condition the
+            model derives from the BU and RU states, not repeated per frame
+  state     a state change the model derives from the state fields itself
+  stall     a counter that stopped moving: the model measures the stall
+  gap       EG-Link VRPI/VRPO missing or late: the model measures the gap
+Chat-level experts (acknowledged commands, layouts learned, partial access)
+are not asked for: they are no findings.
+"""
+
+NOTE, WARNING, ERROR = "note", "warning", "error"
+LEVELS = {NOTE: 1, WARNING: 2, ERROR: 3}
+
+# name: (severity, role, what the timeline says)
+EXPERTS = {
+    # EG-Link, single packet
+    "eglink.too_short": (ERROR, "finding", "packet too short for EG-Link"),
+    "eglink.size.mismatch": (ERROR, "finding", "header Size disagrees with the UDP length"),
+    "eglink.size.invalid": (ERROR, "finding", "payload size wrong for the packet type"),
+    "eglink.type.unknown": (WARNING, "finding", "unknown packet type"),
+    "eglink.revision.unknown": (WARNING, "finding", "unknown layout revision"),
+    "eglink.origin.nonzero": (WARNING, "finding", "origin not 0 in a controller packet"),
+    "eglink.origin.zero": (NOTE, "finding", "origin 0 in a BU packet"),
+    "eglink.spare.nonzero": (WARNING, "finding", "header spare not 0"),
+    "eglink.payload_spare.nonzero": (WARNING, "finding", "payload spare not 0"),
+    "eglink.crc.bad": (ERROR, "finding", "bad CRC"),
+    "eglink.crc.variant": (WARNING, "finding", "CRC of another variant: set the CRC preference"),
+    "eglink.bu_state.relays_open": (WARNING, "relays", "ES-Link relays open"),
+    "eglink.bu_state.unknown": (WARNING, "finding", "undefined BU state"),
+    "eglink.link_status.unknown": (WARNING, "finding", "undefined link status"),
+    "eglink.vlaps.range": (WARNING, "finding", "more than 3 VLAPs"),
+    "eglink.ru_state.stopped": (WARNING, "relays", "RU stopped"),
+    "eglink.ru_state.unknown": (WARNING, "finding", "undefined RU state"),
+    "eglink.ru_battery.range": (WARNING, "finding", "RU battery above 100 %"),
+    "eglink.ru_rssi.range": (WARNING, "finding", "RU RSSI above 100 %"),
+    "eglink.flag.invalid": (WARNING, "finding", "flag neither 0 nor 1"),
+    "eglink.ru_disabled.unknown": (WARNING, "finding", "undefined RU disabled reason"),
+    "eglink.joystick.range": (WARNING, "finding", "joystick outside -1000..1000"),
+    "eglink.armed_ru.unarmed_data": (WARNING, "finding", "RU fields not 0 while no RU is armed"),
+    # EG-Link conversation analysis
+    "eglink.analysis.serial_gap": (WARNING, "finding", "packets lost"),
+    "eglink.analysis.serial_repeat": (WARNING, "finding", "repeated packet"),
+    "eglink.analysis.serial_restart": (NOTE, "finding", "sender restarted (serial jumped back)"),
+    "eglink.analysis.vrpi_missing": (WARNING, "gap", "VRPI"),
+    "eglink.analysis.vrpi_gap": (WARNING, "gap", "VRPI"),
+    "eglink.analysis.vrpo_missing": (WARNING, "gap", "VRPO"),
+    "eglink.analysis.vrpo_gap": (WARNING, "gap", "VRPO"),
+    "eglink.analysis.retransmission": (NOTE, "finding", "command retransmitted"),
+    "eglink.analysis.vrci_unacked": (WARNING, "finding", "VRCI not acknowledged in time: the command failed"),
+    "eglink.analysis.vrco_unacked": (WARNING, "finding", "VRCO not acknowledged in time"),
+    "eglink.analysis.late_ack": (WARNING, "finding", "late acknowledgement"),
+    "eglink.analysis.unknown_ack": (NOTE, "finding", "acknowledges a command not in the capture"),
+    "eglink.analysis.bu_state_changed": (NOTE, "state", "BU state changed"),
+    "eglink.analysis.origin_changed": (WARNING, "finding", "another origin on the same group and port"),
+    "eglink.analysis.burst_incomplete": (WARNING, "finding", "split VRPO burst incomplete"),
+    "eglink.analysis.burst_size": (WARNING, "finding", "VRPO burst size differs from the preference"),
+    # MC-MB2-PN
+    "mcmb2.status.undefined": (ERROR, "finding", "undefined status"),
+    "mcmb2.slot.status.undefined": (ERROR, "finding", "undefined slot status"),
+    "mcmb2.terminal.not_zero": (WARNING, "finding", "terminal bits set in a polled status"),
+    "mcmb2.no_valid_data": (WARNING, "finding", "no valid terminal data"),
+    "mcmb2.data_not_zero": (WARNING, "finding", "data not 0 while the terminal is not present"),
+    "mcmb2.uplink_watchdog.stalled": (ERROR, "stall", "uplink watchdog"),
+    "mcmb2.downlink_watchdog.stalled": (ERROR, "stall", "downlink watchdog"),
+    "mcmb2.slot.terminal_changed": (NOTE, "state", "slot serves another terminal"),
+    "mcmb2.layout_mismatch": (ERROR, "finding", "Y, Z or slots differ from the configured layout"),
+    "mcmb2.iops.bad": (WARNING, "finding", "IOPS not GOOD"),
+    "mcmb2.iocs.bad": (WARNING, "finding", "IOCS not GOOD"),
+    "mcmb2.reserved.not_zero": (WARNING, "finding", "reserved byte not 0"),
+    "mcmb2.short": (ERROR, "finding", "C-SDU shorter than the layout"),
+    # EC-Link images (both transports)
+    "eclink.relays_open": (WARNING, "relays", "ES-Link relays open"),
+    "eclink.ru_stopped": (WARNING, "relays", "RU stopped"),
+    "eclink.bu_state.unknown": (ERROR, "finding", "undefined BU state"),
+    "eclink.vlaps.range": (ERROR, "finding", "VLAPs out of range"),
+    "eclink.link_status.range": (ERROR, "finding", "undefined link status"),
+    "eclink.ru_state.range": (ERROR, "finding", "undefined RU state"),
+    "eclink.percent.range": (ERROR, "finding", "percentage over 100"),
+    "eclink.bool.range": (ERROR, "finding", "flag not 0 or 1"),
+    "eclink.ru_disabled.range": (ERROR, "finding", "undefined RU disabled reason"),
+    "eclink.joystick.range": (ERROR, "finding", "joystick out of range"),
+    "eclink.unarmed_not_zero": (ERROR, "finding", "RU fields not 0 while no RU is armed"),
+    "eclink.spare.not_zero": (WARNING, "finding", "spare not 0"),
+    "eclink.periodic_size.range": (ERROR, "finding", "periodic data size over 51200"),
+    "eclink.periodic_block.range": (ERROR, "finding", "periodic data block beyond the size"),
+    "eclink.bad_length": (ERROR, "finding", "not an EC-Link image length"),
+    # EC-Link over Modbus/TCP
+    "eclink_modbus.pci_stalled": (WARNING, "stall", "PCI"),
+    "eclink_modbus.pco_stalled": (WARNING, "stall", "PCO"),
+    "eclink_modbus.cmd_from_ru.late": (WARNING, "finding", "command from RU not echoed by CAO in time"),
+    "eclink_modbus.cmd_to_ru.late": (WARNING, "finding", "command to RU not echoed by CAI in time"),
+    "eclink_modbus.bu_state_change": (NOTE, "state", "BU state changed"),
+    "eclink_modbus.no_request": (NOTE, "finding", "response without its request"),
+    # EC-Link over PROFINET
+    "eclink_pnio.pci_stalled": (WARNING, "stall", "PCI"),
+    "eclink_pnio.pco_stalled": (WARNING, "stall", "PCO"),
+    "eclink_pnio.cmd_from_ru.late": (WARNING, "finding", "command from RU not echoed by CAO in time"),
+    "eclink_pnio.cmd_to_ru.late": (WARNING, "finding", "command to RU not echoed by CAI in time"),
+    "eclink_pnio.bu_state_change": (NOTE, "state", "BU state changed"),
+    "eclink_pnio.iops.bad": (WARNING, "finding", "IOPS not GOOD"),
+    "eclink_pnio.short": (ERROR, "finding", "C-SDU shorter than the layout"),
+}
+
+
+def severity_at_least(severity, threshold):
+    return LEVELS[severity] >= LEVELS[threshold]

@@ -1,0 +1,619 @@
+"""Devices, safety timeline and plot series of one capture, built row by row.
+
+Capture.add() takes the rows of rows.Rows in frame order; Capture.finish()
+closes what is still open and returns a plain dict (see docs/report.md, JSON
+schema) that every output format reads. Memory grows with the number of
+devices, timeline entries and plot buckets, never with the number of frames.
+"""
+import datetime
+
+from . import catalog
+from .catalog import ERROR, NOTE, WARNING
+from .rows import COL, EXPERT_FIELDS
+
+BU_STATES = {0x00: "Initial", 0x01: "Stopped", 0x02: "External link error", 0x03: "Blocked",
+             0x04: "Failed", 0x10: "Disarmed", 0x11: "Armed"}
+RU_STATES = {0: "Initial", 1: "Disarmed", 2: "Armed", 3: "Enabled", 4: "Stopped"}
+DUPLEX_STATUS = {0x0: "absent", 0x1: "present", 0x2: "blocked", 0x7: "active stop",
+                 0xA: "fieldbus update failure (E010)"}
+POLLED_STATUS = {0xA: "fieldbus update failure (E010)", 0xF: "normal mode"}
+SLOT_STATUS = {0x0: "absent", 0x1: "present", 0x2: "blocked", 0x7: "active stop", 0xF: "not used"}
+
+BURST_GAP = 2.0     # s: the same finding again within this time joins its burst
+PLOT_BUCKETS = 2000  # points kept per plotted series (min/max per time bucket)
+
+# Limits in seconds; the names are the tshark preferences that change them.
+DEFAULT_LIMITS = {
+    "eglink.vrpi_gap_ms": 0.5, "eglink.vrpo_gap_ms": 2.0,
+    "mcmb2.uplink_timeout": 1.0, "mcmb2.downlink_timeout": 2.0,
+    "eclink.pci": 0.5, "eclink.pco": 2.0,
+}
+
+EXPERT_START = len(COL) - len(EXPERT_FIELDS)
+C = {name.replace(".", "_"): i for name, i in COL.items()}
+# Columns read on every EG-Link row (the busiest protocol).
+EG_TYPE, EG_STREAM, EG_CRC = C["eglink_type"], C["eglink_analysis_bu_stream"], C["eglink_crc_status"]
+EG_BU, EG_RU, EG_ARMED = C["eglink_bu_state"], C["eglink_ru_state"], C["eglink_armed_ru"]
+EG_JOYSTICKS = [(i, C["eglink_joystick%d" % i]) for i in range(1, 5)]
+EG_INTERVALS = [("VRPI", C["eglink_analysis_time_since_prev_vrpi"], "eglink.vrpi_gap_ms"),
+                ("VRPO", C["eglink_analysis_time_since_prev_vrpo"], "eglink.vrpo_gap_ms")]
+
+
+def limits_from_prefs(prefs):
+    """DEFAULT_LIMITS with the `-o name:value` preferences (milliseconds) applied."""
+    limits = dict(DEFAULT_LIMITS)
+    for pref in prefs:
+        name, _, value = pref.partition(":")
+        if name in limits:
+            try:
+                limits[name] = float(value) / 1000.0
+            except ValueError:
+                pass
+    return limits
+
+
+def num(text):
+    """An integer as tshark prints it (decimal or 0x..); the last of several."""
+    if "," in text:
+        text = text.rsplit(",", 1)[1]
+    return int(text, 0)
+
+
+def last(text):
+    return text.rsplit(",", 1)[-1]
+
+
+def fmt_s(seconds):
+    return "%.3f s" % seconds
+
+
+def fmt_ms(seconds):
+    return "%d ms" % round(seconds * 1000)
+
+
+def named(table):
+    return lambda v: table.get(v, "undefined 0x%02X" % v)
+
+
+def slot_text(value):
+    status, terminal = value
+    if status == 0xF:
+        return SLOT_STATUS[0xF]
+    return "terminal %d %s" % (terminal, named(SLOT_STATUS)(status))
+
+
+def ru_change(old, new):
+    if old[1] == new[1] and new[1]:
+        return "RU 0x%04x state %s -> %s" % (new[1], named(RU_STATES)(old[0]), named(RU_STATES)(new[0]))
+    return "RU state %s -> %s" % (ru_text(old), ru_text(new))
+
+
+def ru_text(value):
+    state, armed = value
+    return "%s (%s)" % (named(RU_STATES)(state), "RU 0x%04x" % armed if armed else "no RU armed")
+
+
+class Series:
+    """Points of one plotted value, at most PLOT_BUCKETS time buckets.
+
+    Each bucket keeps its first, lowest, highest and last value, so a short
+    blip (a BU Blocked for one packet in an hour) still shows; when the
+    buckets run out, the bucket width doubles and neighbours merge.
+    """
+
+    def __init__(self, group, limit=None, labels=None):
+        self.group, self.limit, self.labels = group, limit, labels
+        self.width = 0.0
+        self.buckets = []   # [t, first, low, high, last]
+        self.value = self.pending = None
+
+    def add(self, t, v):
+        """A point; a run of equal values keeps only its first and last point."""
+        if v == self.value:
+            self.pending = t
+            return
+        if self.pending is not None:
+            self._add(self.pending, self.value)
+            self.pending = None
+        self.value = v
+        self._add(t, v)
+
+    def flush(self):
+        if self.pending is not None:
+            self._add(self.pending, self.value)
+            self.pending = None
+
+    def _add(self, t, v):
+        b = self.buckets
+        if b and (t - b[-1][0] < self.width or t == b[-1][0]):
+            cur = b[-1]
+            cur[2] = min(cur[2], v)
+            cur[3] = max(cur[3], v)
+            cur[4] = v
+            return
+        b.append([t, v, v, v, v])
+        if len(b) > PLOT_BUCKETS:
+            self._merge()
+
+    def _merge(self):
+        t0 = self.buckets[0][0]
+        self.width = max(self.width * 2, (self.buckets[-1][0] - t0) / (PLOT_BUCKETS / 2))
+        merged = []
+        for bucket in self.buckets:
+            if merged and bucket[0] - merged[-1][0] < self.width:
+                cur = merged[-1]
+                cur[2] = min(cur[2], bucket[2])
+                cur[3] = max(cur[3], bucket[3])
+                cur[4] = bucket[4]
+            else:
+                merged.append(list(bucket))
+        self.buckets = merged
+
+    def points(self):
+        ts, vs = [], []
+        for t, first, low, high, end in self.buckets:
+            for v in (first, low, high, end) if low != high else (first,):
+                if not vs or vs[-1] != v or ts[-1] != t:
+                    ts.append(round(t, 6))
+                    vs.append(v)
+        return ts, vs
+
+    def to_dict(self):
+        self.flush()
+        ts, vs = self.points()
+        out = {"group": self.group, "t": ts, "v": vs}
+        if self.limit is not None:
+            out["limit"] = self.limit
+        if self.labels:
+            out["labels"] = {str(k): v for k, v in sorted(self.labels.items())}
+        return out
+
+
+class Entry:
+    """One timeline line: a state change, a condition with its length, or a
+    finding (a burst of the same finding counts its occurrences)."""
+    __slots__ = ("time", "frame", "device", "severity", "kind", "field", "what", "detail",
+                 "count", "last_frame", "last_time", "duration", "end_frame", "end_time", "at_least",
+                 "lost", "since")
+
+    def __init__(self, device, frame, t, severity, kind, what, field=None, detail=""):
+        self.device, self.frame, self.time = device, frame, t
+        self.severity, self.kind, self.what, self.field = severity, kind, what, field
+        self.detail = detail
+        self.count, self.last_frame, self.last_time = 1, frame, t
+        self.duration = self.end_frame = self.end_time = None
+        self.at_least = False
+        self.lost = 0
+        self.since = t   # when the condition began (a stall or gap: before it was flagged)
+
+    def close(self, frame, t, duration=None):
+        self.end_frame, self.end_time = frame, t
+        self.duration = t - self.time if duration is None else duration
+
+    def text(self):
+        what = self.what
+        if self.lost:
+            what = "%d packet%s lost" % (self.lost, "" if self.lost == 1 else "s")
+        if self.duration is not None:
+            length = fmt_s(self.duration) + (" or more" if self.at_least else "")
+            what += (" (after %s)" if self.kind == "state" else " for %s") % length
+        if self.detail:
+            what += " (%s)" % self.detail
+        if self.count > 1:
+            what += " (%dx, frames %d-%d over %s)" % (
+                self.count, self.frame, self.last_frame, fmt_s(self.last_time - self.time))
+        if self.kind in ENDED:
+            what += (", until the end of the capture" if self.end_frame is None
+                     else ", " + ENDED[self.kind] % self.end_frame)
+        return what
+
+    def to_dict(self):
+        return {"time": round(self.time, 6), "frame": self.frame, "device": self.device.id,
+                "severity": self.severity, "kind": self.kind, "field": self.field,
+                "text": self.text(), "count": self.count, "last_frame": self.last_frame,
+                "duration": None if self.duration is None else round(self.duration, 6),
+                "end_frame": self.end_frame,
+                "end_time": None if self.end_time is None else round(self.end_time, 6)}
+
+
+ENDED = {"relays": "closed in frame %d", "stall": "moving again in frame %d",
+         "gap": "received again in frame %d"}
+
+
+class Device:
+    def __init__(self, ident, kind, frame, t):
+        self.id, self.kind = ident, kind
+        self.name = self.layout = ""
+        self.address = {}
+        self.first_frame = self.last_frame = frame
+        self.first_time = self.last_time = t
+        self.frames = 0
+        self.states = {}      # name: [value, since_time, since_frame, first]
+        self.initial = {}     # name: text of the first value seen
+        self.formats = {}     # name: value -> text
+        self.counters = {}    # name: [value, since_time, since_frame]
+        self.open = {}        # condition name: open Entry (relays, stalls, gaps)
+        self.bursts = {}      # expert field: its latest Entry
+        self.last_seen = {}   # what: (frame, time), for gaps
+        self.series = {}
+        self.terminals = {}   # MC-MB2: number: [first_frame, last_frame, first_t, last_t, frames, slots]
+        self.raw_state = None   # EG-Link: the last VRPI's state columns
+
+    def plot(self, name, group, t, v, limit=None, labels=None):
+        s = self.series.get(name)
+        if s is None:
+            s = self.series[name] = Series(group, limit, labels)
+        s.add(t, v)
+
+    def to_dict(self, series=True):
+        out = {"id": self.id, "kind": self.kind, "name": self.name, "address": self.address,
+               "layout": self.layout, "frames": self.frames,
+               "first_frame": self.first_frame, "last_frame": self.last_frame,
+               "start": round(self.first_time, 6), "end": round(self.last_time, 6),
+               "initial": self.initial,
+               "final": {k: self.formats[k](s[0]) for k, s in self.states.items()}}
+        if self.kind == "mcmb2":
+            out["terminals"] = [
+                {"terminal": n, "first_frame": v[0], "last_frame": v[1], "start": round(v[2], 6),
+                 "end": round(v[3], 6), "frames": v[4], "slots": sorted(v[5])}
+                for n, v in sorted(self.terminals.items())]
+        if series:
+            out["series"] = {k: s.to_dict() for k, s in self.series.items()}
+        return out
+
+
+class Capture:
+    """The report model of one capture; add() every row, then finish()."""
+
+    def __init__(self, path, limits=None):
+        self.path = str(path)
+        self.limits = limits or dict(DEFAULT_LIMITS)
+        self.frames = 0
+        self.first_epoch = None
+        self.last_time = 0.0
+        self.last_frame = 0
+        self.devices = {}
+        self.entries = []
+        self._eglink_groups = {}
+
+    # --- rows ---------------------------------------------------------------
+
+    def add(self, c):
+        frame = int(c[0])
+        epoch = float(c[1])
+        if self.first_epoch is None:
+            self.first_epoch = epoch
+        t = epoch - self.first_epoch
+        self.frames += 1
+        self.last_time, self.last_frame = t, frame
+        if c[C["eglink_type"]]:
+            self._eglink(c, frame, t)
+        elif c[C["mcmb2_direction"]]:
+            self._mcmb2(c, frame, t)
+        elif c[C["eclink_pnio_layout"]]:
+            self._eclink_pnio(c, frame, t)
+        elif c[C["eclink_modbus_table"]] or c[C["eclink_image"]]:
+            self._eclink_modbus(c, frame, t)
+
+    def _device(self, key, kind, frame, t):
+        dev = self.devices.get(key)
+        if dev is None:
+            dev = self.devices[key] = Device(len(self.devices) + 1, kind, frame, t)
+        dev.frames += 1
+        dev.last_frame, dev.last_time = frame, t
+        return dev
+
+    def _eglink(self, c, frame, t):
+        typ = c[EG_TYPE]
+        stream = c[EG_STREAM]
+        dev = self.devices.get(stream) if stream else None
+        if dev is None:
+            dev = self._eglink_device(c, typ, stream, frame, t)
+        dev.frames += 1
+        dev.last_frame, dev.last_time = frame, t
+        good = c[EG_CRC] != "0"
+        if typ == "VRPI" and good and c[EG_BU]:
+            raw = (c[EG_BU], c[EG_RU], c[EG_ARMED])
+            if raw != dev.raw_state:  # most VRPI repeat the state: nothing to do
+                dev.raw_state = raw
+                self._safety(dev, frame, t, num(raw[0]), num(raw[1] or "0"), num(raw[2] or "0"))
+            for i, col in EG_JOYSTICKS:
+                if c[col]:
+                    dev.plot("joystick %d" % i, "value", t, num(c[col]))
+        for what, col, limit in EG_INTERVALS:
+            if c[col]:
+                dev.plot(what + " interval", "age", t, float(c[col]), self.limits[limit])
+        self._experts(dev, c, frame, t)
+        if good and (typ == "VRPI" or typ == "VRPO"):
+            dev.last_seen[typ] = (frame, t)
+        if "bu" not in dev.address and typ.endswith("I"):  # the BU's own packets
+            dev.address["bu"] = c[C["ip_src"]]
+        if "origin" not in dev.address:  # the BU's, or as the analysis learned it
+            origin = c[C["eglink_origin"]] if typ.endswith("I") else c[C["eglink_analysis_bu_origin"]]
+            if origin and num(origin):
+                dev.address["origin"] = "0x%04x" % num(origin)
+
+    def _eglink_device(self, c, typ, stream, frame, t):
+        """A BU by its analysis stream (group or address pair and input port)."""
+        port = int(c[C["udp_dstport"]] or 0)
+        port = port if typ.endswith("I") else port - 2
+        group = (c[C["ip_dst"]], port)
+        key = stream or self._eglink_groups.get(group, group)
+        self._eglink_groups.setdefault(group, key)
+        dev = self.devices.get(key)
+        if dev is None:
+            dev = self._device(key, "eglink", frame, t)
+            dev.frames -= 1
+            dev.address = {"group": group[0], "port": port}
+            dev.layout = "TS-0006, UDP port %d" % port
+        if stream:
+            self.devices[stream] = dev
+        return dev
+
+    def _eclink_modbus(self, c, frame, t):
+        sport, dport = int(c[C["tcp_srcport"]] or 0), int(c[C["tcp_dstport"]] or 0)
+        if c[C["eclink_modbus_request_in"]] or (sport and sport < dport):
+            server = (c[C["ip_src"]], sport)
+        else:
+            server = (c[C["ip_dst"]], dport)
+        dev = self._device(("eclink_modbus",) + server, "eclink_modbus", frame, t)
+        if not dev.name:
+            dev.name = "EC-Link BU, Modbus/TCP server %s:%d" % server
+            dev.address = {"server": server[0], "port": server[1]}
+        accepted = c[C["eclink_modbus_accepted_in"]]
+        if not dev.layout and c[C["eclink_image"]]:
+            dev.layout = ("heuristic, recognised in frame %s" % last(accepted) if accepted
+                          else "detection always")
+        self._eclink_image(dev, c, frame, t, "eclink_modbus")
+
+    def _eclink_pnio(self, c, frame, t):
+        images = c[C["eclink_image"]]
+        mac = c[C["eth_dst"]] if images.startswith("output") else c[C["eth_src"]]
+        dev = self._device(("eclink_pnio", mac), "eclink_pnio", frame, t)
+        if not dev.name:
+            dev.name = "EC-Link BU, PROFINET device %s" % mac
+            dev.address = {"mac": mac}
+            dev.layout = c[C["eclink_pnio_layout"]]
+        self._eclink_image(dev, c, frame, t, "eclink_pnio")
+
+    def _eclink_image(self, dev, c, frame, t, transport):
+        images = c[C["eclink_image"]]
+        if "input" in images:
+            self._poll(dev, "input image", frame, t, self.limits["eclink.pci"])
+            bu, ru = c[C["eclink_bu_state"]], c[C["eclink_ru_state"]]
+            if bu:
+                self._safety(dev, frame, t, num(bu), num(ru) if ru else None,
+                             num(c[C["eclink_armed_ru"]]) if c[C["eclink_armed_ru"]] else None)
+            for i in range(1, 5):
+                value = c[C["eclink_joystick%d" % i]]
+                if value:
+                    dev.plot("joystick %d" % i, "value", t, num(value))
+            if c[C["eclink_pci"]]:
+                self._counter(dev, "PCI", num(c[C["eclink_pci"]]), frame, t)
+        if "output" in images and c[C["eclink_pco"]]:
+            self._counter(dev, "PCO", num(c[C["eclink_pco"]]), frame, t)
+        for name, limit in (("pci", "eclink.pci"), ("pco", "eclink.pco")):
+            age = c[C["%s_%s_age" % (transport, name)]]
+            if age:
+                dev.plot("%s age" % name.upper(), "age", t, float(last(age)), self.limits[limit])
+        self._experts(dev, c, frame, t)
+
+    def _mcmb2(self, c, frame, t):
+        uplink = c[C["mcmb2_direction"]] == "uplink"
+        mac = c[C["eth_src"]] if uplink else c[C["eth_dst"]]
+        dev = self._device(("mcmb2", mac), "mcmb2", frame, t)
+        system = c[C["mcmb2_system"]]
+        if not dev.name:
+            dev.name = "MC-MB2-PN %s base %s" % (system, mac)
+            dev.address = {"mac": mac, "system": system}
+            dev.layout = c[C["mcmb2_layout"]]
+        age = c[C["mcmb2_watchdog_age"]]
+        if uplink:
+            self._poll(dev, "uplink frame", frame, t, self.limits["mcmb2.uplink_timeout"])
+            if c[C["mcmb2_uplink_watchdog"]]:
+                self._counter(dev, "uplink watchdog", num(c[C["mcmb2_uplink_watchdog"]]), frame, t)
+            if age:
+                dev.plot("uplink watchdog age", "age", t, float(age), self.limits["mcmb2.uplink_timeout"])
+            if c[C["mcmb2_status"]]:
+                self._mcmb2_status(dev, c, frame, t, system)
+        else:
+            if c[C["mcmb2_downlink_watchdog"]]:
+                self._counter(dev, "downlink watchdog", num(c[C["mcmb2_downlink_watchdog"]]), frame, t)
+            if age:
+                dev.plot("downlink watchdog age", "age", t, float(age),
+                         self.limits["mcmb2.downlink_timeout"])
+        self._experts(dev, c, frame, t)
+
+    def _mcmb2_status(self, dev, c, frame, t, system):
+        status = num(c[C["mcmb2_status"]])
+        table = POLLED_STATUS if system == "polled" else DUPLEX_STATUS
+        self._transition(dev, "status", status, frame, t, named(table), table)
+        if system != "polled":
+            terminal = num(c[C["mcmb2_terminal"]] or "0")
+            if terminal:
+                self._terminal(dev, terminal, None, frame, t)
+            return
+        slots = c[C["mcmb2_slot"]].split(",")
+        statuses = c[C["mcmb2_slot_status"]].split(",")
+        terminals = c[C["mcmb2_slot_terminal"]].split(",")
+        for slot, st, term in zip(slots, statuses, terminals):
+            st, term = int(st, 0), int(term, 0)
+            name = "slot %s" % slot
+            self._transition(dev, name, (st, term), frame, t, slot_text)
+            dev.plot(name + " status", "state", t, st, labels=SLOT_STATUS)
+            if st != 0xF:
+                self._terminal(dev, term, int(slot), frame, t)
+
+    @staticmethod
+    def _terminal(dev, number, slot, frame, t):
+        rec = dev.terminals.get(number)
+        if rec is None:
+            rec = dev.terminals[number] = [frame, frame, t, t, 0, set()]
+        rec[1], rec[3] = frame, t
+        rec[4] += 1
+        if slot is not None:
+            rec[5].add(slot)
+
+    # --- states, conditions, counters -------------------------------------------
+
+    def _transition(self, dev, name, value, frame, t, fmt, labels=None, change=None):
+        state = dev.states.get(name)
+        if labels is not None:
+            dev.plot(name, "state", t, value, labels=labels)
+        if state is None:
+            dev.states[name] = [value, t, frame, True]
+            dev.formats[name] = fmt
+            dev.initial[name] = fmt(value)
+            return
+        if state[0] == value:
+            return
+        what = (change(state[0], value) if change
+                else "%s %s -> %s" % (name, fmt(state[0]), fmt(value)))
+        entry = Entry(dev, frame, t, NOTE, "state", what)
+        entry.duration, entry.at_least, entry.end_time = t - state[1], state[3], t
+        self.entries.append(entry)
+        dev.states[name] = [value, t, frame, False]
+
+    def _safety(self, dev, frame, t, bu, ru, armed):
+        """BU and RU state of a BU, and the ES-Link relays they imply."""
+        self._transition(dev, "BU state", bu, frame, t, named(BU_STATES), BU_STATES)
+        prev = dev.states.get("RU state", [(None, None)])[0]
+        ru = prev[0] if ru is None else ru
+        armed = prev[1] if armed is None else armed
+        if ru is not None:
+            self._transition(dev, "RU state", (ru, armed or 0), frame, t, ru_text, change=ru_change)
+            dev.plot("RU state", "state", t, ru, labels=RU_STATES)
+        cause = ("BU state %s" % named(BU_STATES)(bu) if bu < 0x10
+                 else "RU stopped" if ru == 4 else None)
+        entry = dev.open.get("relays")
+        if cause and entry is None:
+            entry = Entry(dev, frame, t, WARNING, "relays", "ES-Link relays open (%s)" % cause)
+            self.entries.append(entry)
+            dev.open["relays"] = entry
+        elif not cause and entry is not None:
+            entry.close(frame, t)
+            del dev.open["relays"]
+
+    def _counter(self, dev, name, value, frame, t):
+        """A counter that must keep moving (watchdog, PCI, PCO); ends its stall."""
+        cur = dev.counters.get(name)
+        if cur is None or cur[0] != value:
+            dev.counters[name] = [value, t, frame]
+            stall = dev.open.pop(name, None)
+            if stall is not None:
+                stall.close(frame, t, t - cur[1])
+
+    def _poll(self, dev, what, frame, t, limit):
+        """A gap between two frames of the same kind longer than limit."""
+        prev = dev.last_seen.get(what)
+        dev.last_seen[what] = (frame, t)
+        if prev and t - prev[1] > limit:
+            entry = Entry(dev, frame, t, WARNING, "poll_gap", "no " + what,
+                          detail="after frame %d, limit %s" % (prev[0], fmt_ms(limit)))
+            entry.close(frame, t, t - prev[1])
+            self.entries.append(entry)
+
+    # --- expert fields -----------------------------------------------------------
+
+    def _experts(self, dev, c, frame, t):
+        tail = c[EXPERT_START:]
+        if not any(tail):
+            return
+        for i, flag in enumerate(tail):
+            if flag:
+                field = EXPERT_FIELDS[i]
+                severity, role, what = catalog.EXPERTS[field]
+                if role == "finding":
+                    self._finding(dev, c, frame, t, field, severity, what)
+                elif role == "stall":
+                    self._stall(dev, frame, t, field, severity, what)
+                elif role == "gap":
+                    self._gap(dev, c, frame, t, field, severity, what)
+
+    def _finding(self, dev, c, frame, t, field, severity, what):
+        entry = dev.bursts.get(field)
+        if entry is not None and t - entry.last_time <= BURST_GAP:
+            entry.count += 1
+            entry.last_frame, entry.last_time = frame, t
+        else:
+            if field.endswith(("vrci_unacked", "vrco_unacked")):
+                what = "%s of frame %s %s" % (what[:4], c[C["eglink_analysis_failed_command"]],
+                                              what[5:])
+            elif field.endswith("late_ack") and c[C["eglink_analysis_ack_time"]]:
+                what = "command %s acknowledged after %s (late)" % (
+                    c[C["eglink_command_id"]], fmt_s(float(c[C["eglink_analysis_ack_time"]])))
+            entry = dev.bursts[field] = Entry(dev, frame, t, severity, "finding", what, field)
+            self.entries.append(entry)
+        if field.endswith("serial_gap"):
+            entry.lost += int(c[C["eglink_analysis_lost"]] or 0)
+
+    def _stall(self, dev, frame, t, field, severity, counter):
+        if counter in dev.open:
+            return
+        cur = dev.counters.get(counter)
+        limit = {"PCI": "eclink.pci", "PCO": "eclink.pco", "uplink watchdog": "mcmb2.uplink_timeout",
+                 "downlink watchdog": "mcmb2.downlink_timeout"}[counter]
+        detail = "limit " + fmt_ms(self.limits[limit])
+        what, since = counter + " stalled", t
+        if cur is not None:
+            what += " at %d" % cur[0]
+            since = cur[1]
+            detail = "unchanged since frame %d, %s" % (cur[2], detail)
+        if counter == "downlink watchdog":
+            detail += ": the base shows E010"
+        entry = Entry(dev, frame, t, severity, "stall", what, field, detail)
+        entry.since = since
+        dev.open[counter] = entry
+        self.entries.append(entry)
+
+    def _gap(self, dev, c, frame, t, field, severity, what):
+        name = "gap " + what
+        entry = dev.open.get(name)
+        if entry is None:
+            prev = dev.last_seen.get(what)
+            limit = self.limits["eglink.%s_gap_ms" % what.lower()]
+            detail = ("after frame %d, " % prev[0] if prev else "") + "limit " + fmt_ms(limit)
+            entry = Entry(dev, frame, t, severity, "gap", "no " + what, field, detail)
+            entry.since = prev[1] if prev else t
+            dev.open[name] = entry
+            self.entries.append(entry)
+        if field.endswith("_gap"):
+            since = c[C["eglink_analysis_time_since_prev_" + what.lower()]]
+            entry.close(frame, t, float(since) if since else None)
+            del dev.open[name]
+
+    # --- the end -------------------------------------------------------------------
+
+    def finish(self, error=None):
+        """Close what is still open at the end; the report as a plain dict."""
+        devices = sorted({id(d): d for d in self.devices.values()}.values(), key=lambda d: d.id)
+        for dev in devices:
+            for entry in dev.open.values():
+                entry.duration = self.last_time - entry.since
+                entry.end_time, entry.at_least = self.last_time, True
+            for series in dev.series.values():
+                if series.group == "state" and series.value is not None:
+                    series.pending = dev.last_time
+            if dev.kind == "eglink":
+                a = dev.address
+                dev.name = ("EG-Link BU %s (%s to %s:%d)" % (a["origin"], a.get("bu", "?"), a["group"],
+                                                             a["port"])
+                            if "origin" in a else
+                            "EG-Link BU, origin unknown (%s:%d)" % (a["group"], a["port"]))
+        entries = sorted(self.entries, key=lambda e: (e.frame, e.time))
+        start = (datetime.datetime.fromtimestamp(self.first_epoch, datetime.timezone.utc)
+                 if self.first_epoch is not None else None)
+        counts = {NOTE: 0, WARNING: 0, ERROR: 0}
+        for entry in entries:
+            counts[entry.severity] += 1
+        return {
+            "capture": self.path,
+            "error": error,
+            "frames": self.frames,
+            "start": start.strftime("%Y-%m-%d %H:%M:%S.%f")[:-3] + " UTC" if start else None,
+            "start_epoch": self.first_epoch,
+            "duration": round(self.last_time, 6),
+            "devices": [d.to_dict() for d in devices],
+            "timeline": [e.to_dict() for e in entries],
+            "counts": counts,
+        }

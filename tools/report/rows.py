@@ -1,0 +1,191 @@
+"""Run tshark once per capture with a fixed field list and yield its rows.
+
+tshark reads the capture from its standard input, an open file of ours: a
+tshark that runs as another user (tools/tshark as root) still reads it, and
+the file offset it shares with us tells how far it has got (the progress bar).
+Rows are read line by line, so memory does not grow with the capture.
+"""
+import os
+import subprocess
+import tempfile
+from pathlib import Path
+
+from . import catalog
+
+PACKAGE_DIR = Path(__file__).resolve().parent
+
+# Protocol and address fields, in column order; the expert fields follow.
+FIELDS = [
+    "frame.number", "frame.time_epoch",
+    "eth.src", "eth.dst", "ip.src", "ip.dst", "udp.dstport", "tcp.srcport", "tcp.dstport",
+    # EG-Link
+    "eglink.type", "eglink.origin", "eglink.crc.status",
+    "eglink.bu_state", "eglink.ru_state", "eglink.armed_ru",
+    "eglink.joystick1", "eglink.joystick2", "eglink.joystick3", "eglink.joystick4",
+    "eglink.command_id",
+    "eglink.analysis.bu_stream", "eglink.analysis.bu_origin", "eglink.analysis.lost",
+    "eglink.analysis.time_since_prev_vrpi", "eglink.analysis.time_since_prev_vrpo",
+    "eglink.analysis.failed_command", "eglink.analysis.ack_time",
+    # EC-Link images (Modbus/TCP and PROFINET)
+    "eclink.image", "eclink.bu_state", "eclink.ru_state", "eclink.armed_ru",
+    "eclink.joystick1", "eclink.joystick2", "eclink.joystick3", "eclink.joystick4",
+    "eclink.pci", "eclink.pco",
+    "eclink_modbus.table", "eclink_modbus.request_in", "eclink_modbus.accepted_in",
+    "eclink_modbus.pci_age", "eclink_modbus.pco_age",
+    "eclink_pnio.layout", "eclink_pnio.pci_age", "eclink_pnio.pco_age",
+    # MC-MB2-PN
+    "mcmb2.system", "mcmb2.direction", "mcmb2.layout", "mcmb2.status", "mcmb2.terminal",
+    "mcmb2.uplink_watchdog", "mcmb2.downlink_watchdog", "mcmb2.watchdog_age",
+    "mcmb2.slot", "mcmb2.slot.status", "mcmb2.slot.terminal",
+]
+EXPERT_FIELDS = list(catalog.EXPERTS)
+ALL_FIELDS = FIELDS + EXPERT_FIELDS
+COL = {name: i for i, name in enumerate(ALL_FIELDS)}
+
+
+class CaptureError(Exception):
+    """A capture that cannot be read (one line of text)."""
+
+
+def in_checkout():
+    """True when running from a checkout (tools/report beside tools/tshark and lua/)."""
+    return (PACKAGE_DIR.parent / "tshark").is_file() and (PACKAGE_DIR.parent.parent / "lua").is_dir()
+
+
+def tshark_command(explicit=None):
+    """(argv, environment) of the tshark to run: --tshark, else the checkout's
+    tools/tshark (which runs $TSHARK, default tshark, with the checkout's
+    plugins), else $TSHARK, else tshark. A $TSHARK used here is not passed on,
+    so that a wrapper that reads it (tools/tshark) does not start itself."""
+    env = dict(os.environ)
+    if explicit:
+        return [explicit], env
+    if in_checkout():
+        return [str(PACKAGE_DIR.parent / "tshark")], env
+    return [env.pop("TSHARK", "") or "tshark"], env
+
+
+def first_line(text):
+    lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
+    return lines[0] if lines else "no message"
+
+
+def explain(stderr, last_frame):
+    """One line for what tshark said about an unreadable capture."""
+    if "cut short" in stderr and not last_frame:
+        return "truncated: the file ends before its first packet"
+    if "cut short" in stderr:
+        return "truncated: the capture ends in the middle of a packet (after frame %d)" % last_frame
+    if "isn't a capture file" in stderr or "unknown file format" in stderr:
+        return "not a capture file (pcap or pcapng expected)"
+    if "damaged or corrupt" in stderr:
+        return "damaged capture file (after frame %d): %s" % (last_frame, first_line(stderr))
+    return first_line(stderr).replace("tshark: ", "")
+
+
+class Rows:
+    """The rows (lists of column strings, see COL) of one capture.
+
+    Iterate once; afterwards `error` holds a one-line description when the
+    capture could not be read to its end (rows read before it still count).
+    A field this tshark does not know (an older plugin) is left out and its
+    column stays empty; a tshark without the vrshark plugins is an error.
+    """
+
+    def __init__(self, path, cmd, extra_args=(), env=None):
+        self.path = Path(path)
+        self.cmd = list(cmd)
+        self.env = env
+        self.extra_args = list(extra_args)
+        self.error = None
+        self.size = 0
+        self.unknown = []   # fields tshark did not know
+        self._file = None
+
+    def argv(self):
+        argv = self.cmd + ["-n", "-r", "-", "-T", "fields", "-E", "separator=/t",
+                           "-E", "occurrence=a", "-E", "aggregator=,", "-E", "quote=n"]
+        argv += self.extra_args
+        for name in ALL_FIELDS:
+            if name not in self.unknown:
+                argv += ["-e", name]
+        return argv
+
+    def open(self):
+        p = self.path
+        if not p.exists():
+            raise CaptureError("no such file")
+        if p.is_dir():
+            raise CaptureError("is a directory, not a capture file")
+        try:
+            self._file = open(p, "rb")
+        except OSError as exc:
+            raise CaptureError("cannot open: %s" % exc.strerror)
+        self.size = os.fstat(self._file.fileno()).st_size
+        if self.size == 0:
+            self._file.close()
+            raise CaptureError("empty file, not a capture")
+
+    def fraction(self):
+        """How much of the file tshark has read, 0..1."""
+        try:
+            return min(1.0, os.lseek(self._file.fileno(), 0, os.SEEK_CUR) / self.size)
+        except (OSError, ValueError, AttributeError):
+            return 0.0
+
+    def __iter__(self):
+        if self._file is None:
+            self.open()
+        with self._file:
+            while True:
+                stderr, last = yield from self._run()
+                unknown = unknown_fields(stderr) if last == 0 else []
+                if not unknown:
+                    break
+                if {"eglink.type", "eclink.image", "mcmb2.direction"} <= set(unknown):
+                    raise CaptureError(
+                        "%s does not know the eglink, eclink and mcmb2 fields: install the "
+                        "vrshark plugins (cmake --install) or choose a tshark with --tshark"
+                        % " ".join(self.cmd))
+                self.unknown += unknown
+                self._file.seek(0)
+        if self.returncode != 0 or "cut short" in stderr:
+            self.error = explain(stderr, last)
+
+    def _run(self):
+        """One tshark run: yields rows, returns (its stderr, the last frame number)."""
+        missing = [i for i, name in enumerate(ALL_FIELDS) if name in self.unknown]
+        # Most rows carry no expert field: their tail of empty columns is cut
+        # off unsplit (the model reads a short row as "no expert").
+        experts = [n for n in EXPERT_FIELDS if n not in self.unknown]
+        empty_tail = "\t" * len(experts) + "\n"
+        keep = -len(empty_tail)
+        last = 0
+        with tempfile.TemporaryFile() as err:
+            try:
+                proc = subprocess.Popen(self.argv(), stdin=self._file, stdout=subprocess.PIPE,
+                                        stderr=err, bufsize=1 << 20, encoding="utf-8",
+                                        errors="replace", env=self.env)
+            except OSError as exc:
+                raise CaptureError("cannot run %s: %s" % (self.cmd[0], exc.strerror))
+            with proc:
+                for line in proc.stdout:
+                    if line.endswith(empty_tail):
+                        cols = line[:keep].split("\t")
+                    else:
+                        cols = line[:-1].split("\t")
+                    for i in missing:
+                        if i < len(cols):
+                            cols.insert(i, "")
+                    last = cols[0]
+                    yield cols
+            self.returncode = proc.returncode
+            err.seek(0)
+            return err.read().decode("utf-8", "replace"), int(last or 0)
+
+
+def unknown_fields(stderr):
+    """The names in tshark's "Some fields aren't valid" message."""
+    if "fields aren't valid" not in stderr:
+        return []
+    return [ln.strip() for ln in stderr.splitlines() if ln.startswith("\t") and ln.strip()]

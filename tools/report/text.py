@@ -1,0 +1,55 @@
+"""The text report: per capture its devices, then its timeline, one line per entry."""
+
+
+def plural(n, word):
+    return "%d %s%s" % (n, word, "" if n == 1 else "s")
+
+
+def device_lines(dev):
+    yield "  [%d] %s" % (dev["id"], dev["name"])
+    yield "      frames %d-%d (%d), %.3f s to %.3f s; layout: %s" % (
+        dev["first_frame"], dev["last_frame"], dev["frames"], dev["start"], dev["end"],
+        dev["layout"] or "unknown")
+    if dev["initial"]:
+        yield "      first: %s" % ", ".join("%s %s" % kv for kv in dev["initial"].items())
+        if dev["final"] != dev["initial"]:
+            yield "      last:  %s" % ", ".join("%s %s" % kv for kv in dev["final"].items())
+    for term in dev.get("terminals", []):
+        slots = ", slot %s" % "/".join(map(str, term["slots"])) if term["slots"] else ""
+        yield "      terminal %d%s: frames %d-%d (%d), %.3f s to %.3f s" % (
+            term["terminal"], slots, term["first_frame"], term["last_frame"], term["frames"],
+            term["start"], term["end"])
+
+
+def capture_lines(rep):
+    yield "== %s" % rep["capture"]
+    if rep["frames"] == 0 and rep["error"]:
+        yield "  %s" % rep["error"]
+        return
+    yield "%s, %.3f s from %s" % (plural(rep["frames"], "frame"), rep["duration"], rep["start"])
+    if rep["error"]:
+        yield "  %s: the report covers the frames before it" % rep["error"]
+    if not rep["devices"]:
+        yield "  no EG-Link, EC-Link or MC-MB2-PN traffic found"
+        return
+    yield "%s:" % plural(len(rep["devices"]), "device")
+    for dev in rep["devices"]:
+        yield from device_lines(dev)
+    counts = rep["counts"]
+    if not rep["timeline"]:
+        yield "timeline: no state change and no finding"
+        return
+    yield "timeline (%s: %d error, %d warning, %d note; seconds from the first frame):" % (
+        plural(len(rep["timeline"]), "entry").replace("entrys", "entries"),
+        counts["error"], counts["warning"], counts["note"])
+    yield "      time   frame  severity  device"
+    for e in rep["timeline"]:
+        yield "%10.3f %7d  %-8s  [%d]  %s" % (e["time"], e["frame"], e["severity"], e["device"], e["text"])
+
+
+def write(reports, out):
+    for i, rep in enumerate(reports):
+        if i:
+            out.write("\n")
+        for line in capture_lines(rep):
+            out.write(line + "\n")
