@@ -456,9 +456,12 @@ local function ioxs_list(plan)
     return list
 end
 
+-- Marks rec.ioxs_bad when an IOPS or IOCS is not GOOD (the tree then shows
+-- every one of them); findings for the ones the caller has experts for.
 local function check_ioxs(rec, plan, ba, ex_iops, ex_iocs)
     for _, x in ipairs(ioxs_list(plan)) do
         local v = ba:get_index(x.off)
+        if v ~= 0x80 then rec.ioxs_bad = true end
         if v ~= 0x80 and (ex_iocs or not x.iocs) then
             add_finding(rec, x.iocs and "iocs" or "iops", x.iocs and ex_iocs or ex_iops, string.format(
                 "%s of slot %d/0x%x is %s (0x%02x)", x.iocs and "IOCS" or "IOPS", x.slot, x.subslot,
@@ -700,9 +703,19 @@ local function data_range(tvb, base, objs, name)
     return ByteArray.new(table.concat(parts), true):tvb(name):range()
 end
 
+-- All GOOD (the usual frame): one item, its label made once per layout.
+-- Otherwise one item per IOPS/IOCS byte.
 local function add_ioxs(tree, rec, plan, tvb, base, f_iops, f_iocs)
+    local list = ioxs_list(plan)
+    if not rec.ioxs_bad then
+        if not plan.ioxs_good_label then
+            plan.ioxs_good_label = string.format("IO status (IOPS / IOCS): all %d GOOD (0x80)", #list)
+        end
+        tree:add(tvb:range(base, plan.need), plan.ioxs_good_label)
+        return
+    end
     local sub = tree:add(tvb:range(base, plan.need), "IO status (IOPS / IOCS)")
-    for _, x in ipairs(ioxs_list(plan)) do
+    for _, x in ipairs(list) do
         sub:add(x.iocs and f_iocs or f_iops, tvb:range(base + x.off, 1)):append_text(x.suffix)
     end
     attach(rec, "iops", sub)
