@@ -459,8 +459,9 @@ end
 -- Marks rec.ioxs_bad when an IOPS or IOCS is not GOOD (the tree then shows
 -- every one of them); findings for the ones the caller has experts for.
 local function check_ioxs(rec, plan, ba, ex_iops, ex_iocs)
+    local s, byte = ba.s, string.byte  -- ba is a RawBytes: read its string directly
     for _, x in ipairs(ioxs_list(plan)) do
-        local v = ba:get_index(x.off)
+        local v = byte(s, x.off + 1)
         if v ~= 0x80 then rec.ioxs_bad = true end
         if v ~= 0x80 and (ex_iocs or not x.iocs) then
             add_finding(rec, x.iocs and "iocs" or "iops", x.iocs and ex_iocs or ex_iops, string.format(
@@ -726,7 +727,8 @@ local function show_mcmb2(rec, tvb, pinfo, tree)
     local plan, base = rec.plan, rec.base
     local up = plan.dir == "up"
     local root = tree:add(mcmb2, tvb:range(base, math.min(rec.size, math.max(plan.need, 1))))
-    root:append_text(string.format(", %s %s", plan.system, up and "uplink" or "downlink"))
+    if not plan.title then plan.title = string.format(", %s %s", plan.system, up and "uplink" or "downlink") end
+    root:append_text(plan.title)
     root:add(pf.system, plan.system):set_generated()
     root:add(pf.direction, up and "uplink" or "downlink"):set_generated()
     root:add(pf.layout, plan.source):set_generated()
