@@ -674,13 +674,17 @@ end
 ------------------------------------------------------------------------
 -- Called by the C front end (its hook names are in match_string), mbtcp
 -- has run already and the result tells it whether the connection is
--- accepted (0: not yet). Called by TCP (no C plugin, or Decode As), this
--- plugin calls mbtcp itself.
-local VIA_FRONT = { heuristic = true, always = true }
+-- accepted (0: not yet); ".quiet": nobody looks at this frame's tree or
+-- columns, only the state is kept. Called by TCP (no C plugin, or Decode
+-- As), this plugin calls mbtcp itself.
+local VIA_FRONT = { heuristic = true, always = true, ["heuristic.quiet"] = true, ["always.quiet"] = true }
+local QUIET = { ["heuristic.quiet"] = true, ["always.quiet"] = true }
 
 function proto.dissector(tvb, pinfo, tree)
     local consumed = 0
-    local via_front = C and VIA_FRONT[pinfo.match_string]
+    local how = C and pinfo.match_string
+    local via_front = VIA_FRONT[how]
+    local quiet = QUIET[how]
     if not via_front then
         -- let mbtcp use TCP desegmentation as if TCP had called it directly
         if pinfo.can_desegment > 0 then pinfo.can_desegment = pinfo.can_desegment + 1 end
@@ -714,7 +718,9 @@ function proto.dissector(tvb, pinfo, tree)
             rec = first_pass(tvb, pinfo, off, adu_len, is_request, t1 * 256 + t2, unit, fcb)
             adus[key] = rec
         end
-        if rec ~= NOT_DECODED then
+        if rec ~= NOT_DECODED and quiet then
+            decoded = true
+        elseif rec ~= NOT_DECODED then
             decoded = true
             for _, s in ipairs(show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb)) do
                 infos[#infos + 1] = s

@@ -883,8 +883,9 @@ local function show(rec, tvb, pinfo, tree)
 end
 
 -- EtherType 0x8892: Wireshark's PN-RT first, then our cyclic data. With
--- the C front end PN-RT has run already; 0 tells it the frame is not ours.
-local function cyclic(tvb, pinfo, tree)
+-- the C front end PN-RT has run already; 0 tells it the frame is not ours;
+-- quiet: nobody looks at this frame's tree or columns (first pass only).
+local function cyclic(tvb, pinfo, tree, quiet)
     local consumed = 0
     if not C then
         consumed = wrap.call(pn_rt, tvb, pinfo, tree)
@@ -903,7 +904,7 @@ local function cyclic(tvb, pinfo, tree)
         end
     end
     if rec then
-        show(rec, tvb, pinfo, tree)
+        if not quiet then show(rec, tvb, pinfo, tree) end
         if C then return tvb:len() end
     end
     return consumed
@@ -941,8 +942,9 @@ function carrier.dissector(tvb, pinfo, tree)
     -- The C front end calls the "connect" hook for PNIO-CM, the FrameID
     -- table and the "candidate" hook for cyclic frames.
     if C then
-        if pinfo.match_string == "connect" then return connect(tvb, pinfo, tree) end
-        return cyclic(tvb, pinfo, tree)
+        local how = pinfo.match_string
+        if how == "connect" then return connect(tvb, pinfo, tree) end
+        return cyclic(tvb, pinfo, tree, how == "frame_id.quiet")
     end
     -- No controller port is ever 0x8892 (see connect), so match_uint tells
     -- the two tables apart.

@@ -33,6 +33,13 @@
  * accepted connections (the Lua side keeps its per-frame decisions of the
  * first pass), so both passes agree.
  *
+ * Known FrameIDs and accepted connections reach the decoder with
+ * pinfo->match_string "frame_id" / "heuristic" / "always", or the same with
+ * ".quiet" appended when nothing it would add can be seen: no column
+ * information, an invisible tree, none of the Lua protocols' fields
+ * referenced (display filter, -e, colouring rule, Lua Field), no expert info
+ * wanted. The decoder then keeps its state (first pass) and adds nothing.
+ *
  * Exceptions of the wrapped dissectors propagate as they would without the
  * front end.
  *
@@ -42,6 +49,7 @@
 
 #include <epan/packet.h>
 #include <epan/conversation.h>
+#include <epan/tap.h>
 
 #include "vrshark-frontends.h"
 
@@ -83,6 +91,33 @@ static wmem_map_t *mb_state;   /* conversation index -> refusals | MB_ACCEPTED *
 /* UDP ports added for Connect responses; removed when the next file starts. */
 static GArray *pn_learned_ports;
 
+/* ---- Does anybody look at what the Lua decoder adds? ------------------- */
+
+/* Filter names of the protocols whose fields the Lua decoders add, each list
+ * ending with NULL; their ids are looked up on first use (the Lua plugins
+ * register after this one). */
+static const char *pn_lua_protos[] = { "mcmb2", "eclink_pnio", "eclink", "_ws.expert", NULL };
+static const char *mb_lua_protos[] = { "eclink_modbus", "eclink", "_ws.expert", NULL };
+static int pn_lua_ids[G_N_ELEMENTS(pn_lua_protos)];
+static int mb_lua_ids[G_N_ELEMENTS(mb_lua_protos)];
+static int expert_tap = -1;
+
+static gboolean
+lua_output_wanted(packet_info *pinfo, proto_tree *tree, const char **names, int *ids)
+{
+    int i;
+
+    if (pinfo->cinfo || !tree || have_tap_listener(expert_tap))
+        return pinfo->cinfo || have_tap_listener(expert_tap);
+    for (i = 0; names[i]; i++) {
+        if (ids[i] == 0)
+            ids[i] = proto_get_id_by_filter_name(names[i]) + 1;  /* 0: not looked up yet */
+        if (ids[i] > 0 && proto_field_is_referenced(tree, ids[i] - 1))
+            return TRUE;
+    }
+    return FALSE;
+}
+
 /* ---- PROFINET cyclic frames (EtherType 0x8892) ------------------------- */
 
 static int
@@ -95,8 +130,15 @@ dissect_pn_cyclic(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *dat
     if (tvb_captured_length(tvb) < 2)
         return consumed;
     fid = tvb_get_ntohs(tvb, 0);
-    if (dissector_try_uint_with_data(pn_frame_id_table, fid, tvb, pinfo, tree, FALSE, NULL))
+    if (dissector_get_uint_handle(pn_frame_id_table, fid)) {
+        const char *saved = pinfo->match_string;
+
+        pinfo->match_string = lua_output_wanted(pinfo, tree, pn_lua_protos, pn_lua_ids) ?
+            "frame_id" : "frame_id.quiet";
+        dissector_try_uint_with_data(pn_frame_id_table, fid, tvb, pinfo, tree, FALSE, NULL);
+        pinfo->match_string = saved;
         return consumed;
+    }
     if (fid < PN_CANDIDATE_FIRST || fid > PN_CANDIDATE_LAST || pinfo->fd->visited)
         return consumed;
     idx = fid - PN_CANDIDATE_FIRST;
@@ -183,6 +225,25 @@ leave_layer_list(packet_info *pinfo)
     }
 }
 
+/* The Lua decoder registered as `mode` ("always" or "heuristic"), with
+ * pinfo->match_string `mode` or, when nothing it adds would be seen,
+ * `mode`.quiet. Its protocol joins the layer list, as when it wraps mbtcp
+ * itself. */
+static int
+call_mb_decoder(const char *mode, gboolean quiet, tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree)
+{
+    const char *saved = pinfo->match_string;
+    int ret;
+
+    if (quiet)
+        pinfo->match_string = (strcmp(mode, "always") == 0) ? "always.quiet" : "heuristic.quiet";
+    else
+        pinfo->match_string = mode;
+    ret = call_dissector_only(dissector_get_string_handle(mb_hook_table, mode), tvb, pinfo, tree, NULL);
+    pinfo->match_string = saved;
+    return ret;
+}
+
 static int
 dissect_mbtcp_front(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
 {
@@ -191,6 +252,7 @@ dissect_mbtcp_front(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *d
     guint32 state;
     int consumed;
     const char *mode;
+    gboolean quiet;
 
     leave_layer_list(pinfo);
     /* mbtcp may use TCP desegmentation as if TCP had called it directly */
@@ -199,8 +261,9 @@ dissect_mbtcp_front(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *d
     consumed = call_dissector_only(mbtcp_handle, tvb, pinfo, tree, data);
     if (consumed <= 0)
         return consumed;
+    quiet = !lua_output_wanted(pinfo, tree, mb_lua_protos, mb_lua_ids);
     if (dissector_get_string_handle(mb_hook_table, "always")) {
-        dissector_try_string_with_data(mb_hook_table, "always", tvb, pinfo, tree, TRUE, NULL);
+        call_mb_decoder("always", quiet, tvb, pinfo, tree);
         return consumed;
     }
     mode = "heuristic";
@@ -209,13 +272,13 @@ dissect_mbtcp_front(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *d
     key = GUINT_TO_POINTER(conv->conv_index);
     state = GPOINTER_TO_UINT(wmem_map_lookup(mb_state, key));
     if (state & MB_ACCEPTED) {
-        dissector_try_string_with_data(mb_hook_table, mode, tvb, pinfo, tree, TRUE, NULL);
+        call_mb_decoder(mode, quiet, tvb, pinfo, tree);
         return consumed;
     }
     /* a candidate: later passes keep the first pass's refusals */
     if (pinfo->fd->visited || state >= VRSHARK_MB_CANDIDATE_TRIES)
         return consumed;
-    if (dissector_try_string_with_data(mb_hook_table, mode, tvb, pinfo, tree, TRUE, NULL))
+    if (call_mb_decoder(mode, FALSE, tvb, pinfo, tree))
         state = MB_ACCEPTED;
     else
         state++;
@@ -277,6 +340,7 @@ proto_reg_handoff_vrshark_frontends(void)
         pn_rt_handle = find_dissector_add_dependency("pn_rt", proto_vrshark_pnio);
     mbtcp_handle = find_dissector_add_dependency("mbtcp", proto_vrshark_mbtcp);
     udp_heur_list = find_heur_dissector_list("udp");
+    expert_tap = find_tap_id("expert");
     dissector_add_uint("ethertype", ETHERTYPE_PNRT, pn_cyclic_handle);
     dissector_add_uint("udp.port", UDP_PORT_PNIO_CM, pn_cm_handle);
 }
