@@ -39,10 +39,16 @@ package.path = dir .. "/?.lua;" .. package.path
 local image = require("vrshark.eclink_image")
 local handshake = require("vrshark.eclink_handshake")
 local wrap = require("vrshark.wrap")
+local fe = require("vrshark.frontends")
 
 image.proto()  -- the single Proto("eclink"), shared with the other EC-Link plugins
 local proto = Proto("eclink_modbus", "EC-Link over Modbus/TCP")
 local mbtcp = Dissector.get("mbtcp")
+-- With the C front end (vrshark.frontends) the port gets "vrshark.mbtcp",
+-- which calls mbtcp and hands this plugin only the connections it accepted
+-- or still considers; without it this plugin wraps mbtcp itself.
+local C = fe.mb_front ~= nil
+local front = C and fe.mb_front or proto
 
 ------------------------------------------------------------------------
 -- Fields
@@ -137,11 +143,15 @@ local function prefs_changed()
     local port = proto.prefs.port
     if port ~= current_port then
         if current_port ~= 0 then
-            tcp_port_table:remove(current_port, proto)
+            tcp_port_table:remove(current_port, front)
             if current_port == 502 then tcp_port_table:add(502, mbtcp) end
         end
-        if port ~= 0 then tcp_port_table:add(port, proto) end
+        if port ~= 0 then tcp_port_table:add(port, front) end
         current_port = port
+    end
+    if C then
+        fe.hook(fe.mb_hook, "heuristic", proto, opt.detection == DETECT_HEURISTIC)
+        fe.hook(fe.mb_hook, "always", proto, opt.detection == DETECT_ALWAYS)
     end
 end
 proto.prefs_changed = prefs_changed
@@ -662,13 +672,28 @@ end
 ------------------------------------------------------------------------
 -- The dissector: mbtcp first, then the EC-Link view of each complete ADU
 ------------------------------------------------------------------------
+-- Called by the C front end (its hook names are in match_string), mbtcp
+-- has run already and the result tells it whether the connection is
+-- accepted (0: not yet); ".quiet": nobody looks at this frame's tree or
+-- columns, only the state is kept. Called by TCP (no C plugin, or Decode
+-- As), this plugin calls mbtcp itself.
+local VIA_FRONT = { heuristic = true, always = true, ["heuristic.quiet"] = true, ["always.quiet"] = true }
+local QUIET = { ["heuristic.quiet"] = true, ["always.quiet"] = true }
+
 function proto.dissector(tvb, pinfo, tree)
-    -- let mbtcp use TCP desegmentation as if TCP had called it directly
-    if pinfo.can_desegment > 0 then pinfo.can_desegment = pinfo.can_desegment + 1 end
-    local consumed = wrap.call(mbtcp, tvb, pinfo, tree)
-    -- a malformed Modbus/TCP PDU: Wireshark's report stands, no EC-Link view
-    if consumed == nil then return tvb:len() end
+    local consumed = 0
+    local how = C and pinfo.match_string
+    local via_front = VIA_FRONT[how]
+    local quiet = QUIET[how]
+    if not via_front then
+        -- let mbtcp use TCP desegmentation as if TCP had called it directly
+        if pinfo.can_desegment > 0 then pinfo.can_desegment = pinfo.can_desegment + 1 end
+        consumed = wrap.call(mbtcp, tvb, pinfo, tree)
+        -- a malformed Modbus/TCP PDU: Wireshark's report stands, no EC-Link view
+        if consumed == nil then return tvb:len() end
+    end
     if opt.detection == DETECT_OFF then return consumed end
+    local decoded = false
     local is_request = (pinfo.dst_port == pinfo.match_uint) and (pinfo.src_port ~= pinfo.match_uint)
     local n = tvb:len()
     local off = 0
@@ -693,7 +718,10 @@ function proto.dissector(tvb, pinfo, tree)
             rec = first_pass(tvb, pinfo, off, adu_len, is_request, t1 * 256 + t2, unit, fcb)
             adus[key] = rec
         end
-        if rec ~= NOT_DECODED then
+        if rec ~= NOT_DECODED and quiet then
+            decoded = true
+        elseif rec ~= NOT_DECODED then
+            decoded = true
             for _, s in ipairs(show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb)) do
                 infos[#infos + 1] = s
             end
@@ -703,6 +731,7 @@ function proto.dissector(tvb, pinfo, tree)
     if #infos > 0 then
         pinfo.cols.info:append(" [EC-Link " .. table.concat(infos, "; ") .. "]")
     end
+    if via_front and decoded then return tvb:len() end
     return consumed
 end
 

@@ -50,6 +50,7 @@ local handshake = require("vrshark.handshake")
 local eclink_handshake = require("vrshark.eclink_handshake")
 local image = require("vrshark.eclink_image")
 local wrap = require("vrshark.wrap")
+local fe = require("vrshark.frontends")
 image.proto()
 
 ------------------------------------------------------------------------
@@ -58,8 +59,11 @@ image.proto()
 local mcmb2 = Proto("mcmb2", "MC-MB2-PN radio base unit (PROFINET IO)")
 local eclp = Proto("eclink_pnio", "EC-Link over PROFINET IO")
 -- The carrier: wraps PN-RT (EtherType 0x8892) and PNIO-CM (UDP), learns
--- layouts from the Connect and finds our cyclic frames.
-local carrier = Proto("vrshark_pnio", "vrshark PROFINET IO cyclic data")
+-- layouts from the Connect and finds our cyclic frames. With the C front
+-- ends (vrshark.frontends) the C plugin is the protocol "vrshark_pnio" and
+-- wraps them; the decoder registered into its tables is then mcmb2's.
+local C = fe.pn_frame_id ~= nil
+local carrier = C and mcmb2 or Proto("vrshark_pnio", "vrshark PROFINET IO cyclic data")
 local ethertype_table = DissectorTable.get("ethertype")
 local udp_table = DissectorTable.get("udp.port")
 local pn_rt = ethertype_table:get_dissector(0x8892)
@@ -216,6 +220,7 @@ local up_limit, down_limit -- watchdog timeouts (s), read from the preferences i
 
 local function register(plan)
     if not plan or not plan.fid or plan.fid == 0xFFFF then return end
+    if C then fe.pn_frame_id:add(plan.fid, carrier) end
     local t = by_fid[plan.fid]
     if not t then
         t = {}
@@ -261,9 +266,19 @@ local function build_table_plans()
     end
 end
 
+-- The C front ends' hooks: which frames the C plugin hands to this plugin.
+local function set_hooks()
+    if not C then return end
+    fe.hook(fe.pn_hook, "candidate", carrier, mcmb2.prefs.heuristic)
+    fe.hook(fe.pn_hook, "connect", carrier, mcmb2.prefs.connect)
+    fe.hook(fe.pn_hook, "pending", carrier, pending_down ~= nil and #pending_down > 0)
+end
+
 function carrier.init()
     for port in pairs(cm_ports or {}) do udp_table:remove(port, carrier) end
     by_fid, pending_down, tries, devs, frames, ars, cm_ports = {}, {}, {}, {}, {}, {}, {}
+    if C then fe.pn_frame_id:remove_all(carrier) end
+    set_hooks()
     up_limit, down_limit = mcmb2.prefs.uplink_timeout / 1000, mcmb2.prefs.downlink_timeout / 1000
     if not table_plans then build_table_plans() end
     for _, p in ipairs(table_plans) do register(p) end
@@ -441,9 +456,13 @@ local function ioxs_list(plan)
     return list
 end
 
+-- Marks rec.ioxs_bad when an IOPS or IOCS is not GOOD (the tree then shows
+-- every one of them); findings for the ones the caller has experts for.
 local function check_ioxs(rec, plan, ba, ex_iops, ex_iocs)
+    local s, byte = ba.s, string.byte  -- ba is a RawBytes: read its string directly
     for _, x in ipairs(ioxs_list(plan)) do
-        local v = ba:get_index(x.off)
+        local v = byte(s, x.off + 1)
+        if v ~= 0x80 then rec.ioxs_bad = true end
         if v ~= 0x80 and (ex_iocs or not x.iocs) then
             add_finding(rec, x.iocs and "iocs" or "iops", x.iocs and ex_iocs or ex_iops, string.format(
                 "%s of slot %d/0x%x is %s (0x%02x)", x.iocs and "IOCS" or "IOPS", x.slot, x.subslot,
@@ -596,6 +615,7 @@ local function try_heuristic(fid, tvb, base, size, pinfo)
         for i, w in ipairs(pending_down) do
             if w.ctl == src and w.dev == dst and size >= w.plan.need then
                 table.remove(pending_down, i)
+                set_hooks()
                 w.plan.fid = fid
                 register(w.plan)
                 return w.plan
@@ -617,6 +637,7 @@ local function try_heuristic(fid, tvb, base, size, pinfo)
     down.sender, down.from_header = ctl_mac, true
     register(up)
     pending_down[#pending_down + 1] = { ctl = ctl_mac, dev = dev_mac, plan = down }
+    set_hooks()
     return up
 end
 
@@ -683,9 +704,19 @@ local function data_range(tvb, base, objs, name)
     return ByteArray.new(table.concat(parts), true):tvb(name):range()
 end
 
+-- All GOOD (the usual frame): one item, its label made once per layout.
+-- Otherwise one item per IOPS/IOCS byte.
 local function add_ioxs(tree, rec, plan, tvb, base, f_iops, f_iocs)
+    local list = ioxs_list(plan)
+    if not rec.ioxs_bad then
+        if not plan.ioxs_good_label then
+            plan.ioxs_good_label = string.format("IO status (IOPS / IOCS): all %d GOOD (0x80)", #list)
+        end
+        tree:add(tvb:range(base, plan.need), plan.ioxs_good_label)
+        return
+    end
     local sub = tree:add(tvb:range(base, plan.need), "IO status (IOPS / IOCS)")
-    for _, x in ipairs(ioxs_list(plan)) do
+    for _, x in ipairs(list) do
         sub:add(x.iocs and f_iocs or f_iops, tvb:range(base + x.off, 1)):append_text(x.suffix)
     end
     attach(rec, "iops", sub)
@@ -696,7 +727,8 @@ local function show_mcmb2(rec, tvb, pinfo, tree)
     local plan, base = rec.plan, rec.base
     local up = plan.dir == "up"
     local root = tree:add(mcmb2, tvb:range(base, math.min(rec.size, math.max(plan.need, 1))))
-    root:append_text(string.format(", %s %s", plan.system, up and "uplink" or "downlink"))
+    if not plan.title then plan.title = string.format(", %s %s", plan.system, up and "uplink" or "downlink") end
+    root:append_text(plan.title)
     root:add(pf.system, plan.system):set_generated()
     root:add(pf.direction, up and "uplink" or "downlink"):set_generated()
     root:add(pf.layout, plan.source):set_generated()
@@ -850,11 +882,16 @@ local function show(rec, tvb, pinfo, tree)
     end
 end
 
--- EtherType 0x8892: Wireshark's PN-RT first, then our cyclic data.
-local function cyclic(tvb, pinfo, tree)
-    local consumed = wrap.call(pn_rt, tvb, pinfo, tree)
-    -- a malformed PN-RT frame: Wireshark's report stands, nothing of ours
-    if consumed == nil then return tvb:len() end
+-- EtherType 0x8892: Wireshark's PN-RT first, then our cyclic data. With
+-- the C front end PN-RT has run already; 0 tells it the frame is not ours;
+-- quiet: nobody looks at this frame's tree or columns (first pass only).
+local function cyclic(tvb, pinfo, tree, quiet)
+    local consumed = 0
+    if not C then
+        consumed = wrap.call(pn_rt, tvb, pinfo, tree)
+        -- a malformed PN-RT frame: Wireshark's report stands, nothing of ours
+        if consumed == nil then return tvb:len() end
+    end
     local rec
     if pinfo.visited then
         rec = frames[pinfo.number]
@@ -866,22 +903,28 @@ local function cyclic(tvb, pinfo, tree)
             frames[pinfo.number] = rec
         end
     end
-    if rec then show(rec, tvb, pinfo, tree) end
+    if rec then
+        if not quiet then show(rec, tvb, pinfo, tree) end
+        if C then return tvb:len() end
+    end
     return consumed
 end
 
 -- UDP 34964 (and the controllers' ports): the UDP heuristics (DCE/RPC)
 -- first, then the Connect blocks.
+-- With the C front end DCE/RPC has run already, and it learns the ports.
 local function connect(tvb, pinfo, tree)
-    if not is_dcerpc_dg(tvb) then return 0 end
-    if not DissectorTable.try_heuristics("udp", tvb, pinfo, tree) then return 0 end
+    if not C then
+        if not is_dcerpc_dg(tvb) then return 0 end
+        if not DissectorTable.try_heuristics("udp", tvb, pinfo, tree) then return 0 end
+    end
     local rec
     if pinfo.visited then
         rec = frames[pinfo.number]
     elseif mcmb2.prefs.connect then
         local blocks, request = connect_blocks(tvb)
         if blocks then
-            if request and pinfo.src_port ~= UDP_PNIO_CM and pinfo.src_port ~= ETH_PNRT
+            if not C and request and pinfo.src_port ~= UDP_PNIO_CM and pinfo.src_port ~= ETH_PNRT
                     and not cm_ports[pinfo.src_port] and not udp_table:get_dissector(pinfo.src_port) then
                 -- The response comes from the device's own port to this one.
                 cm_ports[pinfo.src_port] = true
@@ -896,11 +939,22 @@ local function connect(tvb, pinfo, tree)
 end
 
 function carrier.dissector(tvb, pinfo, tree)
+    -- The C front end calls the "connect" hook for PNIO-CM, the FrameID
+    -- table and the "candidate" hook for cyclic frames.
+    if C then
+        local how = pinfo.match_string
+        if how == "connect" then return connect(tvb, pinfo, tree) end
+        return cyclic(tvb, pinfo, tree, how == "frame_id.quiet")
+    end
     -- No controller port is ever 0x8892 (see connect), so match_uint tells
     -- the two tables apart.
     if pinfo.match_uint == ETH_PNRT then return cyclic(tvb, pinfo, tree) end
     return connect(tvb, pinfo, tree)
 end
 
-ethertype_table:add(ETH_PNRT, carrier)
-udp_table:add(UDP_PNIO_CM, carrier)
+if C then
+    set_hooks()
+else
+    ethertype_table:add(ETH_PNRT, carrier)
+    udp_table:add(UDP_PNIO_CM, carrier)
+end

@@ -28,6 +28,8 @@ WS_DLL_PUBLIC void plugin_register(void);
 WS_DLL_PUBLIC uint32_t plugin_describe(void);
 #endif
 
+#include "vrshark-frontends.h"
+
 void proto_register_eglink(void);
 void proto_reg_handoff_eglink(void);
 
@@ -38,6 +40,13 @@ void plugin_register(void)
     plug_eglink.register_protoinfo = proto_register_eglink;
     plug_eglink.register_handoff = proto_reg_handoff_eglink;
     proto_register_plugin(&plug_eglink);
+
+    /* The transport front ends of the Lua dissectors (vrshark-frontends.c) */
+    static proto_plugin plug_frontends;
+
+    plug_frontends.register_protoinfo = proto_register_vrshark_frontends;
+    plug_frontends.register_handoff = proto_reg_handoff_vrshark_frontends;
+    proto_register_plugin(&plug_frontends);
 }
 
 #ifdef VRSHARK_HAVE_PLUGIN_DESCRIBE

@@ -1,0 +1,192 @@
+"""The C front ends (plugins/eglink/vrshark-frontends.c): which frames reach Lua.
+
+A probe script (-X lua_script) takes the place of the Lua decoders in the
+front ends' hooks and writes down every call: hook, frame number, pass.
+It re-registers itself after every frame (as a postdissector), since the
+decoders register their hooks again when a file starts; so every capture
+here starts with one frame that is neither PROFINET nor Modbus.
+"""
+import os
+import struct
+import subprocess
+
+import pytest
+
+from tools.capgen import eclink_modbus as mbgen
+from tools.capgen import profinet as pngen
+from tools.capgen.frames import pn_rt_frame, udp_frame
+from tools.capgen.pcap import Capture
+
+# These tests are about the C plugin: a Lua-only run (VRSHARK_NO_C_PLUGIN=1) skips them.
+needs_c = pytest.mark.skipif(bool(os.environ.get("VRSHARK_NO_C_PLUGIN")), reason="runs without the C plugin")
+
+PN_TRIES = 64       # VRSHARK_PN_CANDIDATE_TRIES
+MB_TRIES = 256      # VRSHARK_MB_CANDIDATE_TRIES
+
+PROBE = r"""
+local out = assert(io.open(os.getenv("VRSHARK_PROBE_OUT"), "w"))
+local accept_from = tonumber(os.getenv("VRSHARK_PROBE_ACCEPT") or "0")
+local probe = Proto("vrshark_probe", "front end probe")
+local install
+function probe.dissector(tvb, pinfo, tree)
+    if pinfo.match_string == nil then install() return 0 end  -- the postdissector call
+    out:write(string.format("%s %d %s\n", pinfo.match_string, pinfo.number, tostring(pinfo.visited)))
+    out:flush()
+    if accept_from > 0 and pinfo.number >= accept_from then return tvb:len() end
+    return 0
+end
+function install()
+    local pn = DissectorTable.get("vrshark.pn.hook")
+    pn:add("candidate", probe)
+    pn:add("connect", probe)
+    DissectorTable.get("vrshark.mbtcp.hook"):add("heuristic", probe)
+end
+register_postdissector(probe)
+"""
+
+
+def _filler():
+    return udp_frame("10.0.0.1", "10.0.0.2", 40000, 40001, b"filler")
+
+
+def _write(cap, work_dir, name):
+    path = work_dir / name
+    path.write_bytes(cap.to_bytes())
+    path.chmod(0o644)
+    return path
+
+
+def _probe(tshark, work_dir, capture, two_pass=False, accept_from=0, extra=()):
+    """[(hook, frame, visited)] of every call into the probe."""
+    script = work_dir / "probe.lua"
+    script.write_text(PROBE)
+    script.chmod(0o644)
+    out = work_dir / ("probe-%d-%d.txt" % (two_pass, accept_from))
+    out.touch()
+    out.chmod(0o666)
+    env = dict(tshark.env, VRSHARK_PROBE_OUT=str(out), VRSHARK_PROBE_ACCEPT=str(accept_from))
+    args = [tshark.cmd, "-n", "-r", str(capture), "-X", "lua_script:%s" % script] + list(extra)
+    if two_pass:
+        args.append("-2")
+    proc = subprocess.run(args, env=env, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    assert "Lua Error" not in proc.stdout + proc.stderr
+    rows = []
+    for line in out.read_text().splitlines():
+        hook, frame, visited = line.split()
+        rows.append((hook, int(frame), visited == "true"))
+    return rows
+
+
+def _foreign_cyclic(work_dir):
+    """A filler, then 100 cycles of a foreign device (FrameIDs 0x8100 in, 0x8101
+    out) and 10 frames with FrameID 0x0100 (outside the candidate range)."""
+    cap = Capture()
+    cap.add(0.0, _filler())
+    frames = {0x8100: [], 0x8101: [], 0x0100: []}
+    for i in range(100):
+        for fid, src, dst in ((0x8100, "00:0e:8c:00:00:07", "00:1b:1b:00:00:09"),
+                              (0x8101, "00:1b:1b:00:00:09", "00:0e:8c:00:00:07")):
+            frames[fid].append(cap.add(0.001 * (i + 1), pn_rt_frame(src, dst, fid, bytes([0x80]) * 40, cycle=i)))
+    for i in range(10):
+        frames[0x0100].append(cap.add(0.2 + 0.001 * i, pn_rt_frame("00:0e:8c:00:00:07", "00:1b:1b:00:00:09",
+                                                                   0x0100, bytes(40), cycle=i)))
+    return _write(cap, work_dir, "foreign_cyclic.pcap"), frames
+
+
+@needs_c
+@pytest.mark.parametrize("two_pass", [False, True])
+def test_unknown_frame_ids_are_tried_a_bounded_number_of_times(tshark, work_dir, two_pass):
+    cap, frames = _foreign_cyclic(work_dir)
+    calls = _probe(tshark, work_dir, cap, two_pass=two_pass)
+    assert all(hook == "candidate" and not visited for hook, _, visited in calls)
+    called = [frame for _, frame, _ in calls]
+    assert called == sorted(frames[0x8100][:PN_TRIES] + frames[0x8101][:PN_TRIES])
+
+
+@needs_c
+def test_an_accepted_candidate_is_not_counted(tshark, work_dir):
+    """A candidate the decoder takes costs no try: after 60 refusals of FrameID
+    0x8100, accepting from frame 122 on keeps every later frame coming."""
+    cap, frames = _foreign_cyclic(work_dir)
+    calls = _probe(tshark, work_dir, cap, accept_from=122)
+    called = {frame for _, frame, _ in calls}
+    assert set(frames[0x8100]) <= called
+    assert set(frames[0x8101]) <= called
+    assert not called & set(frames[0x0100])
+
+
+@needs_c
+def test_only_connects_reach_the_connect_hook(tshark, work_dir, capture_file):
+    """Of the PNIO-CM datagrams, the Connect request and response go to Lua."""
+    src = capture_file("mcmb2_duplex_cm_port.pcap")
+    cap = Capture()
+    cap.add(0.0, _filler())
+    with open(src, "rb") as f:
+        data = f.read()
+    off = 24
+    t = 0.001
+    while off < len(data):
+        _, _, incl, _ = struct.unpack_from("<IIII", data, off)
+        cap.add(t, data[off + 16:off + 16 + incl])
+        off += 16 + incl
+        t += 0.001
+    path = _write(cap, work_dir, "cm_port.pcap")
+    calls = _probe(tshark, work_dir, path)
+    connects = tshark.field(path, "frame.number", display_filter="dcerpc.opnum == 0")
+    assert connects == ["2", "3"]
+    assert [(hook, frame) for hook, frame, _ in calls if hook == "connect"] == [("connect", 2), ("connect", 3)]
+
+
+def _modbus_plain(work_dir, transactions):
+    cap = Capture()
+    cap.add(0.0, _filler())
+    mb = mbgen.ModbusClient(cap, client_port=50300, server_ip="192.168.2.60", client_ip="192.168.2.11",
+                            t=0.01)
+    adus = []
+    for i in range(transactions):
+        adus += mb.read_regs(0.02 + 0.01 * i, 3, 0, bytes(20))
+    return _write(cap, work_dir, "modbus_plain.pcap"), adus
+
+
+@needs_c
+@pytest.mark.parametrize("two_pass", [False, True])
+def test_modbus_connections_are_tried_a_bounded_number_of_frames(tshark, work_dir, two_pass):
+    cap, adus = _modbus_plain(work_dir, 150)
+    calls = _probe(tshark, work_dir, cap, two_pass=two_pass)
+    assert all(hook == "heuristic" and not visited for hook, _, visited in calls)
+    assert [frame for _, frame, _ in calls] == adus[:MB_TRIES]
+
+
+@needs_c
+def test_an_accepted_modbus_connection_gets_every_frame(tshark, work_dir):
+    """Accepted in frame 20: every later frame of the connection, on both passes."""
+    cap, adus = _modbus_plain(work_dir, 20)
+    calls = _probe(tshark, work_dir, cap, two_pass=True, accept_from=20)
+    first = [frame for _, frame, visited in calls if not visited]
+    second = [frame for _, frame, visited in calls if visited]
+    assert first == adus
+    assert second == adus
+
+
+@needs_c
+def test_foreign_modbus_keeps_wiresharks_layers(tshark, work_dir):
+    cap, adus = _modbus_plain(work_dir, 3)
+    protos = tshark.field(cap, "frame.protocols", display_filter="frame.number == %d" % adus[0])
+    assert protos == ["eth:ethertype:ip:tcp:mbtcp:modbus"]
+
+
+def test_lua_only_run_leaves_the_c_plugin_out(tshark, capture_file):
+    """VRSHARK_NO_C_PLUGIN=1: no eglink.so; the Lua plugins wrap PN-RT and mbtcp themselves."""
+    env = dict(tshark.env, VRSHARK_NO_C_PLUGIN="1")
+    out = subprocess.run([tshark.cmd, "-G", "protocols"], env=env, capture_output=True, text=True,
+                         timeout=600).stdout
+    names = {line.split("\t")[2] for line in out.splitlines() if line.count("\t") >= 2}
+    assert "vrshark_pnio" in names and "mcmb2" in names and "eclink_modbus" in names
+    assert "vrshark_mbtcp" not in names and "eglink" not in names
+    rows = subprocess.run([tshark.cmd, "-n", "-r", str(capture_file("mcmb2_duplex_connect.pcap")), "-T", "fields",
+                           "-e", "frame.protocols", "-e", "mcmb2.direction", "-c", "4"], env=env,
+                          capture_output=True, text=True, timeout=600).stdout.splitlines()
+    assert rows[2:] == ["eth:ethertype:vrshark_pnio:pn_rt:pn_io\tuplink", "eth:ethertype:vrshark_pnio:pn_rt:pn_io\tdownlink"]
+    assert os.environ.get("VRSHARK_NO_C_PLUGIN") or "vrshark_mbtcp" in subprocess.run(
+        [tshark.cmd, "-G", "protocols"], env=tshark.env, capture_output=True, text=True, timeout=600).stdout
