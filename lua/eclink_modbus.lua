@@ -35,7 +35,8 @@ the same.
 ]]
 
 local dir = debug.getinfo(1, "S").source:match("^@(.*)[/\\]")
-package.path = dir .. "/?.lua;" .. package.path
+package.path = dir .. "/?.luam;" .. package.path
+set_plugin_info(require("vrshark.version").info("EC-Link images in Modbus/TCP (VisionRemote VM-110/VX-100 base units)"))
 local image = require("vrshark.eclink_image")
 local handshake = require("vrshark.eclink_handshake")
 local wrap = require("vrshark.wrap")

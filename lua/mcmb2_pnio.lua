@@ -44,7 +44,9 @@ so tshark -2 and clicking around show the same as one pass.
 ]]
 
 local dir = debug.getinfo(1, "S").source:match("^@(.*)[/\\]")
-package.path = dir .. "/?.lua;" .. package.path
+package.path = dir .. "/?.luam;" .. package.path
+set_plugin_info(require("vrshark.version").info(
+    "PROFINET carrier, Cavotec MC-MB2-PN cyclic frames and EC-Link images over PROFINET"))
 local layout = require("vrshark.pnio_layout")
 local handshake = require("vrshark.handshake")
 local eclink_handshake = require("vrshark.eclink_handshake")

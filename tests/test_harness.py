@@ -1,5 +1,6 @@
 """The harness itself: the plugins load, and the committed captures are what
 the generator makes."""
+import re
 import subprocess
 
 from conftest import BUILD, ROOT
@@ -20,10 +21,32 @@ def test_captures_match_generator():
     assert proc.returncode == 0, proc.stderr
 
 
-def test_every_lua_file_loads(tshark):
-    """Each .lua file under lua/ is run as a plugin at start-up (modules too)
-    and loads without error."""
+def lua_plugins_listed(tshark):
+    """{name: (version, path)} of the Lua scripts `tshark -G plugins` lists."""
     out = tshark.run(["-G", "plugins"]).stdout
-    loaded = {line.split("\t")[0].strip() for line in out.splitlines() if "\tlua script\t" in line.lower()}
-    expected = {p.name for p in (ROOT / "lua").rglob("*.lua")}
-    assert expected <= loaded, "not loaded: %s" % sorted(expected - loaded)
+    listed = {}
+    for line in out.splitlines():
+        cols = [c.strip() for c in line.split("\t")]
+        if len(cols) >= 3 and cols[2].lower() == "lua script":
+            listed[cols[0]] = (cols[1], cols[3] if len(cols) > 3 else "")
+    return listed
+
+
+def test_every_lua_plugin_loads_with_version(tshark):
+    """Each .lua file under lua/ is a plugin: it loads without error and gives
+    the project's version (set_plugin_info)."""
+    listed = lua_plugins_listed(tshark)
+    version = re.search(r"project\(vrshark VERSION ([0-9.]+)", (ROOT / "CMakeLists.txt").read_text()).group(1)
+    for p in sorted((ROOT / "lua").glob("*.lua")):
+        assert p.name in listed, "not loaded: %s" % p.name
+        assert listed[p.name][0] == version, (p.name, listed[p.name])
+
+
+def test_helper_modules_are_not_plugins(tshark):
+    """The shared modules (lua/vrshark/*.luam) are never run as plugins, and no
+    .lua file hides in a subfolder (Wireshark would run it)."""
+    listed = lua_plugins_listed(tshark)
+    modules = sorted(p.name for p in (ROOT / "lua" / "vrshark").iterdir())
+    assert modules and all(m.endswith(".luam") for m in modules), modules
+    assert not [m for m in modules if m in listed or m.replace(".luam", ".lua") in listed]
+    assert set(listed) <= {p.name for p in (ROOT / "lua").glob("*.lua")} | {"selftest.lua"}

@@ -44,9 +44,10 @@ def plain_tshark(home, args, personal_config=False):
 def test_install_layout(installed_home):
     plugins = installed_home / ".local" / "lib" / "wireshark" / "plugins"
     assert len(list(plugins.glob("*/epan/eglink.so"))) == 1
-    lua = sorted(p.relative_to(plugins / "vrshark").as_posix()
-                 for p in (plugins / "vrshark").rglob("*.lua"))
-    assert lua == sorted(p.relative_to(ROOT / "lua").as_posix() for p in (ROOT / "lua").rglob("*.lua"))
+    def lua_tree(top):
+        return sorted(p.relative_to(top).as_posix() for p in top.rglob("*") if p.suffix in (".lua", ".luam"))
+    assert lua_tree(plugins / "vrshark") == lua_tree(ROOT / "lua")
+    assert "vrshark/version.luam" in lua_tree(ROOT / "lua")
 
 
 def test_installed_plugins_decode(installed_home):

@@ -978,6 +978,7 @@ show_reassembled(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, const egli
         ti = proto_tree_add_item(tree, hf_eglink_periodic_data_id, next_tvb, 0, -1, ENC_NA);
         proto_item_append_text(ti, " (reassembled, %u bytes)", tvb_reported_length(next_tvb));
     }
+    eglink_data_dissect(next_tvb, pinfo, tree, "vrpo");
 }
 
 static void
@@ -987,7 +988,14 @@ show_reassembly(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, const eglin
     const eglink_finding_t *f;
     fragment_head *fh;
 
-    if (!pref_reassemble || info->type != EGLINK_TYPE_VRPO)
+    if (info->type != EGLINK_TYPE_VRPO)
+        return;
+    /* A burst of one packet is complete as it is. */
+    if (info->packet_number == 0 && !fd->burst_id && !(fd->flags & FF_INVALID) && info->periodic_len > 0 &&
+        tvb_bytes_exist(tvb, info->periodic_offset, info->periodic_len))
+        eglink_data_dissect(tvb_new_subset_length(tvb, info->periodic_offset, info->periodic_len),
+                            pinfo, tree, "vrpo");
+    if (!pref_reassemble)
         return;
     /* A packet 0 that shows where the previous (all full) burst ended. */
     for (f = fd->findings; f; f = f->next) {

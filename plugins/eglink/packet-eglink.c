@@ -560,6 +560,19 @@ dissect_eglink_vrpi(eglink_payload_t *p, eglink_info_t *info)
     }
 }
 
+static dissector_table_t eglink_data_table;
+
+/* Hands an application data area to whoever registered for it in the
+ * "eglink.data" table (see packet-eglink.h); nothing when nobody did. */
+void
+eglink_data_dissect(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, const char *area)
+{
+    dissector_handle_t handle = dissector_get_string_handle(eglink_data_table, area);
+
+    if (handle)
+        call_dissector_only(handle, tvb, pinfo, tree, NULL);
+}
+
 /* VRPO: one fragment of the controller's periodic data. */
 static void
 dissect_eglink_vrpo(eglink_payload_t *p, eglink_info_t *info)
@@ -583,6 +596,8 @@ dissect_eglink_vrpo(eglink_payload_t *p, eglink_info_t *info)
 static void
 dissect_eglink_command(eglink_payload_t *p, eglink_info_t *info, gboolean with_data)
 {
+    int data_len;
+
     guint32 cmd;
 
     if (!eglink_add_uint(p, hf_eglink_command_id, 0, 2, &cmd, NULL)) {
@@ -594,7 +609,10 @@ dissect_eglink_command(eglink_payload_t *p, eglink_info_t *info, gboolean with_d
     col_append_fstr(p->pinfo->cinfo, COL_INFO, " Cmd=%u", cmd);
     if (with_data) {
         eglink_check_payload_spare(p, 2, 4);
-        eglink_add_bytes(p, hf_eglink_command_data, 6, 16, NULL);
+        data_len = eglink_add_bytes(p, hf_eglink_command_data, 6, 16, NULL);
+        if (data_len == 16)
+            eglink_data_dissect(tvb_new_subset_length(p->tvb, p->base + 6, 16), p->pinfo, p->tree,
+                                info->type == EGLINK_TYPE_VRCI ? "vrci" : "vrco");
     }
 }
 
@@ -1070,6 +1088,8 @@ proto_register_eglink(void)
 
     eglink_handle = register_dissector("eglink", dissect_eglink, proto_eglink);
 
+    eglink_data_table = register_dissector_table(EGLINK_DATA_TABLE, "EG-Link application data",
+                                                 proto_eglink, FT_STRING, 0 /* case-sensitive */);
     eglink_module = prefs_register_protocol(proto_eglink, proto_reg_handoff_eglink);
     range_convert_str(wmem_epan_scope(), &eglink_input_ports, EGLINK_DEFAULT_INPUT_PORTS, 65535);
     prefs_register_range_preference(eglink_module, "input_port", "Input UDP port(s)",

@@ -65,4 +65,13 @@ void eglink_analysis_register(int proto, module_t *prefs);
 void eglink_analysis_dissect(tvbuff_t *tvb, packet_info *pinfo, proto_tree *eglink_tree,
                              proto_item *eglink_item, const eglink_info_t *info);
 
+/* Application data areas handed to the "eglink.data" dissector table (keyed by
+ * these strings), so that a decoder of the machine's own IO list (Lua or C)
+ * can decode them without the EG-Link plugin knowing its format:
+ *   "vrci"  command data of a VRCI (from the RU), 16 bytes
+ *   "vrco"  command data of a VRCO (to the RU), 16 bytes
+ *   "vrpo"  periodic data to the RU: a one-packet burst, or a reassembled one */
+#define EGLINK_DATA_TABLE "eglink.data"
+void eglink_data_dissect(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, const char *area);
+
 #endif /* PACKET_EGLINK_H */
