@@ -1,5 +1,6 @@
-"""Documentation hygiene: the README's display-filter reference and the
-registered fields agree, and every name promised in DECISIONS.md exists."""
+"""Documentation hygiene: the reference pages (docs/*.md, linked from the
+README) and the registered fields agree, and every name promised in
+DECISIONS.md exists."""
 import re
 
 import pytest
@@ -31,20 +32,21 @@ def preferences(tshark):
 
 @pytest.fixture(scope="module")
 def documented():
-    """Names in the first column of the README's tables."""
-    return set(ROW.findall((ROOT / "README.md").read_text()))
+    """Names in the first column of the reference tables (README and docs/)."""
+    pages = [ROOT / "README.md"] + sorted((ROOT / "docs").glob("*.md"))
+    return set(ROW.findall("\n".join(p.read_text() for p in pages)))
 
 
 def test_every_field_is_documented(registered, documented):
-    """Every field and expert field appears as a row of a README reference table."""
+    """Every field and expert field appears as a row of a reference table."""
     missing = sorted(registered - documented)
-    assert not missing, "fields missing from the README reference: %s" % missing
+    assert not missing, "fields missing from the docs reference: %s" % missing
 
 
 def test_every_documented_name_exists(registered, preferences, documented):
-    """Every field or preference the README names exists (preference tables share the row form)."""
+    """Every field or preference the docs name exists (preference tables share the row form)."""
     unknown = sorted(documented - registered - preferences)
-    assert not unknown, "README documents names tshark does not know: %s" % unknown
+    assert not unknown, "the docs name what tshark does not know: %s" % unknown
 
 
 def test_contract_names_registered(registered):
@@ -66,3 +68,16 @@ def test_contract_names_registered(registered):
         want |= {"eclink." + s for s in status}
     missing = sorted(n for n in want if n.split(".")[0] in PROTOCOLS and n not in registered)
     assert not missing, "DECISIONS.md names not registered: %s" % missing
+
+
+def test_local_links_resolve():
+    """Every relative link and picture of the README and docs/ points to a file
+    of the checkout (screenshots are made by tools/screenshots and committed)."""
+    broken = []
+    for page in [ROOT / "README.md"] + sorted((ROOT / "docs").glob("*.md")):
+        for target in re.findall(r"\]\(([^)#\s]+)(?:#[^)]*)?\)", page.read_text()):
+            if "://" in target:
+                continue
+            if not (page.parent / target).exists():
+                broken.append("%s -> %s" % (page.relative_to(ROOT), target))
+    assert not broken, broken
