@@ -20,12 +20,10 @@
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
-#include <wireshark.h>
-#include <ws_version.h>
-#include <epan/packet.h>
+#include "eglink-compat.h"
+
 #include <epan/expert.h>
 #include <epan/prefs.h>
-#include <epan/tfs.h>
 #include <epan/unit_strings.h>
 #include <epan/crc32-tvb.h>
 #include <wsutil/crc32.h>
@@ -34,22 +32,6 @@
 
 void proto_register_eglink(void);
 void proto_reg_handoff_eglink(void);
-
-/* One source for Wireshark 4.0 through 4.6: 4.2 moved heuristic dissectors and
- * boolean preferences from gboolean to bool, 4.4 renamed tvb_get_guint8(). */
-#define EGLINK_WS_AT_LEAST(major, minor) \
-    (WIRESHARK_VERSION_MAJOR > (major) || \
-     (WIRESHARK_VERSION_MAJOR == (major) && WIRESHARK_VERSION_MINOR >= (minor)))
-#if EGLINK_WS_AT_LEAST(4, 2)
-typedef bool eglink_bool_t;
-#else
-typedef gboolean eglink_bool_t;
-#endif
-#if EGLINK_WS_AT_LEAST(4, 4)
-#define eglink_get_u8 tvb_get_uint8
-#else
-#define eglink_get_u8 tvb_get_guint8
-#endif
 
 #define EGLINK_DEFAULT_INPUT_PORTS  "5825"
 #define EGLINK_OUTPUT_PORT_OFFSET   2
@@ -172,7 +154,7 @@ static range_t *eglink_input_ports;
 static range_t *eglink_registered_ports;
 static gint eglink_crc_variant = EGLINK_CRC_MPEG2;
 static gint eglink_crc_order = EGLINK_CRC_LE;
-static eglink_bool_t eglink_heuristic = TRUE;
+static eglink_pref_bool_t eglink_heuristic = TRUE;
 
 /* Value strings */
 static const value_string eglink_type_descr[] = {
@@ -384,7 +366,7 @@ eglink_check_payload_spare(eglink_payload_t *p, int off, int len)
     int i;
 
     for (i = 0; i < present; i++) {
-        if (eglink_get_u8(p->tvb, p->base + off + i) != 0) {
+        if (tvb_get_uint8(p->tvb, p->base + off + i) != 0) {
             expert_add_info_format(p->pinfo, ti, &ei_eglink_payload_spare_nonzero,
                 "Payload spare bytes are not 0: reserved for future use, the sender "
                 "may use a newer layout than TS-0006");
@@ -440,7 +422,7 @@ eglink_check_unarmed(eglink_payload_t *p, proto_item *armed_ti)
     for (i = 0; i < array_length(ru_fields); i++) {
         if (ru_fields[i].offset + ru_fields[i].len > p->len)
             break;
-        if ((ru_fields[i].len == 1 ? eglink_get_u8(p->tvb, p->base + ru_fields[i].offset)
+        if ((ru_fields[i].len == 1 ? tvb_get_uint8(p->tvb, p->base + ru_fields[i].offset)
                                    : tvb_get_letohs(p->tvb, p->base + ru_fields[i].offset)) != 0)
             wmem_strbuf_append_printf(names, "%s%s", wmem_strbuf_get_len(names) ? ", " : "",
                                       ru_fields[i].name);
@@ -480,7 +462,7 @@ dissect_eglink_vrpi(eglink_payload_t *p, eglink_info_t *info)
 
     /* ES-Link relays: open below Disarmed or when the armed RU is stopped. */
     if (p->len >= 9)
-        ru_state = eglink_get_u8(p->tvb, p->base + 8);
+        ru_state = tvb_get_uint8(p->tvb, p->base + 8);
     ti = proto_tree_add_boolean(p->tree, hf_eglink_relays_open, p->tvb, p->base, 1,
                                 bu_state < EGLINK_BU_STATE_DISARMED ||
                                 ru_state == EGLINK_RU_STATE_STOPPED);
@@ -711,7 +693,7 @@ dissect_eglink(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data _
     int min_len, max_len;
     const char *id;
 
-    if (tvb_captured_length(tvb) < 2 || eglink_get_u8(tvb, 0) != 'V' || eglink_get_u8(tvb, 1) != 'R')
+    if (tvb_captured_length(tvb) < 2 || tvb_get_uint8(tvb, 0) != 'V' || tvb_get_uint8(tvb, 1) != 'R')
         return 0;
 
     memset(&info, 0, sizeof info);
@@ -727,7 +709,7 @@ dissect_eglink(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data _
     col_add_str(pinfo->cinfo, COL_INFO, id);
     proto_item_append_text(eglink_item, ", %s", id);
     if (reported >= 4) {
-        info.type = eglink_type_from_id(eglink_get_u8(tvb, 2), eglink_get_u8(tvb, 3));
+        info.type = eglink_type_from_id(tvb_get_uint8(tvb, 2), tvb_get_uint8(tvb, 3));
         ti = proto_tree_add_item(eglink_tree, hf_eglink_type, tvb, 0, 4, ENC_ASCII);
         proto_item_append_text(ti, " (%s)", val_to_str_const(info.type, eglink_type_descr, ""));
     }
@@ -833,7 +815,7 @@ dissect_eglink(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data _
 }
 
 /* Heuristic: "VR", a defined type, and a Size that matches the datagram. */
-static eglink_bool_t
+static eglink_heur_bool_t
 dissect_eglink_heur(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
 {
     int min_len, max_len;
@@ -844,9 +826,9 @@ dissect_eglink_heur(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *d
         return FALSE;
     if (tvb_captured_length(tvb) < EGLINK_HEADER_LEN || tvb_reported_length(tvb) < EGLINK_MIN_LEN)
         return FALSE;
-    if (eglink_get_u8(tvb, 0) != 'V' || eglink_get_u8(tvb, 1) != 'R')
+    if (tvb_get_uint8(tvb, 0) != 'V' || tvb_get_uint8(tvb, 1) != 'R')
         return FALSE;
-    type = eglink_type_from_id(eglink_get_u8(tvb, 2), eglink_get_u8(tvb, 3));
+    type = eglink_type_from_id(tvb_get_uint8(tvb, 2), tvb_get_uint8(tvb, 3));
     if (type == EGLINK_TYPE_UNKNOWN)
         return FALSE;
     payload_len = (int)tvb_reported_length(tvb) - EGLINK_MIN_LEN;
