@@ -135,7 +135,7 @@ mcmb2.experts = { ef.status_undefined, ef.slot_status_undefined, ef.terminal_not
 mcmb2.prefs.layouts = Pref.string("Layout table", "",
     "FrameID layouts used when the capture has no Connect, separated by ';'. "
     .. "IN[/OUT]=SYSTEM[:UP[/DOWN]][@DAP], e.g. 0x8001/0x8002=duplex:26/10,a20 ; "
-    .. "0x8003/0x8004=polled:4x24/4x10 ; 0x8005/0x8006=eclink:/224 (see README)")
+    .. "0x8003/0x8004=polled:4x24/4x2,a8 (a: ASCII modules) ; 0x8005/0x8006=eclink:/224 (see docs/profinet.md)")
 mcmb2.prefs.connect = Pref.bool("Learn layouts from the Connect", true,
     "Recognise MC-MB2-PN and EC-Link devices by the modules of a Connect request in the capture")
 mcmb2.prefs.heuristic = Pref.bool("Recognise polled uplink headers", true,
@@ -295,7 +295,13 @@ local function analyse_polled_up(rec, d, ba, t, frame)
     end
     local used = used_slots(mask)
     local groups = plan_groups(plan, y, #used)
-    local mismatch = not groups or (not plan.from_header and (y ~= cfg.y or z ~= cfg.z))
+    local mismatch = not groups
+    if groups and not plan.from_header then
+        mismatch = true
+        for _, c in ipairs(plan.cfgs) do
+            if c.y == y and c.z == z and c.n == #used then mismatch = false end
+        end
+    end
     if mismatch then
         add_finding(rec, "size", ef.layout_mismatch, string.format(
             "Y=%d, Z=%d, %d used slot(s) differ from the configured layout (Y=%d, Z=%d, %d slot(s)): "

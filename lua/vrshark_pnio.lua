@@ -100,7 +100,10 @@ local function lookup(t, src)
     return any
 end
 
--- The plans of the layout table preference.
+-- The plans of the layout table preference. A polled entry without sizes
+-- gives placeholders ("deferred"): the frames of its FrameIDs are laid out
+-- by their polled header, as the heuristic does, but whatever the
+-- preference mcmb2.heuristic says.
 local function table_plans(text)
     local plans = {}
     local entries = layout.parse_table(text)
@@ -109,13 +112,12 @@ local function table_plans(text)
         local dev = "pref" .. i
         if e.system == "eclink" then
             up, down = layout.eclink_plans(e.outlen, e.dap, "preference", dev)
+        elseif e.system == "polled" and #e.up == 0 then
+            up = { system = "polled", dir = "up", deferred = true, out_fid = e.out_fid or nil }
+            down = { system = "polled", dir = "down", deferred = true }
         else
             local n = (e.system == "polled") and (e.slots or 4) or 1
             up, down = layout.mcmb2_plans(e.system, n, e.up, e.down, e.dap, "preference", dev)
-            if e.system == "polled" and #e.up == 0 then
-                -- Sizes come from the header (Y, Z); only the system is forced.
-                up.from_header, down.from_header = true, true
-            end
         end
         if up and e.in_fid then up.fid = e.in_fid; plans[#plans + 1] = up end
         if down and e.out_fid then down.fid = e.out_fid; plans[#plans + 1] = down end
@@ -216,38 +218,101 @@ end
 ------------------------------------------------------------------------
 -- Cyclic frames
 ------------------------------------------------------------------------
--- An unknown cyclic FrameID: a polled uplink header, or the downlink that
--- belongs to one seen before (same two MAC addresses, the other way).
-local function try_heuristic(fid, tvb, base, size, pinfo)
+-- The plans of a device recognised by its polled header `h` with the
+-- downlink candidate `cand` (laid out as controllers usually do it).
+local function header_plans(w, cand)
+    if not cand.up then
+        cand.up, cand.down = layout.mcmb2_plans("polled", w.h.used, w.h.up_mods, cand.mods, w.h.dap, w.source,
+            w.dev)
+        cand.up.fid, cand.up.sender, cand.up.from_header = w.up_fid, w.dev_mac, true
+        cand.down.sender, cand.down.from_header = w.ctl_mac, true
+    end
+    return cand.up, cand.down
+end
+
+-- A frame from the controller to a device whose polled header was seen:
+-- the downlink candidate that fits it best (layout.best_fit) becomes the
+-- layout of both directions (the uplink's IOCS bytes follow the downlink
+-- modules). When another candidate fits as well (all data 0 and the IOPS
+-- BAD while the controller starts, say), the plan stays open and the
+-- following frames of its FrameID are checked again (HEUR_TRIES at most).
+-- Returns the downlink plan, or nil if no candidate fits this frame.
+local function settle_downlink(w, fid, get, size)
+    local downs, exact = {}, {}
+    for i, c in ipairs(w.h.downs) do
+        local _, down = header_plans(w, c)
+        downs[i], exact[i] = down, c.exact
+    end
+    local best, sure = layout.best_fit(downs, get, size, exact)
+    if not best then return nil end
+    local up, down = header_plans(w, w.h.downs[best])
+    if up ~= w.up then
+        w.up = up
+        register(up)
+    end
+    down.fid = fid
+    down.unsettled = (not sure) and w or nil
+    register(down)
+    return down
+end
+
+-- A downlink plan chosen among equals: this frame may tell them apart.
+local function resettle(plan, fid, tvb, base, size)
+    local w = plan.unsettled
+    w.tries = w.tries + 1
+    if w.tries > HEUR_TRIES then
+        plan.unsettled = nil
+        return plan
+    end
+    local s = tvb:raw(base, size)
+    return settle_downlink(w, fid, function(i) return string.byte(s, i + 1) end, size) or plan
+end
+
+-- A cyclic FrameID without a layout (entry: a placeholder of the layout
+-- table, or nil): the downlink of a device whose polled header was seen
+-- (same two MAC addresses, the other way; the FrameID of the table entry),
+-- or a polled uplink header. Bounded: HEUR_TRIES header checks per FrameID,
+-- HEUR_TRIES frames per waiting downlink.
+local function recognise(fid, tvb, base, size, pinfo, entry)
+    local s
+    local function get(i)
+        s = s or tvb:raw(base, size)
+        return string.byte(s, i + 1)
+    end
     if #pending_down > 0 then
         local src, dst = pinfo.dl_src, pinfo.dl_dst
         for i, w in ipairs(pending_down) do
-            if w.ctl == src and w.dev == dst and size >= w.plan.need then
-                table.remove(pending_down, i)
-                set_hooks()
-                w.plan.fid = fid
-                register(w.plan)
-                return w.plan
+            if w.ctl_mac == src and w.dev_mac == dst and (w.down_fid == nil or w.down_fid == fid) then
+                local plan = settle_downlink(w, fid, get, size)
+                w.tries = w.tries + 1
+                if plan or w.tries >= HEUR_TRIES then
+                    table.remove(pending_down, i)
+                    set_hooks()
+                end
+                if plan then return plan end
+                break
             end
         end
     end
+    if entry and entry.dir == "down" then return nil end -- waits for its uplink
     local n = tries[fid] or 0
     if n >= HEUR_TRIES then return nil end
-    local ba = tvb:range(base, size):bytes()
-    local h = layout.polled_header(function(i) return ba:get_index(i) end, size)
+    local h = layout.polled_header(get, size)
     if not h then
         tries[fid] = n + 1
         return nil
     end
-    local dev_mac, ctl_mac = pinfo.dl_src, pinfo.dl_dst
-    local up, down = layout.mcmb2_plans("polled", h.used, h.up_mods, h.down_mods, h.dap,
-        "polled header in frame " .. pinfo.number, "hdr" .. pinfo.number)
-    up.fid, up.sender, up.from_header = fid, dev_mac, true
-    down.sender, down.from_header = ctl_mac, true
-    register(up)
-    pending_down[#pending_down + 1] = { ctl = ctl_mac, dev = dev_mac, plan = down }
-    set_hooks()
-    return up
+    local w = { h = h, up_fid = fid, dev_mac = pinfo.dl_src, ctl_mac = pinfo.dl_dst, tries = 0,
+                down_fid = entry and entry.out_fid, dev = "hdr" .. pinfo.number,
+                source = (entry and "preference, sizes from the polled header in frame " or "polled header in frame ")
+                    .. pinfo.number }
+    w.up = header_plans(w, h.downs[1])
+    register(w.up)
+    if not entry or w.down_fid then
+        pending_down[#pending_down + 1] = w
+        set_hooks()
+    end
+    return w.up
 end
 
 -- The C-SDU as a Lua string with ByteArray's get_index (0-based): one copy
@@ -260,15 +325,16 @@ local function first_pass(fid, tvb, pinfo)
     local base = 2
     local size = tvb:len() - base - 4
     if size <= 0 then return nil end
-    local plan
-    if cands then
-        plan = lookup(cands, pinfo.dl_src)
-    end
-    if not plan then
+    local plan = cands and lookup(cands, pinfo.dl_src)
+    if plan and plan.unsettled then
+        plan = resettle(plan, fid, tvb, base, size)
+    elseif plan and plan.deferred then
+        plan = recognise(fid, tvb, base, size, pinfo, plan)
+    elseif not plan then
         if not heuristic or fid < 0x8000 or fid > 0xFBFF then return nil end
-        plan = try_heuristic(fid, tvb, base, size, pinfo)
-        if not plan then return nil end
+        plan = recognise(fid, tvb, base, size, pinfo, nil)
     end
+    if not plan then return nil end
     local dec = systems.decoder(plan.system)
     if not dec then return nil end
     local rec = record.new(plan, base, size)
