@@ -58,7 +58,17 @@ local DUPLEX_OK = { [0x0] = true, [0x1] = true, [0x2] = true, [0x7] = true, [0xA
 local POLLED_OK = { [0xA] = true, [0xF] = true }
 local SLOT_OK = { [0x0] = true, [0x1] = true, [0x2] = true, [0x7] = true, [0xF] = true }
 local SLOT_ANCHOR = { "slot1", "slot2", "slot3", "slot4" }
+-- Slot states in the Info column ("1:T1 present").
+local SLOT_SHORT = { [0x0] = "absent", [0x1] = "present", [0x2] = "blocked", [0x7] = "active stop" }
 local IOXS = record.IOXS
+
+-- The name of a status value, or "Unknown (0x3)" when `known` does not
+-- define it, as Wireshark shows the undefined value of the 4-bit status
+-- fields.
+local function name_of(names, known, v)
+    if known[v] and names[v] then return names[v] end
+    return string.format("Unknown (0x%x)", v)
+end
 
 ------------------------------------------------------------------------
 -- Fields
@@ -85,6 +95,7 @@ local pf = {
     iops = ProtoField.uint8("mcmb2.iops", "IOPS", base.HEX, IOXS),
     iocs = ProtoField.uint8("mcmb2.iocs", "IOCS", base.HEX, IOXS),
     watchdog_age = ProtoField.relative_time("mcmb2.watchdog_age", "Watchdog unchanged for"),
+    watchdog_since = ProtoField.framenum("mcmb2.watchdog_since", "Watchdog value unchanged since"),
     frame_id = ProtoField.uint16("mcmb2.frame_id", "FrameID", base.HEX),
 }
 mcmb2.fields = pf
@@ -100,7 +111,10 @@ local ef = {
         "Terminal number bits of a polled status byte are not 0", expert.group.PROTOCOL, expert.severity.WARN),
     not_valid = ProtoExpert.new("mcmb2.no_valid_data",
         "No valid terminal data: the IO controller must keep the system in a safe state",
-        expert.group.PROTOCOL, expert.severity.WARN),
+        expert.group.RESPONSE_CODE, expert.severity.WARN),
+    e010 = ProtoExpert.new("mcmb2.status.e010",
+        "Fieldbus update failure (E010) reported by the base: no valid terminal data", expert.group.SEQUENCE,
+        expert.severity.ERROR),
     data_not_zero = ProtoExpert.new("mcmb2.data_not_zero",
         "Status is not 'present' but the uplink data is not all 0", expert.group.PROTOCOL, expert.severity.WARN),
     uplink_stalled = ProtoExpert.new("mcmb2.uplink_watchdog.stalled",
@@ -125,7 +139,7 @@ local ef = {
     learned = ProtoExpert.new("mcmb2.layout.learned", "Cyclic data layout learned from this Connect",
         expert.group.SEQUENCE, expert.severity.CHAT),
 }
-mcmb2.experts = { ef.status_undefined, ef.slot_status_undefined, ef.terminal_not_zero, ef.not_valid,
+mcmb2.experts = { ef.status_undefined, ef.slot_status_undefined, ef.terminal_not_zero, ef.not_valid, ef.e010,
                   ef.data_not_zero, ef.uplink_stalled, ef.downlink_stalled, ef.terminal_changed,
                   ef.layout_mismatch, ef.iops_bad, ef.iocs_bad, ef.reserved_not_zero, ef.short, ef.learned }
 
@@ -229,12 +243,21 @@ end
 ------------------------------------------------------------------------
 -- First pass: the analysis of one cyclic frame
 ------------------------------------------------------------------------
+-- Seconds rounded to the millisecond (ages are differences of capture
+-- times: 1.2 s, not 1.200000048 s).
+local function ms(s)
+    return math.floor(s * 1000 + 0.5) / 1000
+end
+
+-- The watchdog's age in this frame; past the limit the frame is "stalled"
+-- (Info tag on every such frame, the finding on the first).
 local function watchdog(rec, st, value, t, frame, limit, ex, what)
     local r = handshake.stall(st, value, t, frame, limit)
-    rec.wd_age = t - st.t
+    rec.wd_age = ms(t - st.t)
+    if t - st.t > limit then rec.wd_since = st.frame end
     if r and r.kind == "stalled" then
-        add_finding(rec, "wd", ex, string.format("%s watchdog unchanged for %.0f ms (value %d since frame %d)%s",
-            what, r.age * 1000, r.value, r.since,
+        add_finding(rec, "wd", ex, string.format("%s watchdog unchanged for %.3f s (value %d)%s",
+            what, ms(r.age), r.value,
             (what == "Uplink") and ": bring the system to a safe state" or ": the base shows E010"))
     end
 end
@@ -246,8 +269,14 @@ local function analyse_duplex(rec, d, ba, t, frame)
         local sb = ba:get_index(h)
         local st = bit.band(sb, 0x0F)
         if not DUPLEX_OK[st] then
+            rec.undefined = true
             add_finding(rec, "status", ef.status_undefined, string.format(
-                "Undefined MC-MB2-PN status 0x%X: bring the system to a safe state", st))
+                "MC-MB2-PN status %s is undefined: bring the system to a safe state", name_of(STATUS, DUPLEX_OK, st)))
+        elseif st == 0xA then
+            rec.e010 = true
+            add_finding(rec, "status", ef.e010,
+                "Fieldbus update failure (E010): no valid terminal data, the IO controller must keep the "
+                .. "system in a safe state")
         elseif st ~= 1 then
             add_finding(rec, "status", ef.not_valid, string.format(
                 "%s: no valid terminal data, the IO controller must keep the system in a safe state",
@@ -255,7 +284,8 @@ local function analyse_duplex(rec, d, ba, t, frame)
         end
         if st ~= 1 and not all_zero(ba, plan.modules) then
             add_finding(rec, "data", ef.data_not_zero, string.format(
-                "Status 0x%X is not 'Terminal present' but the uplink data is not all 0", st))
+                "Status %s is not 'Terminal present' but the uplink data is not all 0",
+                name_of(STATUS, DUPLEX_OK, st)))
         end
         watchdog(rec, d.up_wd, ba:get_index(h + 1), t, frame, up_limit,
             ef.uplink_stalled, "Uplink")
@@ -274,10 +304,13 @@ local function analyse_polled_up(rec, d, ba, t, frame)
     local sb = ba:get_index(h)
     local st = bit.band(sb, 0x0F)
     if not POLLED_OK[st] then
+        rec.undefined = true
         add_finding(rec, "status", ef.status_undefined, string.format(
-            "Undefined MC-MB2-PN status 0x%X on a polled system: bring the system to a safe state", st))
+            "MC-MB2-PN status %s is undefined on a polled system: bring the system to a safe state",
+            name_of(STATUS, POLLED_OK, st)))
     elseif st == 0xA then
-        add_finding(rec, "status", ef.not_valid,
+        rec.e010 = true
+        add_finding(rec, "status", ef.e010,
             "Fieldbus update failure (E010): no valid terminal data, the IO controller must keep the "
             .. "system in a safe state")
     end
@@ -315,8 +348,10 @@ local function analyse_polled_up(rec, d, ba, t, frame)
         local sst, term = bit.band(s, 0x0F), bit.rshift(s, 4)
         local anchor = SLOT_ANCHOR[k]
         if not SLOT_OK[sst] then
+            rec.undefined = true
             add_finding(rec, anchor, ef.slot_status_undefined, string.format(
-                "Slot %d: undefined terminal status 0x%X: bring the system to a safe state", k, sst))
+                "Slot %d: terminal status %s is undefined: bring the system to a safe state", k,
+                name_of(SLOT_STATUS, SLOT_OK, sst)))
         end
         if sst ~= 0xF then
             local prev = d.slot_term[k]
@@ -329,8 +364,8 @@ local function analyse_polled_up(rec, d, ba, t, frame)
             for i, u in ipairs(used) do if u == k then gi = i end end
             if sst ~= 1 and gi and groups[gi] and not all_zero(ba, groups[gi]) then
                 add_finding(rec, anchor, ef.data_not_zero, string.format(
-                    "Slot %d: terminal status 0x%X is not 'Terminal present' but its uplink data is not all 0",
-                    k, sst))
+                    "Slot %d: terminal status %s is not 'Terminal present' but its uplink data is not all 0",
+                    k, name_of(SLOT_STATUS, SLOT_OK, sst)))
             end
         end
     end
@@ -387,6 +422,7 @@ end
 local function add_watchdog(root, rec, field, range)
     local wd = root:add(field, range)
     if rec.wd_age then wd:add(pf.watchdog_age, nstime(rec.wd_age)):set_generated() end
+    if rec.wd_since then wd:add(pf.watchdog_since, rec.wd_since):set_generated() end
     attach(rec, "wd", wd)
 end
 
@@ -397,8 +433,8 @@ local function show_duplex_up(rec, tvb, root, hr, wr)
     add_watchdog(root, rec, pf.uplink_watchdog, wr)
     local r = data_range(tvb, rec.base, rec.plan.modules, "MC-MB2 uplink data")
     if r then attach(rec, "data", root:add(pf.uplink_data, r)) end
-    return string.format("Uplink duplex: %s, terminal %d, watchdog %d",
-        DUPLEX_OK[st] and STATUS[st] or string.format("undefined status 0x%X", st), bit.rshift(sb, 4), wr:uint())
+    return string.format("Uplink duplex: %s, terminal %d, watchdog %d", name_of(STATUS, DUPLEX_OK, st),
+        bit.rshift(sb, 4), wr:uint())
 end
 
 local function show_polled_up(rec, tvb, root, h)
@@ -413,8 +449,8 @@ local function show_polled_up(rec, tvb, root, h)
         local sr = tvb:range(h + 3 + k, 1)
         local s = sr:uint()
         local sst = bit.band(s, 0x0F)
-        local st = root:add(sr, string.format("Slot %d: %s, terminal %d", k,
-            SLOT_STATUS[sst] or string.format("undefined status 0x%X", sst), bit.rshift(s, 4)))
+        local st = root:add(sr, string.format("Slot %d: %s, terminal %d", k, name_of(SLOT_STATUS, SLOT_OK, sst),
+            bit.rshift(s, 4)))
         st:add(pf.slot, k):set_generated()
         st:add(pf.slot_status, sr)
         st:add(pf.slot_terminal, sr)
@@ -425,10 +461,14 @@ local function show_polled_up(rec, tvb, root, h)
             if r then st:add(pf.slot_uplink_data, r) end
         end
         attach(rec, SLOT_ANCHOR[k], st)
-        if sst ~= 0xF then parts[#parts + 1] = string.format("%d:T%d/%X", k, bit.rshift(s, 4), sst) end
+        if sst ~= 0xF then
+            parts[#parts + 1] = string.format("%d:T%d %s", k, bit.rshift(s, 4),
+                SLOT_SHORT[sst] or name_of(SLOT_STATUS, SLOT_OK, sst))
+        end
     end
-    return string.format("Uplink polled: status 0x%X, watchdog %d, Y=%d Z=%d, slots %s",
-        bit.band(hr:uint(), 0x0F), wr:uint(), yr:uint(), zr:uint(), (#parts > 0) and table.concat(parts, " ") or "none")
+    return string.format("Uplink polled: %s, watchdog %d, Y=%d Z=%d, slots %s",
+        name_of(STATUS, POLLED_OK, bit.band(hr:uint(), 0x0F)), wr:uint(), yr:uint(), zr:uint(),
+        (#parts > 0) and table.concat(parts, ", ") or "none")
 end
 
 local function show_down(rec, tvb, root, hr, wr)
@@ -454,6 +494,16 @@ local function show_down(rec, tvb, root, hr, wr)
         end
     end
     return string.format("Downlink polled: watchdog %d, %d slot(s)", wr:uint(), #(rec.groups or {}))
+end
+
+-- The Info column tags of the findings that matter in the packet list
+-- (README "How findings read"): [E010], [watchdog stalled 1.2 s], [undefined].
+local function info_tags(rec)
+    local tags = ""
+    if rec.e010 then tags = tags .. " [E010]" end
+    if rec.wd_since then tags = tags .. string.format(" [watchdog stalled %.1f s]", rec.wd_age) end
+    if rec.undefined then tags = tags .. " [undefined]" end
+    return tags
 end
 
 local function show(rec, tvb, pinfo, tree)
@@ -490,7 +540,7 @@ local function show(rec, tvb, pinfo, tree)
     end
     record.add_ioxs(root, rec, tvb, pf.iops, pf.iocs)
     record.finish(rec, root)
-    pinfo.cols.info = info
+    pinfo.cols.info = info .. info_tags(rec)
 end
 
 local function show_connect(rec, tvb, tree, text)
