@@ -67,6 +67,7 @@ EXPERTS = {
     "mcmb2.slot.status.undefined": (ERROR, "finding", "undefined slot status"),
     "mcmb2.terminal.not_zero": (WARNING, "finding", "terminal bits set in a polled status"),
     "mcmb2.no_valid_data": (WARNING, "finding", "no valid terminal data"),
+    "mcmb2.status.e010": (ERROR, "finding", "E010 reported by the base"),
     "mcmb2.data_not_zero": (WARNING, "finding", "data not 0 while the terminal is not present"),
     "mcmb2.uplink_watchdog.stalled": (ERROR, "stall", "uplink watchdog"),
     "mcmb2.downlink_watchdog.stalled": (ERROR, "stall", "downlink watchdog"),
