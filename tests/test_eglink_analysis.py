@@ -572,41 +572,41 @@ def test_invalid_packets_not_analysed(tshark, capture_file):
 # --- statistics ------------------------------------------------------------------
 
 STATS_SESSION = """
-=========================================================================================================================================================
+=======================================================================================================================================================
 EG-Link:
-Topic / Item                              Count         Average       Min Val       Max Val       Rate (ms)     Percent       Burst Rate    Burst Start  
----------------------------------------------------------------------------------------------------------------------------------------------------------
-EG-Link base units                        60                                                      0.0204        100%          0.0400        1.240        
- BU 0x1001 (192.168.32.10)                60                                                      0.0204        100.00%       0.0400        1.240        
-  1. Packets                              60                                                      0.0204        100.00%       0.0400        1.240        
-   1. VRPI                                23                                                      0.0078        38.33%        0.0100        0.000        
-    Interval (ms)                         22            130.68        125           250           0.0075        95.65%        0.0100        0.125        
-   2. VRPO                                30                                                      0.0102        50.00%        0.0100        0.000        
-    Interval (ms)                         29            100.00        100           100           0.0099        96.67%        0.0100        0.140        
-   3. VRCI                                3                                                       0.0010        5.00%         0.0100        1.125        
-    Retransmissions                       1                                                       0.0003        33.33%        0.0100        1.300        
-   4. VRCO                                1                                                       0.0003        1.67%         0.0100        2.125        
-   5. VRAI                                1                                                       0.0003        1.67%         0.0100        2.200        
-   6. VRAO                                2                                                       0.0007        3.33%         0.0100        1.240        
-  2. Lost                                 1                                                       0.0003        1.67%         0.0100        1.540        
-  3. Repeated                             0                                                       0.0000        0.00%         -             -            
-  4. Invalid (CRC or size, not analysed)  0                                                       0.0000        0.00%         -             -            
-  5. VRCI commands (BU to controller)     2                                                       0.0007        3.33%         0.0100        1.200        
-   1. Acknowledged                        2                                                       0.0007        100.00%       0.0100        1.310        
-    Acknowledgement time (ms)             2             80.00         50            110           0.0007        100.00%       0.0100        1.310        
-   2. Failed (not acknowledged in time)   0                                                       0.0000        0.00%         -             -            
-  6. VRCO commands (controller to BU)     1                                                       0.0003        1.67%         0.0100        2.200        
-   1. Acknowledged                        1                                                       0.0003        100.00%       0.0100        2.200        
-    Acknowledgement time (ms)             1             40.00         40            40            0.0003        100.00%       0.0100        2.240        
-   2. Failed (not acknowledged in time)   0                                                       0.0000        0.00%         -             -            
-Time in BU states (ms)                    2875                                                    0.9779        100%          -             -            
- BU 0x1001 (192.168.32.10)                2875                                                    0.9779        100.00%       -             -            
-  1. Initial (0x00)                       500                                                     0.1701        17.39%        -             -            
-  2. Disarmed (0x10)                      500                                                     0.1701        17.39%        -             -            
-  3. Armed (0x11)                         1375                                                    0.4677        47.83%        -             -            
-  4. Stopped (0x01)                       500                                                     0.1701        17.39%        -             -            
+Topic / Item                            Count         Average       Min Val       Max Val       Rate (ms)     Percent       Burst Rate    Burst Start  
+-------------------------------------------------------------------------------------------------------------------------------------------------------
+EG-Link base units                      60                                                      0.0204        100%          0.0400        1.240        
+ BU 0x1001 (192.168.32.10)              60                                                      0.0204        100.00%       0.0400        1.240        
+  Packets                               60                                                      0.0204        100.00%       0.0400        1.240        
+   VRPO                                 30                                                      0.0102        50.00%        0.0100        0.000        
+    Interval (ms)                       29            100.00        100           100           0.0099        96.67%        0.0100        0.140        
+   VRPI                                 23                                                      0.0078        38.33%        0.0100        0.000        
+    Interval (ms)                       22            130.68        125           250           0.0075        95.65%        0.0100        0.125        
+   VRCO                                 1                                                       0.0003        1.67%         0.0100        2.125        
+   VRCI                                 3                                                       0.0010        5.00%         0.0100        1.125        
+    Retransmissions                     1                                                       0.0003        33.33%        0.0100        1.300        
+   VRAO                                 2                                                       0.0007        3.33%         0.0100        1.240        
+   VRAI                                 1                                                       0.0003        1.67%         0.0100        2.200        
+   Repeated                             0                                                       0.0000        0.00%         -             -            
+   Lost                                 1                                                       0.0003        1.67%         0.0100        1.540        
+   Invalid (CRC or size, not analysed)  0                                                       0.0000        0.00%         -             -            
+  VRCO commands (controller to BU)      1                                                       0.0003        1.67%         0.0100        2.200        
+   Failed (not acknowledged in time)    0                                                       0.0000        0.00%         -             -            
+   Acknowledged                         1                                                       0.0003        100.00%       0.0100        2.200        
+    Acknowledgement time (ms)           1             40.00         40            40            0.0003        100.00%       0.0100        2.240        
+  VRCI commands (BU to controller)      2                                                       0.0007        3.33%         0.0100        1.200        
+   Failed (not acknowledged in time)    0                                                       0.0000        0.00%         -             -            
+   Acknowledged                         2                                                       0.0007        100.00%       0.0100        1.310        
+    Acknowledgement time (ms)           2             80.00         50            110           0.0007        100.00%       0.0100        1.310        
+Time in BU states (ms)                  2875                                                    0.9779        100%          -             -            
+ BU 0x1001 (192.168.32.10)              2875                                                    0.9779        100.00%       -             -            
+  0x11 Armed                            1375                                                    0.4677        47.83%        -             -            
+  0x10 Disarmed                         500                                                     0.1701        17.39%        -             -            
+  0x01 Stopped                          500                                                     0.1701        17.39%        -             -            
+  0x00 Initial                          500                                                     0.1701        17.39%        -             -            
 
----------------------------------------------------------------------------------------------------------------------------------------------------------
+-------------------------------------------------------------------------------------------------------------------------------------------------------
 """
 
 
@@ -654,31 +654,37 @@ def test_statistics_with_filter(tshark, cap):
     """-z eglink,stat,FILTER counts only the matching packets."""
     rows = _rows(stats(tshark, cap("session"), command='eglink,stat,eglink.type == "VRPI"'))
     assert rows[("EG-Link base units", "BU 0x1001 (192.168.32.10)")] == 23
-    assert rows[("1. Packets", "1. VRPI")] == 23
-    assert rows[("1. Packets", "2. VRPO")] == 0
+    assert rows[("Packets", "VRPI")] == 23
+    assert rows[("Packets", "VRPO")] == 0
 
 
 def test_statistics_rows_in_fixed_order(tshark, cap):
-    """Rows sort by name (the tree's own default, also in the GUI) and are numbered in
-    the order that means something; BU states run from Initial to Armed, then the
-    states with the relays open."""
+    """The order Wireshark's Statistics dialog shows (by name, descending, rows
+    flagged to stay on top first), which tshark prints too: packets first, by
+    type, then repeated, lost and invalid ones; the commands, failures first; BU
+    states by code, Armed and Disarmed first, then the states with relays open."""
     text = stats(tshark, cap("session"))
     labels = [line.strip().split("  ")[0] for line in text.splitlines()
               if line.startswith(" ") and line.strip()]
-    bu = labels[labels.index("BU 0x1001 (192.168.32.10)") + 1:]
-    assert [n for n in bu if re.match(r"\d\. ", n)][:10] == [
-        "1. Packets", "1. VRPI", "2. VRPO", "3. VRCI", "4. VRCO", "5. VRAI", "6. VRAO",
-        "2. Lost", "3. Repeated", "4. Invalid (CRC or size, not analysed)"]
-    assert labels[-4:] == ["1. Initial (0x00)", "2. Disarmed (0x10)", "3. Armed (0x11)",
-                           "4. Stopped (0x01)"]
+    assert labels == [
+        "BU 0x1001 (192.168.32.10)", "Packets", "VRPO", "Interval (ms)", "VRPI", "Interval (ms)",
+        "VRCO", "VRCI", "Retransmissions", "VRAO", "VRAI", "Repeated", "Lost",
+        "Invalid (CRC or size, not analysed)",
+        "VRCO commands (controller to BU)", "Failed (not acknowledged in time)", "Acknowledged",
+        "Acknowledgement time (ms)",
+        "VRCI commands (BU to controller)", "Failed (not acknowledged in time)", "Acknowledged",
+        "Acknowledgement time (ms)",
+        "BU 0x1001 (192.168.32.10)", "0x11 Armed", "0x10 Disarmed", "0x01 Stopped", "0x00 Initial"]
+    top = [line.split("  ")[0] for line in text.splitlines() if line[:1].isalpha()]
+    assert top[-2:] == ["EG-Link base units", "Time in BU states (ms)"]
 
 
 def test_statistics_state_time_reads_right(tshark, cap):
     """Time in a state is a share of the BU's time: no 4791 % against packets,
     and no burst rate of milliseconds."""
     text = stats(tshark, cap("session"))
-    assert _columns(text, "3. Armed (0x11)") == {
-        "Topic / Item": "3. Armed (0x11)", "Count": "1375", "Average": "", "Min Val": "",
+    assert _columns(text, "0x11 Armed") == {
+        "Topic / Item": "0x11 Armed", "Count": "1375", "Average": "", "Min Val": "",
         "Max Val": "", "Rate (ms)": "0.4677", "Percent": "47.83%", "Burst Rate": "-",
         "Burst Start": "-"}
     assert _columns(text, "Time in BU states (ms)")["Percent"] == "100%"
@@ -688,13 +694,14 @@ def test_statistics_state_time_reads_right(tshark, cap):
 
 def test_statistics_failures_bursts_two_bus(tshark, cap):
     rows = _rows(stats(tshark, cap("vrci_unacked")))
-    assert rows[("5. VRCI commands (BU to controller)", "2. Failed (not acknowledged in time)")] == 1
-    assert rows[("3. VRCI", "Retransmissions")] == 19
-    assert rows[("BU 0x1001 (192.168.32.10)", "5. VRCI commands (BU to controller)")] == 1
+    assert rows[("VRCI commands (BU to controller)", "Failed (not acknowledged in time)")] == 1
+    assert rows[("VRCI", "Retransmissions")] == 19
+    assert rows[("BU 0x1001 (192.168.32.10)", "VRCI commands (BU to controller)")] == 1
     rows = _rows(stats(tshark, cap("vrpo_incomplete")))
-    assert rows[("7. Split VRPO bursts", "1. Reassembled")] == 2
-    assert rows[("7. Split VRPO bursts", "2. Incomplete")] == 2
-    assert rows[("Controller 192.168.32.20 (BU not known)", "2. Lost")] == 3
+    assert rows[("Split VRPO bursts", "Reassembled")] == 2
+    assert rows[("Split VRPO bursts", "Incomplete")] == 2
+    assert rows[("Packets", "Lost")] == 3
+    assert rows[("EG-Link base units", "Controller 192.168.32.20 (BU not known)")] == 9
     rows = _rows(stats(tshark, cap("two_bus")))
     assert rows[("EG-Link base units", "BU 0x1001 (192.168.32.10)")] == 20
     assert rows[("EG-Link base units", "BU 0x1002 (192.168.32.11)")] == 19
@@ -709,7 +716,13 @@ def test_statistics_row_per_bu_on_a_shared_group(tshark, cap):
         "Controller 10.0.0.11 (BU not known)": 3, "Controller 10.0.0.12 (BU not known)": 4}
     assert {k[1]: v for k, v in rows.items() if k[0] == "Time in BU states (ms)"} == {
         "BU 0x1001 (10.0.0.1)": 1375, "BU 0x2002 (10.0.0.2)": 1375}
-    assert not [k for k, v in rows.items() if k[1] in ("2. Lost", "3. Repeated") and v]
+    assert not [k for k, v in rows.items() if k[1] in ("Lost", "Repeated") and v]
+    # The BUs on top, then the controllers not joined yet.
+    order = [line.strip().split("  ")[0] for line in text.splitlines() if line.startswith(" ") and
+             not line.startswith("  ")]
+    assert order == ["BU 0x2002 (10.0.0.2)", "BU 0x1001 (10.0.0.1)",
+                     "Controller 10.0.0.12 (BU not known)", "Controller 10.0.0.11 (BU not known)",
+                     "BU 0x2002 (10.0.0.2)", "BU 0x1001 (10.0.0.1)"]
 
 
 # --- one pass and two passes -----------------------------------------------------

@@ -1325,6 +1325,7 @@ queue_tap(packet_info *pinfo, const eglink_info_t *info, const eglink_frame_t *f
     const eglink_finding_t *f;
 
     t->bu_name = fd->bu ? fd->bu->name : fd->ctrl->name;
+    t->is_bu = fd->bu != NULL;
     t->type = info->type;
     t->invalid = (fd->flags & FF_INVALID) != 0;
     t->repeated = fd->serial_status == SERIAL_REPEAT;

@@ -7,17 +7,24 @@
  * eglink-analysis.c. Only the public stats_tree API (epan/stats_tree.h).
  *
  * How it reads in the GUI and in tshark alike:
- * - The tree is sorted by name, ascending (ST_SORT_COL_NAME in the flags
- *   given to stats_tree_register_plugin, which Wireshark keeps as the
- *   tree's default sort), and the rows of a BU are numbered "1. Packets",
- *   "2. Lost" ..., so they keep one meaningful order; BU states run
- *   Initial, Disarmed, Armed, then the relays-open states.
+ * - Wireshark's Statistics dialog (seen on 4.0; later versions have the
+ *   same code) sorts every level of the
+ *   tree by name, descending, until a column header is clicked, whatever
+ *   the tree asks for; rows flagged ST_FLG_SORT_TOP stay above the others.
+ *   The tree is registered to sort the same way (ST_SORT_COL_NAME and
+ *   ST_FLG_SORT_DESC in the flags of stats_tree_register_plugin, which
+ *   Wireshark keeps as the tree's default), so tshark prints what the
+ *   dialog shows, and the labels are chosen so that this order reads
+ *   right: the base units and each BU's packets first (SORT_TOP), packet
+ *   types VRPO, VRPI, VRCO, VRCI, VRAO, VRAI, then repeated, lost and
+ *   invalid packets; the commands; failures before acknowledgements; BU
+ *   states by their code, Armed and Disarmed first, then the states with
+ *   the relays open.
  * - Every row's Percent is a part of its parent: packet types of the BU's
- *   packets, acknowledged commands of the commands, a state's time of the
- *   BU's time. Times in a state are in their own top-level tree
- *   ("Time in BU states (ms)"), set (not added) to the running total, so
- *   they have no burst rate, and their Rate is the share of the capture's
- *   time.
+ *   packets, acknowledged of the commands, a state's time of the BU's time.
+ *   Times in a state are in their own top-level tree ("Time in BU states
+ *   (ms)"), set (not added) to the running total, so they have no burst
+ *   rate, and their Rate is the share of the capture's time.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -32,28 +39,12 @@
 #define ST_ROOT_NAME "EG-Link base units"
 #define ST_TIME_NAME "Time in BU states (ms)"
 
-static const char *const type_names[] = {
-    "1. VRPI", "2. VRPO", "3. VRCI", "4. VRCO", "5. VRAI", "6. VRAO"
-};
+static const char *const type_names[] = { "VRPI", "VRPO", "VRCI", "VRCO", "VRAI", "VRAO" };
 
 const char *
 eglink_bu_state_name(guint8 state)
 {
     return val_to_str_const(state, eglink_bu_state_vals, "Unknown");
-}
-
-/* Where a BU state sits in the list: the way up to Armed, then the states
- * with the relays open, then undefined values. */
-static guint
-state_rank(guint8 state)
-{
-    static const guint8 order[] = { 0x00, 0x10, 0x11, 0x01, 0x02, 0x03, 0x04 };
-    guint i;
-
-    for (i = 0; i < G_N_ELEMENTS(order); i++)
-        if (order[i] == state)
-            return i + 1;
-    return G_N_ELEMENTS(order) + 1;
 }
 
 static int
@@ -129,6 +120,14 @@ eglink_stats_cleanup(stats_tree *st)
         g_hash_table_remove(state_times, st);
 }
 
+/* Keeps a row above its siblings. A reset of the tree clears the flags of
+ * its rows, so they are set again whenever the row counts. */
+static void
+keep_on_top(stats_tree *st, const char *name, int parent_id, gboolean with_children)
+{
+    stats_tree_manip_node_int(MN_SET_FLAGS, st, name, parent_id, with_children, ST_FLG_SORT_TOP);
+}
+
 /* Commands of one direction: new ones counted on the node itself. */
 static void
 command_stats(stats_tree *st, int bu_node, const char *name, const eglink_tap_info_t *t,
@@ -139,8 +138,8 @@ command_stats(stats_tree *st, int bu_node, const char *name, const eglink_tap_in
     if (!(command && t->new_command) && !(ack && t->first_ack) && !t->failed[dir])
         return;
     node = increase_stat_node(st, name, bu_node, TRUE, command && t->new_command ? 1 : 0);
-    acked = increase_stat_node(st, "1. Acknowledged", node, TRUE, ack && t->first_ack ? 1 : 0);
-    increase_stat_node(st, "2. Failed (not acknowledged in time)", node, FALSE, (int)t->failed[dir]);
+    acked = increase_stat_node(st, "Acknowledged", node, TRUE, ack && t->first_ack ? 1 : 0);
+    increase_stat_node(st, "Failed (not acknowledged in time)", node, FALSE, (int)t->failed[dir]);
     if (ack && t->first_ack)
         avg_stat_node_add_value_int(st, "Acknowledgement time (ms)", acked, FALSE, ms_of(t->ack_ns));
 }
@@ -153,11 +152,12 @@ state_time_stats(stats_tree *st, packet_info *pinfo, const eglink_tap_info_t *t)
     char state[64], key[256];
     int root, bu;
 
-    snprintf(state, sizeof state, "%u. %s (0x%02x)", state_rank(t->prev_state),
-             eglink_bu_state_name(t->prev_state), t->prev_state);
+    /* "0x11 Armed": by code, as the dialog sorts them. */
+    snprintf(state, sizeof state, "0x%02x %s", t->prev_state, eglink_bu_state_name(t->prev_state));
     snprintf(key, sizeof key, "%s\t%s", t->bu_name, state);
     root = stats_tree_manip_node_int(MN_SET, st, ST_TIME_NAME, 0, TRUE, (int)add_total(times, "", ms));
-    bu = stats_tree_manip_node_int(MN_SET, st, t->bu_name, root, TRUE, (int)add_total(times, t->bu_name, ms));
+    bu = stats_tree_manip_node_int(MN_SET, st, t->bu_name, root, TRUE,
+                                   (int)add_total(times, t->bu_name, ms));
     stats_tree_manip_node_int(MN_SET, st, state, bu, FALSE, (int)add_total(times, key, ms));
 }
 
@@ -169,10 +169,14 @@ eglink_stats_packet(stats_tree *st, packet_info *pinfo, epan_dissect_t *edt _U_,
     int root, bu_node, node, type_node, i;
 
     root = tick_stat_node(st, ST_ROOT_NAME, 0, TRUE);
+    keep_on_top(st, ST_ROOT_NAME, 0, TRUE);
     bu_node = tick_stat_node(st, t->bu_name, root, TRUE);
+    if (t->is_bu)
+        keep_on_top(st, t->bu_name, root, TRUE);
 
     /* The fixed rows first, so that every BU lists them all. */
-    node = increase_stat_node(st, "1. Packets", bu_node, TRUE, 1);
+    node = increase_stat_node(st, "Packets", bu_node, TRUE, 1);
+    keep_on_top(st, "Packets", bu_node, TRUE);
     for (i = 0; i < (int)G_N_ELEMENTS(type_names); i++) {
         type_node = increase_stat_node(st, type_names[i], node, TRUE, (int)t->type == i ? 1 : 0);
         if ((int)t->type != i)
@@ -182,20 +186,20 @@ eglink_stats_packet(stats_tree *st, packet_info *pinfo, epan_dissect_t *edt _U_,
         if (t->retransmission)
             increase_stat_node(st, "Retransmissions", type_node, FALSE, 1);
     }
-    increase_stat_node(st, "2. Lost", bu_node, FALSE, (int)t->lost);
-    increase_stat_node(st, "3. Repeated", bu_node, FALSE, t->repeated ? 1 : 0);
-    increase_stat_node(st, "4. Invalid (CRC or size, not analysed)", bu_node, FALSE, t->invalid ? 1 : 0);
+    increase_stat_node(st, "Repeated", node, FALSE, t->repeated ? 1 : 0);
+    increase_stat_node(st, "Lost", node, FALSE, (int)t->lost);
+    increase_stat_node(st, "Invalid (CRC or size, not analysed)", node, FALSE, t->invalid ? 1 : 0);
 
-    command_stats(st, bu_node, "5. VRCI commands (BU to controller)", t,
+    command_stats(st, bu_node, "VRCI commands (BU to controller)", t,
                   t->type == EGLINK_TYPE_VRCI, t->type == EGLINK_TYPE_VRAO, EGLINK_DIR_IN);
-    command_stats(st, bu_node, "6. VRCO commands (controller to BU)", t,
+    command_stats(st, bu_node, "VRCO commands (controller to BU)", t,
                   t->type == EGLINK_TYPE_VRCO, t->type == EGLINK_TYPE_VRAI, EGLINK_DIR_OUT);
 
     if (t->burst_complete || t->burst_incomplete) {
-        node = increase_stat_node(st, "7. Split VRPO bursts", bu_node, TRUE,
+        node = increase_stat_node(st, "Split VRPO bursts", bu_node, TRUE,
                                   (t->burst_complete ? 1 : 0) + (t->burst_incomplete ? 1 : 0));
-        increase_stat_node(st, "1. Reassembled", node, FALSE, t->burst_complete ? 1 : 0);
-        increase_stat_node(st, "2. Incomplete", node, FALSE, t->burst_incomplete ? 1 : 0);
+        increase_stat_node(st, "Reassembled", node, FALSE, t->burst_complete ? 1 : 0);
+        increase_stat_node(st, "Incomplete", node, FALSE, t->burst_incomplete ? 1 : 0);
     }
 
     if (t->has_state_time)
@@ -238,7 +242,7 @@ eglink_stats_register(void)
     };
 
     stats_tree_register_plugin("eglink", "eglink", "EG-Link",
-                               ST_SORT_COL_NAME << ST_FLG_SRTCOL_SHIFT,
+                               (ST_SORT_COL_NAME << ST_FLG_SRTCOL_SHIFT) | ST_FLG_SORT_DESC,
                                eglink_stats_packet, eglink_stats_init, eglink_stats_cleanup);
     register_stat_tap_ui(&stat_ui, NULL);
 }
