@@ -628,6 +628,14 @@ def test_statistics_tree_spelling(tshark, cap):
     assert stats(tshark, cap("session"), command="eglink,tree") == STATS_SESSION
 
 
+def test_statistics_use_the_public_api_only():
+    """No private Wireshark header: stats_tree_priv.h can change in any release."""
+    from conftest import ROOT
+    sources = sorted((ROOT / "plugins" / "eglink").glob("*.[ch]"))
+    assert sources
+    assert [p.name for p in sources if "stats_tree_priv.h" in p.read_text()] == []
+
+
 def _rows(text):
     """{(parent row, name): count} of a -z eglink,stat output."""
     out, parents = {}, {}
