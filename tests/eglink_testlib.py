@@ -1,8 +1,10 @@
-"""Helpers for the EG-Link dissector tests: its own expert names, and expert info
-read from -T json so that findings of other EG-Link modules do not get in the way."""
+"""Helpers for the EG-Link dissector tests: its own expert names, expert info
+read from -T json so that findings of other EG-Link modules do not get in the
+way, and by-name assertions over several frames."""
 import sys
+from pathlib import Path
 
-from conftest import ROOT
+from conftest import ROOT, same_value
 
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
@@ -22,6 +24,15 @@ DISSECTOR_EXPERTS = {
 }
 
 
+# Wireshark's expert severities and groups (epan/proto.h PI_*) by the names
+# the README's "How findings read" table uses.
+SEVERITIES = {0x00200000: "chat", 0x00400000: "note", 0x00600000: "warning",
+              0x00800000: "error"}
+GROUPS = {0x01000000: "checksum", 0x02000000: "sequence", 0x03000000: "response code",
+          0x04000000: "request code", 0x05000000: "undecoded", 0x06000000: "reassemble",
+          0x07000000: "malformed", 0x08000000: "debug", 0x09000000: "protocol"}
+
+
 def _walk(node, found):
     if isinstance(node, list):
         for item in node:
@@ -30,13 +41,14 @@ def _walk(node, found):
         if "_ws.expert.message" in node:
             names = [k for k in node if k in DISSECTOR_EXPERTS]
             if names:
-                found.append((names[0], node["_ws.expert.message"]))
+                found.append((names[0], node["_ws.expert.message"],
+                              SEVERITIES[int(node["_ws.expert.severity"])],
+                              GROUPS[int(node["_ws.expert.group"])]))
         for value in node.values():
             _walk(value, found)
 
 
-def dissector_experts(tshark, capture, **kw):
-    """{frame number: [(expert name, message), ...]} of the dissector's own expert info."""
+def _dissector_findings(tshark, capture, **kw):
     out = {}
     for pkt in tshark.json(capture, **kw):
         layers = pkt["_source"]["layers"]
@@ -45,6 +57,38 @@ def dissector_experts(tshark, capture, **kw):
         if found:
             out[int(layers["frame"]["frame.number"])] = found
     return out
+
+
+def dissector_experts(tshark, capture, **kw):
+    """{frame number: [(expert name, message), ...]} of the dissector's own expert info."""
+    return {n: [(e, m) for e, m, _, _ in v]
+            for n, v in _dissector_findings(tshark, capture, **kw).items()}
+
+
+def expert_kinds(tshark, capture, **kw):
+    """{expert name: {(severity, group), ...}} of the dissector's own expert info."""
+    out = {}
+    for found in _dissector_findings(tshark, capture, **kw).values():
+        for name, _, severity, group in found:
+            out.setdefault(name, set()).add((severity, group))
+    return out
+
+
+def expect_frames(tshark, capture, expected, **kw):
+    """Assert the fields of several frames by name: expected is
+    {frame number: {field name: value}} (values as tshark.expect() takes them).
+    The message lists every frame and field that differs."""
+    names = sorted({name for fields in expected.values() for name in fields})
+    got = tshark.frames(capture, names, **kw)
+    wrong = []
+    for frame, fields in sorted(expected.items()):
+        if frame not in got:
+            wrong.append("  frame %d: not displayed" % frame)
+            continue
+        wrong += ["  frame %d %s: got %r, want %r" % (frame, name, got[frame].get(name), want)
+                  for name, want in fields.items() if not same_value(got[frame].get(name, ""), want)]
+    assert not wrong, "fields differ in %s:\n%s" % (Path(capture).name, "\n".join(wrong))
+    return got
 
 
 def messages(tshark, capture, **kw):

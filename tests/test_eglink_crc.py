@@ -2,7 +2,7 @@
 orders by preference, and a hint naming the variant that matches a failing CRC."""
 import pytest
 
-from eglink_testlib import gen, messages
+from eglink_testlib import expect_frames, gen, messages
 
 VARIANT_NAMES = {"mpeg2": "CRC-32/MPEG-2", "bzip2": "CRC-32/BZIP2",
                  "iso_hdlc": "CRC-32/ISO-HDLC", "stm32": "STM32 hardware CRC"}
@@ -25,22 +25,39 @@ def test_check_values():
 
 @pytest.mark.parametrize("name", GOOD_CAPTURES)
 def test_good_crc(tshark, capture_file, name):
-    status = tshark.field(capture_file(name), "eglink.crc.status", display_filter="eglink.crc")
-    assert status and set(status) == {"1"}
+    cap = capture_file(name)
+    with_crc = tshark.frames(cap, ["eglink.crc.status"], display_filter="eglink.crc")
+    assert with_crc
+    expect_frames(tshark, cap, {n: {"eglink.crc.status": 1} for n in with_crc},
+                  display_filter="eglink.crc")
+
+
+BAD_CRCS = ["0xdeadbeef", "0x00000000", "0x12345678", "0xffffffff", "0xcafef00d", "0x0badc0de"]
 
 
 def test_bad_crc(tshark, capture_file):
     cap = capture_file("eglink_bad_crc.pcap")
-    rows = tshark.fields(cap, ["eglink.type", "eglink.crc", "eglink.crc.status", "udp.payload"])
-    assert [r[2] for r in rows] == ["0"] * 6 + ["1"]
-    assert [r[1] for r in rows][:6] == ["0xdeadbeef", "0x00000000", "0x12345678", "0xffffffff",
-                                        "0xcafef00d", "0x0badc0de"]
-    expected = {}
-    for n, r in enumerate(rows[:6], 1):
-        body = bytes.fromhex(r[3])[:-4]
-        expected[n] = ["Bad CRC [should be 0x%08x]" % gen.crc32_mpeg2(body)]
+    got = expect_frames(tshark, cap, {
+        **{n: {"eglink.crc": crc, "eglink.crc.status": 0} for n, crc in enumerate(BAD_CRCS, 1)},
+        7: {"eglink.crc.status": 1}})
+    assert sorted(got) == list(range(1, 8))
+    payloads = tshark.frames(cap, ["udp.payload"])
+    expected = {n: ["Bad CRC [should be 0x%08x]" % gen.crc32_mpeg2(
+        bytes.fromhex(payloads[n]["udp.payload"])[:-4])] for n in range(1, 7)}
     assert messages(tshark, cap) == expected
-    assert tshark.field(cap, "_ws.col.Info")[0] == "VRPI Armed RU=0xbeef Enabled [bad CRC]"
+
+
+def test_bad_crc_info_tag(tshark, capture_file):
+    """[bad CRC] on every packet type, after what the packet says."""
+    expect_frames(tshark, capture_file("eglink_bad_crc.pcap"), {
+        1: {"_ws.col.Info": "VRPI BU=Armed RU 0xbeef=Enabled [bad CRC]"},
+        2: {"_ws.col.Info": "VRPO Pkt=0 64 bytes [bad CRC]"},
+        3: {"_ws.col.Info": "VRCI Cmd=9 [bad CRC]"},
+        4: {"_ws.col.Info": "VRAO Cmd=9 [bad CRC]"},
+        5: {"_ws.col.Info": "VRCO Cmd=4 [bad CRC]"},
+        6: {"_ws.col.Info": "VRAI Cmd=4 [bad CRC]"},
+        7: {"_ws.col.Info": "VRPI BU=Armed RU 0xbeef=Enabled"},
+    })
 
 
 def test_variant_hints_with_default_preferences(tshark, capture_file):
@@ -60,9 +77,11 @@ def test_variant_hints_with_default_preferences(tshark, capture_file):
 def test_preference_selects_variant(tshark, capture_file, variant, order):
     cap = capture_file("eglink_crc_variants.pcap")
     prefs = {"eglink.crc_variant": variant, "eglink.crc_byte_order": order}
-    status = tshark.field(cap, "eglink.crc.status", prefs=prefs)
     group = gen.CRC_VARIANTS.index((variant, order))
-    assert status == ["1" if n // 3 == group else "0" for n in range(24)]
+    # frames 3g+1..3g+3 carry the CRC of variant group g
+    got = expect_frames(tshark, cap, {n: {"eglink.crc.status": 1 if (n - 1) // 3 == group else 0}
+                                      for n in range(1, 25)}, prefs=prefs)
+    assert len(got) == 24
     got = messages(tshark, cap, prefs=prefs)
     # MPEG-2 little-endian frames are now the ones that get a hint
     if group != 0:
@@ -73,18 +92,21 @@ def test_preference_selects_variant(tshark, capture_file, variant, order):
 @pytest.mark.parametrize("variant, order", gen.CRC_VARIANTS)
 def test_crc_value_in_configured_byte_order(tshark, capture_file, variant, order):
     cap = capture_file("eglink_crc_variants.pcap")
-    group = gen.CRC_VARIANTS.index((variant, order))
-    rows = tshark.fields(cap, ["eglink.crc", "udp.payload"],
-                         prefs={"eglink.crc_variant": variant, "eglink.crc_byte_order": order},
-                         display_filter="frame.number == %d" % (3 * group + 1))
-    body = bytes.fromhex(rows[0][1])[:-4]
-    assert rows[0][0] == "0x%08x" % gen.CRC[variant](body)
+    frame = 3 * gen.CRC_VARIANTS.index((variant, order)) + 1
+    prefs = {"eglink.crc_variant": variant, "eglink.crc_byte_order": order}
+    body = bytes.fromhex(tshark.frame(cap, frame, ["udp.payload"])["udp.payload"])[:-4]
+    tshark.expect(cap, frame, {"eglink.crc": "0x%08x" % gen.CRC[variant](body)}, prefs=prefs)
 
 
 def test_crc_status_filter(tshark, capture_file):
-    rows = tshark.fields(capture_file("eglink_bad_crc.pcap"), ["frame.number"],
-                         display_filter="eglink.crc.status == 0")
-    assert [r[0] for r in rows] == ["1", "2", "3", "4", "5", "6"]
-    rows = tshark.fields(capture_file("eglink_bad_crc.pcap"), ["frame.number"],
-                         display_filter="eglink.crc.bad")
-    assert len(rows) == 6
+    cap = capture_file("eglink_bad_crc.pcap")
+    assert sorted(tshark.frames(cap, [], display_filter="eglink.crc.status == 0")) == \
+        [1, 2, 3, 4, 5, 6]
+    assert sorted(tshark.frames(cap, [], display_filter="eglink.crc.bad")) == [1, 2, 3, 4, 5, 6]
+
+
+def test_bad_crc_is_a_checksum_error(tshark, capture_file):
+    shown = tshark.frames(capture_file("eglink_bad_crc.pcap"), [],
+                          display_filter="eglink.crc.bad && _ws.expert.severity == error"
+                                         " && _ws.expert.group == checksum")
+    assert sorted(shown) == [1, 2, 3, 4, 5, 6]

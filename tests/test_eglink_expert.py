@@ -1,7 +1,9 @@
-"""EG-Link: every single-packet expert message, exact text, on exactly the right frames."""
+"""EG-Link: every single-packet expert message, exact text, on exactly the right
+frames; the severity and group of each (the README's "How findings read"
+table); the Info tags [relays open] and [undefined]."""
 import pytest
 
-from eglink_testlib import dissector_experts, messages
+from eglink_testlib import DISSECTOR_EXPERTS, dissector_experts, expect_frames, expert_kinds, messages
 
 CLEAN = ["eglink_armed.pcap", "eglink_disarmed.pcap", "eglink_commands.pcap",
          "eglink_vrpo_split.pcap", "eglink_heuristic.pcap"]
@@ -20,20 +22,22 @@ def test_range_violations(tshark, capture_file):
             "Joystick 4 position -32768 is outside -1000..+1000"],
         2: ["RU battery 101 % is above 100 %", "RU C-Link RSSI 255 % is above 100 %"],
         3: ["4 VLAPs reported: a BU has at most 3"],
-        4: ["RU disabled reason 4 is not defined (0 enabled, 1 tilted, 2 inactivity, 3 other)"],
-        5: ["RU cable is 2: only 0 and 1 are defined", "RU docked is 3: only 0 and 1 are defined",
-            "Encoder switch is 255: only 0 and 1 are defined"],
+        4: ["RU disabled reason Unknown (0x04): defined are 0 enabled, 1 tilted, 2 inactivity, "
+            "3 other"],
+        5: ["RU cable Unknown (0x02): only 0 and 1 are defined",
+            "RU docked Unknown (0x03): only 0 and 1 are defined",
+            "Encoder switch Unknown (0xff): only 0 and 1 are defined"],
         6: ["No RU is armed (Armed RU 0) but these RU fields are not 0: "
             "RU battery, joystick 2, switch 8, encoder"],
         7: ["Payload spare bytes are not 0: reserved for future use, the sender may use a "
             "newer layout than TS-0006"],
-        8: ["BU state 0x05 is not defined in TS-0006",
-            "ES-Link relays open: BU state undefined (0x05), an undefined state below Disarmed"],
-        9: ["BU state 0x20 is not defined in TS-0006"],
-        10: ["EG-Link status 7 is not a defined link status (0..6)",
-             "EC-Link status 200 is not a defined link status (0..6)",
-             "C-Link status 9 is not a defined link status (0..6)"],
-        11: ["RU state 5 is not defined in TS-0006 (0..4)"],
+        8: ["BU state Unknown (0x05): not defined in TS-0006",
+            "ES-Link relays open: BU state Unknown (0x05), an undefined state below Disarmed"],
+        9: ["BU state Unknown (0x20): not defined in TS-0006"],
+        10: ["EG-Link status Unknown (0x07): defined are 0..6",
+             "EC-Link status Unknown (0xc8): defined are 0..6",
+             "C-Link status Unknown (0x09): defined are 0..6"],
+        11: ["RU state Unknown (0x05): defined are 0..4"],
         12: ["No RU is armed (Armed RU 0) but these RU fields are not 0: RU state",
              "RU stopped (stop switch, free-fall/shock sensor or RU fault): ES-Link relays open"],
     }
@@ -70,12 +74,128 @@ def test_relays_open_and_stopped(tshark, capture_file):
 
 
 def test_relays_open_is_a_warning(tshark, capture_file):
-    rows = tshark.fields(capture_file("eglink_states.pcap"), ["frame.number"],
-                         display_filter="eglink.bu_state.relays_open && _ws.expert.severity == warning")
-    assert [r[0] for r in rows] == ["1", "2", "3", "4", "5"]
-    rows = tshark.fields(capture_file("eglink_states.pcap"), ["frame.number"],
-                         display_filter="eglink.relays_open == 1")
-    assert [r[0] for r in rows] == ["1", "2", "3", "4", "5"]
+    cap = capture_file("eglink_states.pcap")
+    shown = tshark.frames(cap, ["eglink.relays_open"],
+                          display_filter="eglink.bu_state.relays_open && _ws.expert.severity == warning"
+                                         " && _ws.expert.group == response")
+    assert sorted(shown) == [1, 2, 3, 4, 5]
+    assert sorted(tshark.frames(cap, [], display_filter="eglink.relays_open == 1")) == [1, 2, 3, 4, 5]
+
+
+# The README's "How findings read": (severity, group) of every expert the
+# dissector raises.
+VOICE = {
+    # safety state the BU reports
+    "eglink.bu_state.relays_open": ("warning", "response code"),
+    "eglink.ru_state.stopped": ("warning", "response code"),
+    # undefined or out-of-range values
+    "eglink.bu_state.unknown": ("error", "protocol"),
+    "eglink.link_status.unknown": ("error", "protocol"),
+    "eglink.vlaps.range": ("error", "protocol"),
+    "eglink.ru_state.unknown": ("error", "protocol"),
+    "eglink.ru_battery.range": ("error", "protocol"),
+    "eglink.ru_rssi.range": ("error", "protocol"),
+    "eglink.flag.invalid": ("error", "protocol"),
+    "eglink.ru_disabled.unknown": ("error", "protocol"),
+    "eglink.joystick.range": ("error", "protocol"),
+    "eglink.armed_ru.unarmed_data": ("error", "protocol"),
+    # damaged packets
+    "eglink.crc.bad": ("error", "checksum"),
+    "eglink.size.mismatch": ("error", "malformed"),
+    "eglink.size.invalid": ("error", "malformed"),
+    "eglink.too_short": ("error", "malformed"),
+    # contract deviations that do not force the safe state
+    "eglink.revision.unknown": ("warning", "protocol"),
+    "eglink.origin.nonzero": ("warning", "protocol"),
+    "eglink.origin.zero": ("warning", "protocol"),
+    "eglink.spare.nonzero": ("warning", "protocol"),
+    "eglink.payload_spare.nonzero": ("warning", "protocol"),
+    # what Wireshark says of its own kind: a packet type it cannot decode, a
+    # CRC that another variant explains
+    "eglink.type.unknown": ("warning", "undecoded"),
+    "eglink.crc.variant": ("warning", "checksum"),
+}
+FINDING_CAPTURES = ["eglink_states.pcap", "eglink_range.pcap", "eglink_header.pcap",
+                    "eglink_wrong_size.pcap", "eglink_unknown_type.pcap", "eglink_bad_crc.pcap",
+                    "eglink_crc_variants.pcap"]
+
+
+def test_severity_and_group_of_every_expert(tshark, capture_file):
+    assert set(VOICE) == DISSECTOR_EXPERTS
+    seen = {}
+    for name in FINDING_CAPTURES:
+        for expert, kinds in expert_kinds(tshark, capture_file(name)).items():
+            seen.setdefault(expert, set()).update(kinds)
+    # every expert is raised by one of the captures, always with its one kind
+    assert seen == {name: {kind} for name, kind in VOICE.items()}
+
+
+def test_relays_item_right_after_bu_state(tshark, capture_file):
+    """In the tree the generated relays item follows the BU state item directly
+    (its expert info sits on the BU state)."""
+    text = tshark.verbose(capture_file("eglink_states.pcap"))
+    items = [line.strip() for line in text.splitlines()
+             if line.startswith(" " * 8) and not line.startswith(" " * 9)]
+    bu = [i for i, line in enumerate(items) if line.startswith("BU state: ")]
+    assert len(bu) == 13
+    assert [items[i + 1] for i in bu] == ["[ES-Link relays: Open]"] * 5 + \
+        ["[ES-Link relays: Closed]"] * 8
+
+
+def test_info_names_the_states(tshark, capture_file):
+    """Info says which value is the BU state and which the armed RU's state,
+    and tags every VRPI whose ES-Link relays are open."""
+    expect_frames(tshark, capture_file("eglink_states.pcap"), {
+        1: {"_ws.col.Info": "VRPI BU=Initial [relays open]"},
+        2: {"_ws.col.Info": "VRPI BU=Stopped RU 0xbeef=Stopped [relays open]"},
+        3: {"_ws.col.Info": "VRPI BU=External link error [relays open]"},
+        4: {"_ws.col.Info": "VRPI BU=Blocked [relays open]"},
+        5: {"_ws.col.Info": "VRPI BU=Failed [relays open]"},
+        6: {"_ws.col.Info": "VRPI BU=Disarmed Unarmed RUs=3"},
+        7: {"_ws.col.Info": "VRPI BU=Armed RU 0xbeef=Initial"},
+        8: {"_ws.col.Info": "VRPI BU=Armed RU 0xbeef=Disarmed"},
+        12: {"_ws.col.Info": "VRPI BU=Armed RU 0xbeef=Enabled"},
+        13: {"_ws.col.Info": "VRPI BU=Armed RU 0xbeef=Enabled J1=1000 J2=-1000 J3=1 J4=-1"},
+    })
+
+
+def test_info_relays_open_in_a_session(tshark, capture_file):
+    """The stop in eglink_analysis_session.pcap: every VRPI of it is tagged, the
+    packets around it are not."""
+    cap = capture_file("eglink_analysis_session.pcap")
+    got = tshark.frames(cap, ["eglink.type", "eglink.relays_open", "_ws.col.Info"],
+                        display_filter="frame.number >= 39 && frame.number <= 52")
+    tagged = sorted(n for n, f in got.items() if "[relays open]" in f["_ws.col.Info"])
+    assert tagged == [41, 43, 48, 50]
+    assert tagged == sorted(n for n, f in got.items() if f["eglink.relays_open"] == "1")
+    expect_frames(tshark, cap, {
+        39: {"_ws.col.Info": "VRPI BU=Armed RU 0xbeef=Enabled"},
+        41: {"_ws.col.Info": "VRPI BU=Stopped RU 0xbeef=Stopped [relays open]"},
+        50: {"_ws.col.Info": "VRPI BU=Stopped RU 0xbeef=Stopped [relays open]"},
+        52: {"_ws.col.Info": "VRPI BU=Armed RU 0xbeef=Enabled"},
+    })
+
+
+def test_info_undefined(tshark, capture_file):
+    """[undefined] on every VRPI with an undefined or out-of-range value; an
+    undefined state reads Unknown (0x..)."""
+    expect_frames(tshark, capture_file("eglink_range.pcap"), {
+        1: {"_ws.col.Info": "VRPI BU=Armed RU 0xbeef=Enabled J1=1001 J2=-1001 J3=32767 J4=-32768 "
+                            "[undefined]"},
+        2: {"_ws.col.Info": "VRPI BU=Armed RU 0xbeef=Enabled [undefined]"},
+        3: {"_ws.col.Info": "VRPI BU=Armed RU 0xbeef=Enabled [undefined]"},
+        4: {"_ws.col.Info": "VRPI BU=Armed RU 0xbeef=Armed [undefined]"},
+        5: {"_ws.col.Info": "VRPI BU=Armed RU 0xbeef=Enabled [undefined]"},
+        6: {"_ws.col.Info": "VRPI BU=Disarmed Unarmed RUs=0 J2=10 [undefined]"},
+        7: {"_ws.col.Info": "VRPI BU=Armed RU 0xbeef=Enabled"},      # spare: a warning only
+        8: {"_ws.col.Info": "VRPI BU=Unknown (0x05) [relays open] [undefined]"},
+        9: {"_ws.col.Info": "VRPI BU=Unknown (0x20) [undefined]"},
+        10: {"_ws.col.Info": "VRPI BU=Armed RU 0xbeef=Enabled [undefined]"},
+        11: {"_ws.col.Info": "VRPI BU=Armed RU 0xbeef=Unknown (0x05) [undefined]"},
+        # no RU armed, yet its state says stopped: shown, relays open
+        12: {"_ws.col.Info": "VRPI BU=Disarmed Unarmed RUs=0 RU 0x0000=Stopped [relays open] "
+                             "[undefined]"},
+    })
 
 
 def test_header_rules(tshark, capture_file):
@@ -119,23 +239,27 @@ def test_sizes(tshark, capture_file):
 
 
 def test_sizes_decode_what_fits(tshark, capture_file):
-    rows = tshark.fields(capture_file("eglink_wrong_size.pcap"),
-                         ["eglink.joystick4", "eglink.switch1", "eglink.switch4", "eglink.encoder",
-                          "eglink.extra_payload", "eglink.crc.status", "eglink.origin",
-                          "eglink.size"])
-    assert rows[0][:4] == ["400", "0", "0", "0"]          # Size wrong, all 46 bytes decoded
-    assert rows[1][:4] == ["400", "0", "0", ""]           # 30 bytes: up to switch 4
-    assert rows[2][4] == "00000000"                       # 4 bytes beyond the VRPI layout
-    assert [r[5] for r in rows[:9]] == ["1"] * 9          # the CRC is at the end of the datagram
-    assert [r[5] for r in rows[9:12]] == ["", "", ""]     # no room for a CRC
-    assert rows[9][6:8] == ["0x1001", "46"]               # header decoded as far as present
-    assert rows[10][6:8] == ["0x1001", ""]
+    cap = capture_file("eglink_wrong_size.pcap")
+    # Size wrong, all 46 bytes decoded
+    tshark.expect(cap, 1, {"eglink.joystick4": 400, "eglink.switch1": 0, "eglink.switch4": 0,
+                           "eglink.encoder": 0})
+    # 30 bytes: up to switch 4
+    tshark.expect(cap, 2, {"eglink.joystick4": 400, "eglink.switch1": 0, "eglink.switch4": 0,
+                           "eglink.encoder": None})
+    # 4 bytes beyond the VRPI layout
+    tshark.expect(cap, 3, {"eglink.extra_payload": "00000000"})
+    # the CRC is at the end of the datagram; frames 10-12 have no room for one
+    expect_frames(tshark, cap, {n: {"eglink.crc.status": 1 if n <= 9 else None}
+                                for n in range(1, 13)})
+    # the header decoded as far as present
+    tshark.expect(cap, 10, {"eglink.origin": "0x1001", "eglink.size": 46})
+    tshark.expect(cap, 11, {"eglink.origin": "0x1001", "eglink.size": None})
 
 
 def test_size_experts_are_malformed_errors(tshark, capture_file):
-    rows = tshark.fields(capture_file("eglink_wrong_size.pcap"), ["frame.number"],
-                         display_filter="_ws.expert.group == malformed && _ws.expert.severity == error")
-    assert len(rows) == 13
+    shown = tshark.frames(capture_file("eglink_wrong_size.pcap"), [],
+                          display_filter="_ws.expert.group == malformed && _ws.expert.severity == error")
+    assert sorted(shown) == list(range(1, 14))
 
 
 def test_unknown_types(tshark, capture_file):
@@ -143,6 +267,8 @@ def test_unknown_types(tshark, capture_file):
            "only the header and CRC are decoded")
     got = messages(tshark, capture_file("eglink_unknown_type.pcap"))
     assert got == {2: [msg % "VRXI"], 3: [msg % "VRPX"], 4: [msg % "VRSI"]}
-    info = tshark.field(capture_file("eglink_unknown_type.pcap"), "_ws.col.Info")
-    assert info[1:4] == ["VRXI (unknown type) 6 bytes", "VRPX (unknown type) 5 bytes",
-                         "VRSI (unknown type) 0 bytes"]
+    expect_frames(tshark, capture_file("eglink_unknown_type.pcap"), {
+        2: {"_ws.col.Info": "VRXI (unknown type) 6 bytes"},
+        3: {"_ws.col.Info": "VRPX (unknown type) 5 bytes"},
+        4: {"_ws.col.Info": "VRSI (unknown type) 0 bytes"},
+    })

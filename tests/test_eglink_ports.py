@@ -4,25 +4,31 @@ Decode As, and no false positives on other traffic."""
 import pytest
 
 from conftest import Tshark
-from eglink_testlib import gen
+from eglink_testlib import expect_frames, gen
 
 HEUR = "eglink_heuristic.pcap"
-EGLINK_FRAMES = ["1", "2", "3", "4", "5", "6", "9"]
+EGLINK_FRAMES = [1, 2, 3, 4, 5, 6, 9]
 
 
 def eglink_frames(tshark, cap, **kw):
-    return [r[0] for r in tshark.fields(cap, ["frame.number"], display_filter="eglink", **kw)]
+    """Numbers of the frames decoded as EG-Link."""
+    return sorted(tshark.frames(cap, [], display_filter="eglink", **kw))
 
 
 def test_default_ports(tshark, capture_file):
-    rows = tshark.fields(capture_file("eglink_armed.pcap"), ["udp.dstport", "eglink.type"])
-    assert {(r[0], r[1][-1]) for r in rows} == {("5825", "I"), ("5827", "O")}
-    assert all(r[1] for r in rows)
+    got = tshark.frames(capture_file("eglink_armed.pcap"), ["udp.dstport", "eglink.type"])
+    assert len(got) == 58
+    # inputs (VR.I) to 5825, outputs (VR.O) to 5827, every frame EG-Link
+    expect_frames(tshark, capture_file("eglink_armed.pcap"), {
+        n: {"udp.dstport": 5825 if f["eglink.type"].endswith("I") else 5827}
+        for n, f in got.items()})
+    assert {f["eglink.type"][-1:] for f in got.values()} == {"I", "O"}
 
 
 def test_heuristic_on_by_default(tshark, capture_file):
     assert eglink_frames(tshark, capture_file(HEUR)) == EGLINK_FRAMES
-    assert tshark.field(capture_file(HEUR), "_ws.col.Protocol")[6:8] == ["UDP", "UDP"]
+    expect_frames(tshark, capture_file(HEUR), {7: {"_ws.col.Protocol": "UDP"},
+                                               8: {"_ws.col.Protocol": "UDP"}})
 
 
 def test_heuristic_disabled(tshark, capture_file):
@@ -62,17 +68,21 @@ def test_input_port_range(tshark, capture_file):
 def test_decode_as(tshark, capture_file):
     kw = dict(prefs={"eglink.heuristic": "FALSE"})
     got = eglink_frames(tshark, capture_file(HEUR), decode_as=["udp.port==6100,eglink"], **kw)
-    assert got == ["1", "3", "6", "9"]
+    assert got == [1, 3, 6, 9]
     # Decode As shows what is on the port, even what the heuristic refuses
-    rows = tshark.fields(capture_file(HEUR), ["frame.number", "eglink.type", "_ws.col.Info"],
-                         decode_as=["udp.port==6200,eglink"], display_filter="udp.port == 6200")
-    assert [r[1] for r in rows] == ["VRPI", "VRQI"]
-    assert rows[1][2] == "VRQI (unknown type) 2 bytes"
+    kw = dict(decode_as=["udp.port==6200,eglink"], display_filter="udp.port == 6200")
+    got = tshark.frames(capture_file(HEUR), ["eglink.type", "_ws.col.Info"], **kw)
+    assert len(got) == 2
+    first, second = sorted(got)
+    expect_frames(tshark, capture_file(HEUR), {
+        first: {"eglink.type": "VRPI"},
+        second: {"eglink.type": "VRQI", "_ws.col.Info": "VRQI (unknown type) 2 bytes"}}, **kw)
 
 
 def test_unknown_type_on_port_is_shown(tshark, capture_file):
-    rows = tshark.fields(capture_file("eglink_unknown_type.pcap"), ["_ws.col.Protocol"])
-    assert [r[0] for r in rows] == ["EG-Link"] * 5
+    cap = capture_file("eglink_unknown_type.pcap")
+    got = expect_frames(tshark, cap, {n: {"_ws.col.Protocol": "EG-Link"} for n in range(1, 6)})
+    assert len(got) == 5
 
 
 def test_not_vr_on_port_is_not_eglink(tshark, work_dir):

@@ -4,7 +4,7 @@ decoded as far as it goes with expert info, a snapped frame ends in the usual
 'packet size limited' exception."""
 import pytest
 
-from eglink_testlib import gen, messages
+from eglink_testlib import expect_frames, gen, messages
 
 PACKETS = {
     "VRPI": gen.packet("VRPI", gen.armed(joysticks=(-200, 300, 0, 0)), origin=gen.BU_ORIGIN, serial=1),
@@ -24,11 +24,14 @@ def send(link, ptype, t, pkt, snap=None):
 
 
 def check_output(tshark, path):
+    """({frame: {"_ws.malformed", "_ws.short", "_ws.col.Protocol", "experts"}}, -V text)"""
     text = tshark.run(["-n", "-r", str(path), "-V"]).stdout
     assert "Dissector bug" not in text and "dissector bug" not in text
-    rows = tshark.fields(path, ["frame.number", "_ws.malformed", "_ws.short", "_ws.col.Protocol"])
+    frames = tshark.frames(path, ["_ws.malformed", "_ws.short", "_ws.col.Protocol"])
     found = messages(tshark, path)
-    return [r + [found.get(int(r[0]), [])] for r in rows], text
+    for n, fields in frames.items():
+        fields["experts"] = found.get(n, [])
+    return frames, text
 
 
 @pytest.mark.parametrize("ptype", sorted(PACKETS))
@@ -39,19 +42,20 @@ def test_short_datagram_every_length(tshark, work_dir, ptype):
         send(link, ptype, 0.001 * n, pkt[:n])
     path = work_dir / ("short_%s.pcap" % ptype)
     path.write_bytes(link.cap.to_bytes())
-    rows, text = check_output(tshark, path)
-    assert len(rows) == len(pkt) + 1
-    for n, row in enumerate(rows):
-        assert row[2] == "", "frame %d: exception" % (n + 1)
+    frames, text = check_output(tshark, path)
+    assert sorted(frames) == list(range(1, len(pkt) + 2))
+    for frame, got in sorted(frames.items()):
+        n = frame - 1                       # bytes of the packet in this datagram
+        assert got["_ws.short"] == "", "frame %d: exception" % frame
         if n < 2:
-            assert row[3] != "EG-Link"
+            assert got["_ws.col.Protocol"] != "EG-Link", "frame %d" % frame
             continue
-        assert row[3] == "EG-Link"
+        assert got["_ws.col.Protocol"] == "EG-Link", "frame %d" % frame
         if n < len(pkt):
             # a cut packet is always reported, as too short, wrong size or bad CRC
-            assert row[4], "no expert info for %d bytes" % n
+            assert got["experts"], "no expert info for %d bytes" % n
         else:
-            assert row[1] == "" and row[4] == []
+            assert got["_ws.malformed"] == "" and got["experts"] == [], "frame %d" % frame
     assert "Exception occurred" not in text
 
 
@@ -63,25 +67,51 @@ def test_snapped_every_length(tshark, work_dir, ptype):
         send(link, ptype, 0.001 * cut, pkt, snap=cut)
     path = work_dir / ("snapped_%s.pcap" % ptype)
     path.write_bytes(link.cap.to_bytes())
-    rows, _ = check_output(tshark, path)
-    assert len(rows) == len(pkt)
-    for row in rows:
+    frames, _ = check_output(tshark, path)
+    assert sorted(frames) == list(range(1, len(pkt) + 1))
+    for frame, got in sorted(frames.items()):
         # only the ordinary truncation exception, never a malformed packet
-        assert row[1] == "", "frame %s: malformed" % row[0]
-        assert row[2].startswith("[Packet size limited during capture"), \
-            "frame %s: no truncation shown" % row[0]
+        assert got["_ws.malformed"] == "", "frame %d: malformed" % frame
+        assert got["_ws.short"].startswith("[Packet size limited during capture"), \
+            "frame %d: no truncation shown" % frame
 
 
 def test_shipped_truncated_capture(tshark, capture_file):
-    rows = tshark.fields(capture_file("eglink_truncated.pcap"),
-                         ["eglink.type", "_ws.short", "_ws.malformed", "_ws.col.Info"])
-    assert [r[1] for r in rows] == ["[Packet size limited during capture: EG-Link truncated]"] * 6
-    assert [r[2] for r in rows] == [""] * 6
-    assert [r[3] for r in rows] == [
-        "VRPI Armed RU=0xbeef Enabled[Packet size limited during capture]",
-        "VRPO Pkt=0 64 bytes[Packet size limited during capture]",
-        "VRCI Cmd=8[Packet size limited during capture]",
-        "VRCO[Packet size limited during capture]",
-        "VRAI Cmd=8[Packet size limited during capture]",
-        "VRA[Packet size limited during capture]",
-    ]
+    short = "[Packet size limited during capture: EG-Link truncated]"
+    info = ["VRPI BU=Armed RU 0xbeef=Enabled J1=-500[Packet size limited during capture]",
+            "VRPO Pkt=0 64 bytes[Packet size limited during capture]",
+            "VRCI Cmd=8[Packet size limited during capture]",
+            "VRCO[Packet size limited during capture]",
+            "VRAI Cmd=8[Packet size limited during capture]",
+            "VRA[Packet size limited during capture]"]
+    got = expect_frames(tshark, capture_file("eglink_truncated.pcap"), {
+        n: {"_ws.short": short, "_ws.malformed": None, "_ws.col.Info": text}
+        for n, text in enumerate(info, 1)})
+    assert len(got) == 6
+
+
+def test_snapped_vrpi_still_says_relays_open(tshark, work_dir):
+    """Info is written from the bytes the capture holds before the tree is
+    built, so a VRPI cut by the snap length still names its states and tags
+    open relays; the relays item is left out only when the capture cannot tell."""
+    vrpi_len = 16 + 46 + 4
+    link = gen.Link()
+    # BU Stopped: only the BU state byte captured
+    link.bu(0.0, "VRPI", gen.vrpi(bu_state=0x01, armed_ru=gen.ARMED_RU, ru_state=4),
+            origin=gen.BU_ORIGIN, snap=vrpi_len - 17)
+    # BU Armed, RU stopped: captured up to the RU state
+    link.bu(0.1, "VRPI", gen.armed(ru_state=4), origin=gen.BU_ORIGIN,
+            snap=vrpi_len - 25)
+    # BU Armed, the RU state cut off: the relays cannot be told
+    link.bu(0.2, "VRPI", gen.armed(), origin=gen.BU_ORIGIN, snap=vrpi_len - 21)
+    path = work_dir / "snapped_relays.pcap"
+    path.write_bytes(link.cap.to_bytes())
+    limited = "[Packet size limited during capture]"
+    expect_frames(tshark, path, {
+        1: {"_ws.col.Info": "VRPI BU=Stopped [relays open]" + limited,
+            "eglink.relays_open": True, "_ws.malformed": None},
+        2: {"_ws.col.Info": "VRPI BU=Armed RU 0xbeef=Stopped [relays open]" + limited,
+            "eglink.relays_open": True, "_ws.malformed": None},
+        3: {"_ws.col.Info": "VRPI BU=Armed" + limited, "eglink.relays_open": None,
+            "_ws.malformed": None},
+    })

@@ -88,6 +88,15 @@ def test_colours_e010_and_bad_crc(profile_conf):
     assert rules["vrshark: bad CRC"] in set(rows.values())
 
 
+def test_colours_eglink_undefined_statuses(profile_conf):
+    rules = rule_colours()
+    rows = coloured_rows(profile_conf, "eglink_range.pcap")
+    # RU disabled 4, BU state 0x20, link statuses 7/200/9, RU state 5
+    for n in (4, 9, 10, 11):
+        assert rows[n] == rules["vrshark: undefined status"], n
+    assert rows[8] == rules["vrshark: ES-Link relays open"]   # BU state 0x05: relays first
+
+
 def test_filter_buttons_compile(profile_conf):
     buttons = re.findall(r'^"TRUE","([^"]+)","([^"]+)"', (PROFILE / "dfilter_buttons").read_text(), re.M)
     assert [b[0] for b in buttons] == ["Safety", "Faults", "Commands", "EG-Link", "EC-Link", "MC-MB2"]

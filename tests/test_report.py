@@ -187,7 +187,7 @@ TIMELINES = {
     "eglink_header.pcap": [
         (1, 'warning', 1, 'unknown layout revision'),
         (2, 'warning', 1, 'origin not 0 in a controller packet (3x, frames 2-4 over 0.020 s)'),
-        (5, 'note', 1, 'origin 0 in a BU packet (2x, frames 5-6 over 0.010 s)'),
+        (5, 'warning', 1, 'origin 0 in a BU packet (2x, frames 5-6 over 0.010 s)'),
         (5, 'warning', 1, 'another origin at the same BU address (2x, frames 5-7 over 0.020 s)'),
         (7, 'warning', 1, 'header spare not 0'),
         (8, 'warning', 1, 'payload spare not 0 (2x, frames 8-9 over 0.010 s)'),

@@ -7,7 +7,7 @@ import pytest
 from tools.capgen.frames import TcpConnection
 from tools.capgen.pcap import Capture
 
-from conftest import CAPTURES
+from conftest import CAPTURES, assert_fields
 
 
 def _records(path):
@@ -43,13 +43,15 @@ def short_pn_rt(work_dir):
 
 def test_short_pn_rt_frames(tshark, short_pn_rt):
     path, n_connect = short_pn_rt
-    rows = tshark.fields(path, ["frame.number", "_ws.malformed", "mcmb2.status"])
-    malformed = [int(r[0]) for r in rows if r[1]]
+    frames = tshark.frames(path, ["_ws.malformed", "mcmb2.status"])
+    malformed = [n for n, f in frames.items() if f["_ws.malformed"]]
     # PN-RT reports frames cut to 15..20 bytes (and ours stays out); the
     # 24-byte cut passes PN-RT and gets our own "C-SDU too short" finding.
     assert malformed == list(range(n_connect + 1, n_connect + 7))
-    assert all(not r[2] for r in rows[:-1])
-    assert rows[-1][2] == "0x00"
+    last = max(frames)
+    for n in range(1, last):
+        assert_fields(frames[n], {"mcmb2.status": None}, "frame %d" % n)
+    assert_fields(frames[last], {"mcmb2.status": 0}, "the whole frame")
     # Wireshark's own PNIO decoding of the cut frames differs between the
     # passes (it learns from the Connect); ours does not.
     ours = ["frame.number", "mcmb2.status", "mcmb2.uplink_watchdog", "mcmb2.uplink_data"]
@@ -67,7 +69,8 @@ def test_malformed_modbus_pdu(tshark, work_dir):
     path.write_bytes(cap.to_bytes())
     path.chmod(0o644)
     prefs = {"eclink_modbus.detection": "always"}
-    rows = tshark.fields(path, ["frame.number", "_ws.malformed", "modbus.func_code"], prefs=prefs)
-    assert [r[0] for r in rows if r[1]] == ["6"]
-    assert "Malformed Packet: Modbus" in rows[-1][1] and rows[-1][2] == "16"
+    frames = tshark.frames(path, ["_ws.malformed", "modbus.func_code"], prefs=prefs)
+    assert [n for n, f in frames.items() if f["_ws.malformed"]] == [6]
+    assert "Malformed Packet: Modbus" in frames[6]["_ws.malformed"]
+    assert_fields(frames[6], {"modbus.func_code": 16}, "frame 6")
     assert tshark.experts(path, prefs=prefs) == tshark.experts(path, prefs=prefs, two_pass=True)

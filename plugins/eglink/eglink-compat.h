@@ -13,6 +13,11 @@
  *   Wireshark's headers want (VRSHARK_WS_*_BOOL); without those tests the
  *   version decides.
  * - true_false_string (tfs.h) is no longer included by epan/proto.h from 4.6.
+ * - plugin_describe() and wsutil/plugins.h exist from 4.2 on:
+ *   EGLINK_HAVE_PLUGIN_DESCRIBE says so (plugin.c).
+ *
+ * No other file of the plugin compares Wireshark versions or tests the
+ * VRSHARK_WS_* results itself (tests/test_eglink_compat.py checks that).
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -46,6 +51,11 @@
 #define tvb_find_uint8  tvb_find_guint8
 #define tvb_find_uint16 tvb_find_guint16
 #define tvb_skip_uint8  tvb_skip_guint8
+#endif
+
+#if EGLINK_WS_AT_LEAST(4, 2)
+#include <wsutil/plugins.h>
+#define EGLINK_HAVE_PLUGIN_DESCRIBE 1
 #endif
 
 #if !EGLINK_WS_AT_LEAST(4, 6)

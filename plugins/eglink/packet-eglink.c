@@ -20,12 +20,10 @@
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
-#include <wireshark.h>
-#include <ws_version.h>
-#include <epan/packet.h>
+#include "eglink-compat.h"
+
 #include <epan/expert.h>
 #include <epan/prefs.h>
-#include <epan/tfs.h>
 #include <epan/unit_strings.h>
 #include <epan/crc32-tvb.h>
 #include <wsutil/crc32.h>
@@ -34,22 +32,6 @@
 
 void proto_register_eglink(void);
 void proto_reg_handoff_eglink(void);
-
-/* One source for Wireshark 4.0 through 4.6: 4.2 moved heuristic dissectors and
- * boolean preferences from gboolean to bool, 4.4 renamed tvb_get_guint8(). */
-#define EGLINK_WS_AT_LEAST(major, minor) \
-    (WIRESHARK_VERSION_MAJOR > (major) || \
-     (WIRESHARK_VERSION_MAJOR == (major) && WIRESHARK_VERSION_MINOR >= (minor)))
-#if EGLINK_WS_AT_LEAST(4, 2)
-typedef bool eglink_bool_t;
-#else
-typedef gboolean eglink_bool_t;
-#endif
-#if EGLINK_WS_AT_LEAST(4, 4)
-#define eglink_get_u8 tvb_get_uint8
-#else
-#define eglink_get_u8 tvb_get_guint8
-#endif
 
 #define EGLINK_DEFAULT_INPUT_PORTS  "5825"
 #define EGLINK_OUTPUT_PORT_OFFSET   2
@@ -172,7 +154,7 @@ static range_t *eglink_input_ports;
 static range_t *eglink_registered_ports;
 static gint eglink_crc_variant = EGLINK_CRC_MPEG2;
 static gint eglink_crc_order = EGLINK_CRC_LE;
-static eglink_bool_t eglink_heuristic = TRUE;
+static eglink_pref_bool_t eglink_heuristic = TRUE;
 
 /* Value strings */
 static const value_string eglink_type_descr[] = {
@@ -256,6 +238,10 @@ static const value_string eglink_encoder_switch_vals[] = {
 
 static const true_false_string tfs_eglink_relays = { "Open", "Closed" };
 
+/* "87 %": a space before the unit, as everywhere in vrshark (Wireshark's
+ * units_percent has none). */
+static const unit_name_string eglink_units_percent = { " %", NULL };
+
 /* Type from the packet ID; "VR" already checked. */
 static eglink_type_t
 eglink_type_from_id(guint8 kind, guint8 dir)
@@ -327,6 +313,7 @@ typedef struct {
     proto_tree *tree;
     int base;           /* payload offset in tvb */
     int len;            /* payload bytes actually present (UDP length - 20) */
+    gboolean undefined; /* an undefined or out-of-range value was found */
 } eglink_payload_t;
 
 /* Adds an unsigned payload field if it fits; FALSE (and *value 0) if not. */
@@ -384,7 +371,7 @@ eglink_check_payload_spare(eglink_payload_t *p, int off, int len)
     int i;
 
     for (i = 0; i < present; i++) {
-        if (eglink_get_u8(p->tvb, p->base + off + i) != 0) {
+        if (tvb_get_uint8(p->tvb, p->base + off + i) != 0) {
             expert_add_info_format(p->pinfo, ti, &ei_eglink_payload_spare_nonzero,
                 "Payload spare bytes are not 0: reserved for future use, the sender "
                 "may use a newer layout than TS-0006");
@@ -393,20 +380,60 @@ eglink_check_payload_spare(eglink_payload_t *p, int off, int len)
     }
 }
 
+/* An undefined or out-of-range value: an error in the Protocol group (the
+ * "one voice" table of the README), and the Info tag [undefined]. */
 static void
-eglink_check_flag(eglink_payload_t *p, proto_item *ti, const char *name, guint32 value)
+eglink_undefined(eglink_payload_t *p, proto_item *ti, expert_field *ei, const char *format, ...)
+    G_GNUC_PRINTF(4, 5);
+
+static void
+eglink_undefined(eglink_payload_t *p, proto_item *ti, expert_field *ei, const char *format, ...)
 {
-    if (value > 1)
-        expert_add_info_format(p->pinfo, ti, &ei_eglink_flag_invalid,
-            "%s is %u: only 0 and 1 are defined", name, value);
+    va_list ap;
+    char *text;
+
+    va_start(ap, format);
+    text = wmem_strdup_vprintf(p->pinfo->pool, format, ap);
+    va_end(ap);
+    expert_add_info_format(p->pinfo, ti, ei, "%s", text);
+    p->undefined = TRUE;
+}
+
+/* A value a value_string does not name reads "Unknown (0x42)", in the tree as
+ * everywhere else (Wireshark would print a decimal field as "Unknown (66)"). */
+static const char *
+eglink_value_name(packet_info *pinfo, guint32 value, const value_string *vals)
+{
+    const char *name = try_val_to_str(value, vals);
+
+    return name ? name : wmem_strdup_printf(pinfo->pool, "Unknown (0x%02x)", value);
 }
 
 static void
-eglink_check_link_status(eglink_payload_t *p, proto_item *ti, const char *name, guint32 value)
+eglink_show_unknown(proto_item *ti, int hf, guint32 value)
 {
-    if (value > 6)
-        expert_add_info_format(p->pinfo, ti, &ei_eglink_link_status_unknown,
-            "%s %u is not a defined link status (0..6)", name, value);
+    proto_item_set_text(ti, "%s: Unknown (0x%02x)", proto_registrar_get_name(hf), value);
+}
+
+/* A 0/1 field (cable, docked, encoder switch) with its value names. */
+static void
+eglink_check_flag(eglink_payload_t *p, proto_item *ti, int hf, const char *name, guint32 value)
+{
+    if (value <= 1)
+        return;
+    eglink_show_unknown(ti, hf, value);
+    eglink_undefined(p, ti, &ei_eglink_flag_invalid,
+        "%s Unknown (0x%02x): only 0 and 1 are defined", name, value);
+}
+
+static void
+eglink_check_link_status(eglink_payload_t *p, proto_item *ti, int hf, const char *name, guint32 value)
+{
+    if (try_val_to_str(value, eglink_link_status_vals))
+        return;
+    eglink_show_unknown(ti, hf, value);
+    eglink_undefined(p, ti, &ei_eglink_link_status_unknown,
+        "%s Unknown (0x%02x): defined are 0..6", name, value);
 }
 
 static void
@@ -414,7 +441,7 @@ eglink_check_percent(eglink_payload_t *p, proto_item *ti, expert_field *ei, cons
                      guint32 value)
 {
     if (value > 100)
-        expert_add_info_format(p->pinfo, ti, ei, "%s %u %% is above 100 %%", name, value);
+        eglink_undefined(p, ti, ei, "%s %u %% is above 100 %%", name, value);
 }
 
 /* With Armed RU 0 every RU field after it must be 0: name the ones that are not. */
@@ -440,85 +467,131 @@ eglink_check_unarmed(eglink_payload_t *p, proto_item *armed_ti)
     for (i = 0; i < array_length(ru_fields); i++) {
         if (ru_fields[i].offset + ru_fields[i].len > p->len)
             break;
-        if ((ru_fields[i].len == 1 ? eglink_get_u8(p->tvb, p->base + ru_fields[i].offset)
+        if ((ru_fields[i].len == 1 ? tvb_get_uint8(p->tvb, p->base + ru_fields[i].offset)
                                    : tvb_get_letohs(p->tvb, p->base + ru_fields[i].offset)) != 0)
             wmem_strbuf_append_printf(names, "%s%s", wmem_strbuf_get_len(names) ? ", " : "",
                                       ru_fields[i].name);
     }
     if (wmem_strbuf_get_len(names))
-        expert_add_info_format(p->pinfo, armed_ti, &ei_eglink_unarmed_data,
+        eglink_undefined(p, armed_ti, &ei_eglink_unarmed_data,
             "No RU is armed (Armed RU 0) but these RU fields are not 0: %s",
             wmem_strbuf_get_str(names));
 }
 
-/* VRPI: BU status and the armed RU's controls. */
+/* Payload bytes both in the packet and in the capture. */
+static int
+eglink_payload_captured(const eglink_payload_t *p)
+{
+    return MAX(0, MIN(p->len, tvb_captured_length_remaining(p->tvb, p->base)));
+}
+
+/* Whether the ES-Link relays are open: below Disarmed, or with the armed RU
+ * stopped. FALSE when the capture cannot tell (RU state cut off by the snap
+ * length); a packet without an RU state is judged by its BU state. */
+static gboolean
+eglink_vrpi_relays(const eglink_payload_t *p, guint32 bu_state, gboolean *open)
+{
+    *open = bu_state < EGLINK_BU_STATE_DISARMED;
+    if (*open || p->len < 9)
+        return TRUE;
+    if (eglink_payload_captured(p) < 9)
+        return FALSE;
+    *open = tvb_get_uint8(p->tvb, p->base + 8) == EGLINK_RU_STATE_STOPPED;
+    return TRUE;
+}
+
+/* Info of a VRPI names what each value is: "BU=Armed RU 0xbeef=Enabled
+ * J1=-1000", the unarmed RUs while the BU is Disarmed, then [relays open].
+ * Written from the bytes at hand before the tree, so that a frame cut by the
+ * snap length still says whether the relays are open. */
+static void
+eglink_vrpi_info(const eglink_payload_t *p, guint32 bu_state, gboolean relays_open)
+{
+    int have = eglink_payload_captured(p);
+    guint32 armed_ru, ru_state;
+    gint16 joystick;
+    int i;
+
+    col_append_fstr(p->pinfo->cinfo, COL_INFO, " BU=%s",
+                    eglink_value_name(p->pinfo, bu_state, eglink_bu_state_vals));
+    if (have >= 3 && bu_state == EGLINK_BU_STATE_DISARMED)
+        col_append_fstr(p->pinfo->cinfo, COL_INFO, " Unarmed RUs=%u", tvb_get_uint8(p->tvb, p->base + 2));
+    /* the RU part: when an RU is armed, or the RU state says otherwise */
+    if (have >= 8) {
+        armed_ru = tvb_get_letohs(p->tvb, p->base + 6);
+        ru_state = have >= 9 ? tvb_get_uint8(p->tvb, p->base + 8) : 0;
+        if (armed_ru != 0 || ru_state != 0) {
+            col_append_fstr(p->pinfo->cinfo, COL_INFO, " RU 0x%04x", armed_ru);
+            if (have >= 9)
+                col_append_fstr(p->pinfo->cinfo, COL_INFO, "=%s",
+                                eglink_value_name(p->pinfo, ru_state, eglink_ru_state_vals));
+        }
+    }
+    for (i = 0; i < 4 && have >= 16 + 2 * i; i++) {
+        joystick = (gint16)tvb_get_letohs(p->tvb, p->base + 14 + 2 * i);
+        if (joystick)
+            col_append_fstr(p->pinfo->cinfo, COL_INFO, " J%d=%d", i + 1, joystick);
+    }
+    if (relays_open)
+        col_append_str(p->pinfo->cinfo, COL_INFO, " [relays open]");
+}
+
+/* VRPI: BU status and the armed RU's controls. Info: eglink_vrpi_info(), and
+ * [undefined] after any undefined or out-of-range value. */
 static void
 dissect_eglink_vrpi(eglink_payload_t *p, eglink_info_t *info)
 {
-    proto_item *ti, *bu_ti, *armed_ti;
-    guint32 bu_state, value, armed_ru, ru_state = 0;
+    proto_item *ti, *bu_ti, *armed_ti, *ru_ti;
+    guint32 bu_state, value, armed_ru, ru_state;
     gint32 svalue;
-    gboolean have_bu, have_armed, have_ru_state;
-    gint32 joysticks[4] = { 0, 0, 0, 0 };
-    char name[16];
+    gboolean have_armed, relays_known, relays_open;
     int i;
 
-    have_bu = eglink_add_uint(p, hf_eglink_bu_state, 0, 1, &bu_state, &bu_ti);
-    if (!have_bu) {
+    if (!eglink_add_uint(p, hf_eglink_bu_state, 0, 1, &bu_state, &bu_ti)) {
         col_append_str(p->pinfo->cinfo, COL_INFO, " (truncated)");
         return;
     }
     info->has_bu_state = TRUE;
     info->bu_state = (guint8)bu_state;
-    if (try_val_to_str(bu_state, eglink_bu_state_vals))
-        col_append_fstr(p->pinfo->cinfo, COL_INFO, " %s", val_to_str_const(bu_state, eglink_bu_state_vals, ""));
-    else
-        col_append_fstr(p->pinfo->cinfo, COL_INFO, " BU state 0x%02x", bu_state);
-    if (try_val_to_str(bu_state, eglink_bu_state_vals) == NULL)
-        expert_add_info_format(p->pinfo, bu_ti, &ei_eglink_bu_state_unknown,
-            "BU state 0x%02x is not defined in TS-0006", bu_state);
+    relays_known = eglink_vrpi_relays(p, bu_state, &relays_open);
+    eglink_vrpi_info(p, bu_state, relays_known && relays_open);
+    if (try_val_to_str(bu_state, eglink_bu_state_vals) == NULL) {
+        eglink_show_unknown(bu_ti, hf_eglink_bu_state, bu_state);
+        eglink_undefined(p, bu_ti, &ei_eglink_bu_state_unknown,
+            "BU state Unknown (0x%02x): not defined in TS-0006", bu_state);
+    }
 
-    /* ES-Link relays: open below Disarmed or when the armed RU is stopped. */
-    if (p->len >= 9)
-        ru_state = eglink_get_u8(p->tvb, p->base + 8);
-    ti = proto_tree_add_boolean(p->tree, hf_eglink_relays_open, p->tvb, p->base, 1,
-                                bu_state < EGLINK_BU_STATE_DISARMED ||
-                                ru_state == EGLINK_RU_STATE_STOPPED);
-    proto_item_set_generated(ti);
+    /* ES-Link relays, right below the BU state */
+    if (relays_known) {
+        ti = proto_tree_add_boolean(p->tree, hf_eglink_relays_open, p->tvb, p->base, 1, relays_open);
+        proto_item_set_generated(ti);
+    }
     if (bu_state < EGLINK_BU_STATE_DISARMED)
         expert_add_info_format(p->pinfo, bu_ti, &ei_eglink_relays_open,
             "ES-Link relays open: BU state %s (0x%02x), %s",
-            val_to_str_const(bu_state, eglink_bu_state_vals, "undefined"), bu_state,
+            val_to_str_const(bu_state, eglink_bu_state_vals, "Unknown"), bu_state,
             val_to_str_const(bu_state, eglink_bu_state_advice, "an undefined state below Disarmed"));
 
     if (eglink_add_uint(p, hf_eglink_vlaps, 1, 1, &value, &ti) && value > 3)
-        expert_add_info_format(p->pinfo, ti, &ei_eglink_vlaps_range,
-            "%u VLAPs reported: a BU has at most 3", value);
-    if (eglink_add_uint(p, hf_eglink_unarmed_rus, 2, 1, &value, NULL) &&
-        bu_state == EGLINK_BU_STATE_DISARMED)
-        col_append_fstr(p->pinfo->cinfo, COL_INFO, " Unarmed RUs=%u", value);
+        eglink_undefined(p, ti, &ei_eglink_vlaps_range, "%u VLAPs reported: a BU has at most 3", value);
+    eglink_add_uint(p, hf_eglink_unarmed_rus, 2, 1, &value, NULL);
     if (eglink_add_uint(p, hf_eglink_eg_link_status, 3, 1, &value, &ti))
-        eglink_check_link_status(p, ti, "EG-Link status", value);
+        eglink_check_link_status(p, ti, hf_eglink_eg_link_status, "EG-Link status", value);
     if (eglink_add_uint(p, hf_eglink_ec_link_status, 4, 1, &value, &ti))
-        eglink_check_link_status(p, ti, "EC-Link status", value);
+        eglink_check_link_status(p, ti, hf_eglink_ec_link_status, "EC-Link status", value);
     if (eglink_add_uint(p, hf_eglink_c_link_status, 5, 1, &value, &ti))
-        eglink_check_link_status(p, ti, "C-Link status", value);
+        eglink_check_link_status(p, ti, hf_eglink_c_link_status, "C-Link status", value);
 
     have_armed = eglink_add_uint(p, hf_eglink_armed_ru, 6, 2, &armed_ru, &armed_ti);
-    have_ru_state = eglink_add_uint(p, hf_eglink_ru_state, 8, 1, &ru_state, &ti);
-    if (have_armed && armed_ru != 0) {
-        col_append_fstr(p->pinfo->cinfo, COL_INFO, " RU=0x%04x", armed_ru);
-        if (have_ru_state)
-            col_append_fstr(p->pinfo->cinfo, COL_INFO, " %s",
-                            val_to_str_const(ru_state, eglink_ru_state_vals, "RU state unknown"));
-    }
-    if (have_ru_state) {
+    if (eglink_add_uint(p, hf_eglink_ru_state, 8, 1, &ru_state, &ru_ti)) {
         if (ru_state == EGLINK_RU_STATE_STOPPED)
-            expert_add_info_format(p->pinfo, ti, &ei_eglink_ru_state_stopped,
+            expert_add_info_format(p->pinfo, ru_ti, &ei_eglink_ru_state_stopped,
                 "RU stopped (stop switch, free-fall/shock sensor or RU fault): ES-Link relays open");
-        else if (try_val_to_str(ru_state, eglink_ru_state_vals) == NULL)
-            expert_add_info_format(p->pinfo, ti, &ei_eglink_ru_state_unknown,
-                "RU state %u is not defined in TS-0006 (0..4)", ru_state);
+        else if (try_val_to_str(ru_state, eglink_ru_state_vals) == NULL) {
+            eglink_show_unknown(ru_ti, hf_eglink_ru_state, ru_state);
+            eglink_undefined(p, ru_ti, &ei_eglink_ru_state_unknown,
+                "RU state Unknown (0x%02x): defined are 0..4", ru_state);
+        }
     }
 
     if (eglink_add_uint(p, hf_eglink_ru_battery, 9, 1, &value, &ti))
@@ -526,19 +599,22 @@ dissect_eglink_vrpi(eglink_payload_t *p, eglink_info_t *info)
     if (eglink_add_uint(p, hf_eglink_ru_rssi, 10, 1, &value, &ti))
         eglink_check_percent(p, ti, &ei_eglink_ru_rssi_range, "RU C-Link RSSI", value);
     if (eglink_add_uint(p, hf_eglink_ru_cable, 11, 1, &value, &ti))
-        eglink_check_flag(p, ti, "RU cable", value);
+        eglink_check_flag(p, ti, hf_eglink_ru_cable, "RU cable", value);
     if (eglink_add_uint(p, hf_eglink_ru_docked, 12, 1, &value, &ti))
-        eglink_check_flag(p, ti, "RU docked", value);
-    if (eglink_add_uint(p, hf_eglink_ru_disabled, 13, 1, &value, &ti) && value > 3)
-        expert_add_info_format(p->pinfo, ti, &ei_eglink_ru_disabled_unknown,
-            "RU disabled reason %u is not defined (0 enabled, 1 tilted, 2 inactivity, 3 other)", value);
+        eglink_check_flag(p, ti, hf_eglink_ru_docked, "RU docked", value);
+    if (eglink_add_uint(p, hf_eglink_ru_disabled, 13, 1, &value, &ti) &&
+        try_val_to_str(value, eglink_ru_disabled_vals) == NULL) {
+        eglink_show_unknown(ti, hf_eglink_ru_disabled, value);
+        eglink_undefined(p, ti, &ei_eglink_ru_disabled_unknown,
+            "RU disabled reason Unknown (0x%02x): defined are 0 enabled, 1 tilted, 2 inactivity, "
+            "3 other", value);
+    }
 
     for (i = 0; i < 4; i++) {
         if (!eglink_add_int(p, hf_eglink_joystick[i], 14 + 2 * i, 2, &svalue, &ti))
             break;
-        joysticks[i] = svalue;
         if (svalue < -EGLINK_JOYSTICK_LIMIT || svalue > EGLINK_JOYSTICK_LIMIT)
-            expert_add_info_format(p->pinfo, ti, &ei_eglink_joystick_range,
+            eglink_undefined(p, ti, &ei_eglink_joystick_range,
                 "Joystick %d position %d is outside -1000..+1000", i + 1, svalue);
     }
     for (i = 0; i < 8; i++) {
@@ -547,17 +623,14 @@ dissect_eglink_vrpi(eglink_payload_t *p, eglink_info_t *info)
     }
     eglink_add_uint(p, hf_eglink_encoder, 38, 1, &value, NULL);
     if (eglink_add_uint(p, hf_eglink_encoder_switch, 39, 1, &value, &ti))
-        eglink_check_flag(p, ti, "Encoder switch", value);
+        eglink_check_flag(p, ti, hf_eglink_encoder_switch, "Encoder switch", value);
     eglink_check_payload_spare(p, 40, 6);
 
     if (have_armed && armed_ru == 0)
         eglink_check_unarmed(p, armed_ti);
 
-    for (i = 0; i < 4; i++) {
-        snprintf(name, sizeof name, " J%d=%d", i + 1, joysticks[i]);
-        if (joysticks[i])
-            col_append_str(p->pinfo->cinfo, COL_INFO, name);
-    }
+    if (p->undefined)
+        col_append_str(p->pinfo->cinfo, COL_INFO, " [undefined]");
 }
 
 static dissector_table_t eglink_data_table;
@@ -711,7 +784,7 @@ dissect_eglink(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data _
     int min_len, max_len;
     const char *id;
 
-    if (tvb_captured_length(tvb) < 2 || eglink_get_u8(tvb, 0) != 'V' || eglink_get_u8(tvb, 1) != 'R')
+    if (tvb_captured_length(tvb) < 2 || tvb_get_uint8(tvb, 0) != 'V' || tvb_get_uint8(tvb, 1) != 'R')
         return 0;
 
     memset(&info, 0, sizeof info);
@@ -727,7 +800,7 @@ dissect_eglink(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data _
     col_add_str(pinfo->cinfo, COL_INFO, id);
     proto_item_append_text(eglink_item, ", %s", id);
     if (reported >= 4) {
-        info.type = eglink_type_from_id(eglink_get_u8(tvb, 2), eglink_get_u8(tvb, 3));
+        info.type = eglink_type_from_id(tvb_get_uint8(tvb, 2), tvb_get_uint8(tvb, 3));
         ti = proto_tree_add_item(eglink_tree, hf_eglink_type, tvb, 0, 4, ENC_ASCII);
         proto_item_append_text(ti, " (%s)", val_to_str_const(info.type, eglink_type_descr, ""));
     }
@@ -779,6 +852,7 @@ dissect_eglink(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data _
     p.pinfo = pinfo;
     p.base = EGLINK_HEADER_LEN;
     p.len = reported - EGLINK_MIN_LEN;
+    p.undefined = FALSE;
     info.size_ok = TRUE;
     if (info.size != p.len) {
         info.size_ok = FALSE;
@@ -833,7 +907,7 @@ dissect_eglink(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data _
 }
 
 /* Heuristic: "VR", a defined type, and a Size that matches the datagram. */
-static eglink_bool_t
+static eglink_heur_bool_t
 dissect_eglink_heur(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
 {
     int min_len, max_len;
@@ -844,9 +918,9 @@ dissect_eglink_heur(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *d
         return FALSE;
     if (tvb_captured_length(tvb) < EGLINK_HEADER_LEN || tvb_reported_length(tvb) < EGLINK_MIN_LEN)
         return FALSE;
-    if (eglink_get_u8(tvb, 0) != 'V' || eglink_get_u8(tvb, 1) != 'R')
+    if (tvb_get_uint8(tvb, 0) != 'V' || tvb_get_uint8(tvb, 1) != 'R')
         return FALSE;
-    type = eglink_type_from_id(eglink_get_u8(tvb, 2), eglink_get_u8(tvb, 3));
+    type = eglink_type_from_id(tvb_get_uint8(tvb, 2), tvb_get_uint8(tvb, 3));
     if (type == EGLINK_TYPE_UNKNOWN)
         return FALSE;
     payload_len = (int)tvb_reported_length(tvb) - EGLINK_MIN_LEN;
@@ -928,10 +1002,10 @@ proto_register_eglink(void)
           { "RU state", "eglink.ru_state", FT_UINT8, BASE_DEC, VALS(eglink_ru_state_vals), 0x0,
             "State of the armed RU", HFILL } },
         { &hf_eglink_ru_battery,
-          { "RU battery", "eglink.ru_battery", FT_UINT8, BASE_DEC | BASE_UNIT_STRING, &units_percent, 0x0,
+          { "RU battery", "eglink.ru_battery", FT_UINT8, BASE_DEC | BASE_UNIT_STRING, &eglink_units_percent, 0x0,
             "Battery level of the armed RU (0..100 %)", HFILL } },
         { &hf_eglink_ru_rssi,
-          { "RU C-Link RSSI", "eglink.ru_rssi", FT_UINT8, BASE_DEC | BASE_UNIT_STRING, &units_percent, 0x0,
+          { "RU C-Link RSSI", "eglink.ru_rssi", FT_UINT8, BASE_DEC | BASE_UNIT_STRING, &eglink_units_percent, 0x0,
             "C-Link signal level of the armed RU (0..100 %)", HFILL } },
         { &hf_eglink_ru_cable,
           { "RU cable", "eglink.ru_cable", FT_UINT8, BASE_DEC, VALS(eglink_ru_cable_vals), 0x0,
@@ -1025,7 +1099,7 @@ proto_register_eglink(void)
           { "eglink.origin.nonzero", PI_PROTOCOL, PI_WARN,
             "Origin must be 0 in packets from the machine controller", EXPFILL } },
         { &ei_eglink_origin_zero,
-          { "eglink.origin.zero", PI_PROTOCOL, PI_NOTE,
+          { "eglink.origin.zero", PI_PROTOCOL, PI_WARN,
             "Origin is 0 in a packet from the BU", EXPFILL } },
         { &ei_eglink_spare_nonzero,
           { "eglink.spare.nonzero", PI_PROTOCOL, PI_WARN,
@@ -1043,37 +1117,37 @@ proto_register_eglink(void)
           { "eglink.bu_state.relays_open", PI_RESPONSE_CODE, PI_WARN,
             "ES-Link relays open", EXPFILL } },
         { &ei_eglink_bu_state_unknown,
-          { "eglink.bu_state.unknown", PI_PROTOCOL, PI_WARN,
+          { "eglink.bu_state.unknown", PI_PROTOCOL, PI_ERROR,
             "BU state is not defined", EXPFILL } },
         { &ei_eglink_link_status_unknown,
-          { "eglink.link_status.unknown", PI_PROTOCOL, PI_WARN,
+          { "eglink.link_status.unknown", PI_PROTOCOL, PI_ERROR,
             "Link status is not defined (0..6)", EXPFILL } },
         { &ei_eglink_vlaps_range,
-          { "eglink.vlaps.range", PI_PROTOCOL, PI_WARN,
+          { "eglink.vlaps.range", PI_PROTOCOL, PI_ERROR,
             "More than 3 VLAPs", EXPFILL } },
         { &ei_eglink_ru_state_stopped,
           { "eglink.ru_state.stopped", PI_RESPONSE_CODE, PI_WARN,
             "RU stopped: ES-Link relays open", EXPFILL } },
         { &ei_eglink_ru_state_unknown,
-          { "eglink.ru_state.unknown", PI_PROTOCOL, PI_WARN,
+          { "eglink.ru_state.unknown", PI_PROTOCOL, PI_ERROR,
             "RU state is not defined (0..4)", EXPFILL } },
         { &ei_eglink_ru_battery_range,
-          { "eglink.ru_battery.range", PI_PROTOCOL, PI_WARN,
+          { "eglink.ru_battery.range", PI_PROTOCOL, PI_ERROR,
             "RU battery above 100 %", EXPFILL } },
         { &ei_eglink_ru_rssi_range,
-          { "eglink.ru_rssi.range", PI_PROTOCOL, PI_WARN,
+          { "eglink.ru_rssi.range", PI_PROTOCOL, PI_ERROR,
             "RU C-Link RSSI above 100 %", EXPFILL } },
         { &ei_eglink_flag_invalid,
-          { "eglink.flag.invalid", PI_PROTOCOL, PI_WARN,
+          { "eglink.flag.invalid", PI_PROTOCOL, PI_ERROR,
             "Flag is neither 0 nor 1", EXPFILL } },
         { &ei_eglink_ru_disabled_unknown,
-          { "eglink.ru_disabled.unknown", PI_PROTOCOL, PI_WARN,
+          { "eglink.ru_disabled.unknown", PI_PROTOCOL, PI_ERROR,
             "RU disabled reason is not defined (0..3)", EXPFILL } },
         { &ei_eglink_joystick_range,
-          { "eglink.joystick.range", PI_PROTOCOL, PI_WARN,
+          { "eglink.joystick.range", PI_PROTOCOL, PI_ERROR,
             "Joystick position outside -1000..+1000", EXPFILL } },
         { &ei_eglink_unarmed_data,
-          { "eglink.armed_ru.unarmed_data", PI_PROTOCOL, PI_WARN,
+          { "eglink.armed_ru.unarmed_data", PI_PROTOCOL, PI_ERROR,
             "No RU is armed but RU fields are not 0", EXPFILL } },
     };
 

@@ -1,19 +1,14 @@
 /* plugin.c
  * Plugin entry points of the EG-Link dissector, as Wireshark's generated
- * plugin.c would write them; the version checks keep one source building
- * against Wireshark 4.0 through 4.6.
+ * plugin.c would write them. What differs between Wireshark 4.0 and 4.6
+ * (plugin_describe() from 4.2 on) is decided in eglink-compat.h.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
 #define WS_BUILD_DLL
-#include <wireshark.h>
-#include <epan/proto.h>
-#include <ws_version.h>
+#include "eglink-compat.h"
 
-#if (WIRESHARK_VERSION_MAJOR > 4) || (WIRESHARK_VERSION_MAJOR == 4 && WIRESHARK_VERSION_MINOR >= 2)
-#include <wsutil/plugins.h>
-#define VRSHARK_HAVE_PLUGIN_DESCRIBE 1
-#endif
+#include <epan/proto.h>
 
 #ifndef VERSION
 #define VERSION "0.1.0"
@@ -24,7 +19,7 @@ WS_DLL_PUBLIC_DEF const int plugin_want_major = WIRESHARK_VERSION_MAJOR;
 WS_DLL_PUBLIC_DEF const int plugin_want_minor = WIRESHARK_VERSION_MINOR;
 
 WS_DLL_PUBLIC void plugin_register(void);
-#ifdef VRSHARK_HAVE_PLUGIN_DESCRIBE
+#ifdef EGLINK_HAVE_PLUGIN_DESCRIBE
 WS_DLL_PUBLIC uint32_t plugin_describe(void);
 #endif
 
@@ -49,7 +44,7 @@ void plugin_register(void)
     proto_register_plugin(&plug_frontends);
 }
 
-#ifdef VRSHARK_HAVE_PLUGIN_DESCRIBE
+#ifdef EGLINK_HAVE_PLUGIN_DESCRIBE
 uint32_t plugin_describe(void)
 {
     return WS_PLUGIN_DESC_DISSECTOR;
