@@ -554,6 +554,24 @@ def test_origin_change_on_one_address_still_flagged(tshark, cap):
     tshark.expect(cap("origin_changed"), 9, {"eglink.analysis.bu_origin": 0x1001})
 
 
+def test_origin_of_a_bad_packet_is_not_learned(tshark, cap):
+    """A BU whose first packet fails its CRC (origin garbled) takes its origin from
+    the first valid one: no origin change. It keeps the name it was first seen
+    with, so that one pass and -2 name it alike."""
+    frames = tshark.frames(cap("origin_changed"), ["eglink.origin", "eglink.crc.status",
+                                                    "eglink.analysis.bu_stream",
+                                                    "eglink.analysis.bu_origin"],
+                           display_filter="ip.dst == 239.255.42.22")
+    assert [(r["eglink.origin"], r["eglink.analysis.bu_origin"]) for r in frames.values()] == [
+        ("0xdead", "0xdead"), ("0x1004", "0x1004"), ("0x1004", "0x1004"), ("0x1004", "0x1004")]
+    assert {r["eglink.analysis.bu_stream"] for r in frames.values()} == {"1"}
+    assert not [f for f, n in names(analysis_experts(tshark, cap("origin_changed"))).items()
+                if f in frames and n]
+    rows = _rows(stats(tshark, cap("origin_changed")))
+    assert rows[("EG-Link base units", "BU 0xdead (192.168.32.12)")] == 4
+    assert stats(tshark, cap("origin_changed"), two_pass=True) == stats(tshark, cap("origin_changed"))
+
+
 def test_bu_state_changes(tshark, cap):
     exp = analysis_experts(tshark, cap("session"))
     changes = {f: m for f, v in exp.items() for n, m in v if n == "eglink.analysis.bu_state_changed"}

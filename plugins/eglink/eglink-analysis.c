@@ -185,6 +185,7 @@ struct eglink_bu {
     eglink_chan_t *chan;
     address addr;
     guint16 origin;
+    gboolean origin_known;      /* origin is from a valid packet (not one with a bad CRC) */
     gboolean have_bu_state;
     guint8 bu_state;
     eglink_bu_t *next;          /* in chan->bus */
@@ -994,13 +995,20 @@ analyse_packet(packet_info *pinfo, const eglink_info_t *info, eglink_frame_t *fd
         return;
     }
 
-    if (input && bu->origin != info->origin) {
+    if (input && !bu->origin_known) {
+        /* Known so far only from packets that failed their check: no origin
+         * change (the BU keeps its name, so that every pass names it alike). */
+        bu->origin = info->origin;
+        fd->bu_origin = bu->origin;
+    } else if (input && bu->origin != info->origin) {
         /* Another device at the BU's address: it counts its own serials. */
         add_finding(fd, FND_ORIGIN, 0, bu->origin, 0);
         bu->origin = info->origin;
         bu->s.have_serial = FALSE;
         fd->bu_origin = bu->origin;
     }
+    if (input)
+        bu->origin_known = TRUE;
 
     track_serial(s, fd, pinfo, info->serial);
     if (fd->serial_status == SERIAL_REPEAT)
@@ -1039,7 +1047,7 @@ analyse_packet(packet_info *pinfo, const eglink_info_t *info, eglink_frame_t *fd
     case EGLINK_TYPE_VRAO:      /* acknowledges a VRCI */
     case EGLINK_TYPE_VRAI:      /* acknowledges a VRCO */
         if (info->has_command_id) {
-            eglink_cmd_t *cmd = (eglink_cmd_t *)fd->cmd;
+            eglink_cmd_t *cmd = fd->cmd;
             fd->cmd = NULL;
             track_ack(cmd, fd, pinfo, input ? EGLINK_DIR_OUT : EGLINK_DIR_IN, info->command_id);
         }

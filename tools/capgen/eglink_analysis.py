@@ -332,7 +332,9 @@ def shared_group():
 
 
 @capture("eglink_analysis_origin_changed.pcap", "the BU at 192.168.32.10 is replaced: origin "
-         "0x1001 until 0.5 s, then 0x1003 counting its serials from 0; one controller")
+         "0x1001 until 0.5 s, then 0x1003 counting its serials from 0; one controller. Then "
+         "a BU on 239.255.42.22 whose first VRPI has a bad CRC and a garbled origin 0xdead, "
+         "then origin 0x1004: not an origin change")
 def origin_changed():
     link = Link()
 
@@ -341,4 +343,8 @@ def origin_changed():
             link.origin, link.bu_serial = 0x1003, 0
         return True
     timeline(link, 0.0, 1.0, vrpi_at=vrpi_at)
+    other = GroupLink("239.255.42.22", cap=link.cap, origin=0x1004, bu_ip="192.168.32.12")
+    other.bu(1.1, "VRPI", armed(), origin=0xDEAD, crc_value=0)
+    for k in range(3):
+        other.bu(1.225 + 0.125 * k, "VRPI", armed())
     return link.cap
