@@ -214,16 +214,6 @@ eglink_stats_packet(stats_tree *st, packet_info *pinfo, epan_dissect_t *edt _U_,
 #define EGLINK_STAT_CLI "eglink,stat"
 #define EGLINK_TREE_CLI "eglink,tree"
 
-/* The callback returns bool from Wireshark 4.6 on, nothing before. A local
- * shim: eglink-compat.h is the dissector's. */
-#if EGLINK_WS_AT_LEAST(4, 6)
-#define EGLINK_STAT_INIT_RET bool
-#define EGLINK_STAT_INIT_RETURN(ok) return (ok)
-#else
-#define EGLINK_STAT_INIT_RET void
-#define EGLINK_STAT_INIT_RETURN(ok) do { (void)(ok); return; } while (0)
-#endif
-
 static EGLINK_STAT_INIT_RET
 eglink_stat_init(const char *opt_arg, void *userdata _U_)
 {
