@@ -623,6 +623,7 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb)
                     length = p.length, swap = p.swap, label = label,
                     image_len = (p.kind == "input") and 64 or 224 })
                 infos[#infos + 1] = p.kind .. " " .. info.summary
+                if info.tags ~= "" then infos.tags = (infos.tags or "") .. info.tags end
             end
             if p.bitmask then
                 for _, bt in ipairs(bit_text(p)) do
@@ -723,14 +724,14 @@ function proto.dissector(tvb, pinfo, tree)
             decoded = true
         elseif rec ~= NOT_DECODED then
             decoded = true
-            for _, s in ipairs(show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb)) do
-                infos[#infos + 1] = s
-            end
+            local adu_infos = show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb)
+            for _, s in ipairs(adu_infos) do infos[#infos + 1] = s end
+            if adu_infos.tags then infos.tags = (infos.tags or "") .. adu_infos.tags end
         end
         off = off + adu_len
     end
     if #infos > 0 then
-        pinfo.cols.info:append(" [EC-Link " .. table.concat(infos, "; ") .. "]")
+        pinfo.cols.info:append(" [EC-Link " .. table.concat(infos, "; ") .. "]" .. (infos.tags or ""))
     end
     if via_front and decoded then return tvb:len() end
     return consumed

@@ -107,6 +107,7 @@ local function show(rec, tvb, pinfo, tree)
     record.add_ioxs(root, rec, tvb, epf.iops, epf.iocs)
     record.finish(rec, nil)
     pinfo.cols.info = (up and "Input image " or "Output image ") .. ((info and info.summary) or "")
+        .. ((info and info.tags) or "")
 end
 
 local function show_connect(rec, tvb, tree, text)

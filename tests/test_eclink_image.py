@@ -6,6 +6,8 @@ import subprocess
 
 import pytest
 
+from conftest import assert_fields
+
 USER_DLT = 'uat:user_dlts:"User 0 (DLT=147)","eclink","0","","0",""'
 
 
@@ -47,18 +49,37 @@ def raw_capture(work_dir):
 
 def test_input_image_fields(tshark, raw_capture):
     cap = raw_capture(input_image())
-    names = ["eclink.image", "eclink.pci", "eclink.cci", "eclink.pai", "eclink.cai", "eclink.bu_state",
-             "eclink.vlaps", "eclink.unarmed_rus", "eclink.eg_link_status", "eclink.ec_link_status",
-             "eclink.c_link_status", "eclink.armed_ru", "eclink.ru_state", "eclink.ru_battery",
-             "eclink.ru_rssi", "eclink.ru_cable", "eclink.ru_docked", "eclink.ru_disabled",
-             "eclink.joystick1", "eclink.joystick2", "eclink.joystick3", "eclink.joystick4",
-             "eclink.switch1", "eclink.switch2", "eclink.switch4", "eclink.switch8",
-             "eclink.encoder", "eclink.encoder_switch", "eclink.spare", "eclink.cmd_from_ru"]
-    row = tshark.fields(cap, names, prefs={}, extra=["-o", USER_DLT])[0]
-    assert row == ["input", "5", "2", "1", "9", "0x11", "1", "2", "1", "1", "1", "4660", "3", "80",
-                   "90", "1", "0", "0", "500", "-250", "0", "1000", "1", "-1", "3", "1000",
-                   "200", "1", "00000000", "00000000000000000000000000000000"]
+    tshark.expect(cap, 1, {
+        "eclink.image": "input", "eclink.pci": 5, "eclink.cci": 2, "eclink.pai": 1, "eclink.cai": 9,
+        "eclink.bu_state": "0x11", "eclink.es_relays_open": 0, "eclink.vlaps": 1, "eclink.unarmed_rus": 2,
+        "eclink.eg_link_status": 1, "eclink.ec_link_status": 1, "eclink.c_link_status": 1,
+        "eclink.armed_ru": "0x1234", "eclink.ru_state": 3, "eclink.ru_battery": 80, "eclink.ru_rssi": 90,
+        "eclink.ru_cable": 1, "eclink.ru_docked": 0, "eclink.ru_disabled": 0,
+        "eclink.joystick1": 500, "eclink.joystick2": -250, "eclink.joystick3": 0, "eclink.joystick4": 1000,
+        "eclink.switch1": 1, "eclink.switch2": -1, "eclink.switch4": 3, "eclink.switch8": 1000,
+        "eclink.encoder": 200, "eclink.encoder_switch": 1, "eclink.spare": "00000000",
+        "eclink.cmd_from_ru": "00000000000000000000000000000000",
+        "_ws.col.Info": "Input image PCI=5 CCI=2 BU=Armed RU 0x1234=Enabled",
+    }, extra=["-o", USER_DLT])
     assert tshark.experts(cap, extra=["-o", USER_DLT]) == {}
+
+
+def test_input_tree_reads_like_eglink(tshark, raw_capture):
+    """Armed RU in hex, percentages with a space, undefined values as
+    Unknown (0x42), the relay state right after the BU state."""
+    cap = raw_capture(input_image(b20=0x05, b28=7))
+    tree = tshark.verbose(cap, extra=["-o", USER_DLT])
+    lines = [line.strip() for line in tree.splitlines()]
+    bu = lines.index("BU state: Unknown (0x05)")
+    assert lines[bu + 1].startswith("[Expert Info (Error/Protocol): BU state Unknown (0x05)")
+    # the next item beside the BU state (its expert info is under it)
+    indent = next(len(x) - len(x.lstrip()) for x in tree.splitlines() if x.strip() == lines[bu])
+    siblings = [x.strip() for x in tree.splitlines() if len(x) - len(x.lstrip()) == indent]
+    assert siblings[siblings.index("BU state: Unknown (0x05)") + 1] == "[ES-Link relays open: Yes (BU state below 0x10)]"
+    assert "Armed RU: 0x1234" in lines and "RU battery: 80 %" in lines
+    assert "RU state: Unknown (0x07)" in lines
+    assert tshark.field(cap, "_ws.col.Info", extra=["-o", USER_DLT]) == [
+        "Input image PCI=5 CCI=2 BU=Unknown (0x05) RU 0x1234=Unknown (0x07) [relays open] [undefined]"]
 
 
 def test_output_images(tshark, raw_capture):
@@ -82,22 +103,27 @@ def test_input_checks(tshark, raw_capture):
     exp = tshark.experts(cap, extra=["-o", USER_DLT])
     assert exp[1] == [
         "ES-Link relays open: BU state Blocked (0x03)",
-        "VLAPs 4 is out of range 0..3",
-        "EG-Link status 7 is undefined (0..6)",
-        "RU state 5 is undefined (0..4)",
-        "RU battery 101 % is over 100 %",
-        "RU C-Link RSSI 150 % is over 100 %",
-        "RU cable 2 is not 0 or 1",
-        "RU disabled 4 is undefined (0..3)",
-        "Joystick 1 position 1001 is out of range -1000..1000",
-        "Encoder switch 2 is not 0 or 1",
+        "4 VLAPs reported: a BU has at most 3",
+        "EG-Link status Unknown (0x07): defined are 0..6",
+        "RU state Unknown (0x05): defined are 0..4",
+        "RU battery 101 % is above 100 %",
+        "RU C-Link RSSI 150 % is above 100 %",
+        "RU cable Unknown (0x02): only 0 and 1 are defined",
+        "RU disabled reason Unknown (0x04): defined are 0 enabled, 1 tilted, 2 inactivity, 3 other",
+        "Joystick 1 position 1001 is outside -1000..+1000",
+        "Encoder switch Unknown (0x02): only 0 and 1 are defined",
         "Spare bytes 60..63 are not 0",
     ]
+    # severity and group as in every vrshark protocol (README "How findings read")
+    sev = tshark.frames(cap, ["_ws.expert.severity", "_ws.expert.group"], extra=["-o", USER_DLT])
+    assert sev[1]["_ws.expert.severity"].split(",")[:3] == ["6291456", "8388608", "8388608"]  # warn, error
+    assert sev[1]["_ws.expert.group"].split(",")[:2] == ["50331648", "150994944"]  # response code, protocol
     assert exp[2] == ["RU stopped: ES-Link relays open"]
     assert exp[3][0] == "Armed RU is 0 but RU state is not 0"
     assert "Armed RU is 0 but Joystick 1 is not 0" in exp[3]
-    relays = tshark.field(cap, "eclink.es_relays_open", extra=["-o", USER_DLT])
-    assert relays == ["1", "", ""]
+    relays = tshark.frames(cap, ["eclink.es_relays_open"], extra=["-o", USER_DLT])
+    assert_fields(relays[1], {"eclink.es_relays_open": 1})
+    assert_fields(relays[2], {"eclink.es_relays_open": 0})
 
 
 def test_output_checks(tshark, raw_capture):

@@ -2,6 +2,8 @@
 one pass and two passes agree."""
 import pytest
 
+from conftest import assert_fields
+
 
 def test_command_handshake(tshark, capture_file):
     cap = capture_file("eclink_modbus_basic.pcap")
@@ -24,9 +26,11 @@ def test_bu_state_change(tshark, capture_file):
     exp = tshark.experts(cap)
     assert exp[45] == ["ES-Link relays open: BU state Blocked (0x03)", "BU state Armed -> Blocked"]
     assert exp[49] == ["ES-Link relays open: BU state Blocked (0x03)"]
-    r = tshark.fields(cap, ["frame.number", "eclink_modbus.bu_state_prev", "eclink.es_relays_open"],
-                      display_filter="eclink_modbus.bu_state_prev")
-    assert r == [["45", "0x11", "1"]]
+    changed = tshark.frames(cap, ["eclink_modbus.bu_state_prev", "eclink.es_relays_open", "_ws.col.Info"],
+                            display_filter="eclink_modbus.bu_state_prev")
+    assert list(changed) == [45]
+    assert_fields(changed[45], {"eclink_modbus.bu_state_prev": "0x11", "eclink.es_relays_open": 1}, "frame 45")
+    assert changed[45]["_ws.col.Info"].endswith("BU=Blocked RU 0x1234=Initial] [relays open]")
 
 
 def test_stalls_and_late_echoes(tshark, capture_file):
@@ -50,8 +54,9 @@ def test_stalls_and_late_echoes(tshark, capture_file):
 def test_value_checks_over_modbus(tshark, capture_file):
     cap = capture_file("eclink_modbus_faults.pcap")
     exp = tshark.experts(cap)
-    assert "Joystick 2 position -1001 is out of range -1000..1000" in exp[29]
-    assert exp[31] == ["Unknown BU state 0x42", "Armed RU is 0 but Joystick 1 is not 0", "BU state Armed -> 0x42"]
+    assert "Joystick 2 position -1001 is outside -1000..+1000" in exp[29]
+    assert exp[31] == ["BU state Unknown (0x42): not defined in TS-0007", "Armed RU is 0 but Joystick 1 is not 0",
+                       "BU state Armed -> Unknown (0x42)"]
     assert exp[32] == ["Periodic data size 60000 is over 51200", "Spare byte 23 is 0x09, not 0"]
 
 

@@ -17,9 +17,9 @@ def test_basic_cycle_values(tshark, capture_file):
         "eclink.switch3", "eclink.switch8", "eclink.encoder", "eclink.cmd_from_ru"],
         display_filter="eclink.image == \"input\"")}
     assert sorted(r) == list(range(5, 50, 4))
-    assert r[5] == ["input", "11", "3", "7", "0x11", "4660", "3", "500", "-250", "1000", "1", "-1", "3",
+    assert r[5] == ["input", "11", "3", "7", "0x11", "0x1234", "3", "500", "-250", "1000", "1", "-1", "3",
                     "42", b"CMD-FROM-RU-03".ljust(16, b"\0").hex()]
-    assert r[45][4:7] == ["0x03", "4660", "0"]
+    assert r[45][4:7] == ["0x03", "0x1234", "0"]
 
 
 def test_output_image_written(tshark, capture_file):
@@ -110,7 +110,7 @@ def test_swap_off(tshark, capture_file):
     names = ["eclink.pci", "eclink.armed_ru", "eclink.joystick1", "eclink.joystick2", "eclink.pco",
              "eclink.periodic_size", "eclink.periodic_block"]
     r = rows(tshark, cap, names, display_filter="eclink.image", prefs={"eclink_modbus.swap": "FALSE"})
-    assert r == [["5", "9", "258", "-1000", "1", "", "", ""], ["6", "", "", "", "", "5", "300", "1"]]
+    assert r == [["5", "9", "0x0102", "-1000", "1", "", "", ""], ["6", "", "", "", "", "5", "300", "1"]]
     # with the default (swapped) view the same device is not recognized
     assert tshark.field(cap, "eclink.image", display_filter="eclink") == []
 
