@@ -7,12 +7,14 @@ pymodbus client plays the PLC: it reads the input image, echoes CCI in CAO
 and writes the output image (holding registers 0..111), logging what it read
 and wrote. Three ordinary servers on 127.0.0.2..4 (0/1 flags, counters,
 random registers) are polled at registers 0..31 beside it. All servers use
-port 15020, named in the one setting eclink_modbus.port.
+one free port above 1024 (not 502), named in the one setting
+eclink_modbus.port.
 
 Skipped (with the reason) only where capturing on lo is impossible.
 """
 import shutil
 import signal
+import socket
 import subprocess
 import sys
 import tempfile
@@ -21,7 +23,15 @@ from pathlib import Path
 
 import pytest
 
-PORT = 15020
+
+
+def _free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+PORT = _free_port()
 BU = "127.0.0.1"
 ORDINARY = {"127.0.0.2": "flags", "127.0.0.3": "counters", "127.0.0.4": "random"}
 RUN_S = 2.0
