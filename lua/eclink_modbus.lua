@@ -90,6 +90,7 @@ local pf = {
     periodic_length = ProtoField.uint32("eclink_modbus.periodic.length", "Reassembled periodic data length"),
     periodic_data = ProtoField.bytes("eclink_modbus.periodic.data", "Reassembled periodic data"),
     poll_gap_time = ProtoField.relative_time("eclink_modbus.poll_gap_time", "Time since the previous input image read"),
+    poll_gap_from = ProtoField.framenum("eclink_modbus.poll_gap_from", "Previous input image read in"),
 }
 proto.fields = pf
 
@@ -578,11 +579,11 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb)
     if is_request and r and reads_pci(fc, r) then
         if c.last_read and t - c.last_read > opt.pci_timeout then
             local gap = t - c.last_read
-            rec.poll_gap = gap
+            rec.poll_gap, rec.poll_gap_from = gap, c.last_read_frame
             add_finding(rec, { ef.poll_gap, string.format("Input image not read for %.3f s (PCI timeout %.3f s)",
                 gap, opt.pci_timeout) })
         end
-        c.last_read = t
+        c.last_read, c.last_read_frame = t, pinfo.number
     end
     local touched = {}
     for _, a in ipairs(accesses) do
@@ -665,7 +666,10 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb)
     end
     if rec[R_RESPONSE] then item:add(pf.response_in, rec[R_RESPONSE]):set_generated() end
     if rec.no_request then item:add_proto_expert_info(ef.no_request) end
-    if rec.poll_gap then item:add(pf.poll_gap_time, nstime(rec.poll_gap)):set_generated() end
+    if rec.poll_gap then
+        item:add(pf.poll_gap_time, nstime(rec.poll_gap)):set_generated()
+        item:add(pf.poll_gap_from, rec.poll_gap_from):set_generated()
+    end
     local infos = {}
     for _, a in ipairs(adu_accesses(tvb, off, adu_len, fcb, is_request, r)) do
         for _, p in ipairs(map_access(a.tname, a.start, a.count, tvb, off + a.data, a.coil)) do

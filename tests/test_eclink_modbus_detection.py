@@ -187,6 +187,7 @@ def test_poll_gap(tshark, work_dir):
     assert exp[late] == ["Input image not read for 1.090 s (PCI timeout 0.500 s)"]
     assert [f for f, msgs in exp.items() if any("not read" in m for m in msgs)] == [late]
     tshark.expect(cap, late, {"eclink_modbus.poll_gap": 1, "eclink_modbus.poll_gap_time": 1.09,
+                              "eclink_modbus.poll_gap_from": reads[5],
                               "_ws.expert.severity": 0x00600000, "_ws.expert.group": 0x02000000})  # warning, sequence
     info = tshark.frames(cap, ["_ws.col.Info"], display_filter="frame.number == %d" % late)[late]["_ws.col.Info"]
     assert info.endswith("[poll gap 1.090 s]")
