@@ -210,7 +210,7 @@ def test_bu_values_match_what_the_plc_read(tshark, real_capture):
         assert (int(v["eclink.pci"]), int(v["eclink.cci"])) == (img[0], img[1])
         assert int(v["eclink.joystick1"]) == int.from_bytes(img[34:36], "big", signed=True)
         assert (int(v["eclink.bu_state"], 0), int(v["eclink.eg_link_status"]), int(v["eclink.ec_link_status"]),
-                int(v["eclink.armed_ru"]), int(v["eclink.ru_battery"]), int(v["eclink.encoder"])) == \
+                int(v["eclink.armed_ru"], 0), int(v["eclink.ru_battery"]), int(v["eclink.encoder"])) == \
             (0x11, 0, 1, 0x4242, 77, 42)
     outputs = [v for _, v in sorted(got.items()) if v["ip.dst"] == BU and v["eclink.image"] == "output"]
     assert [(int(v["eclink.pco"]), int(v["eclink.cao"])) for v in outputs] == log["written"]
