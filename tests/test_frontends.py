@@ -140,14 +140,20 @@ def test_only_connects_reach_the_connect_hook(tshark, work_dir, capture_file):
     assert [(hook, frame) for hook, frame, _ in calls if hook == "connect"] == [("connect", 2), ("connect", 3)]
 
 
-def _modbus_plain(work_dir, transactions):
+def _modbus_plain(work_dir, transactions, image_shaped=True):
+    """A client polling a server that is no BU. image_shaped: it reads input
+    registers 0-31, as a controller reads a BU's input image (zeros here, which
+    no BU sends); otherwise holding registers 0-9."""
     cap = Capture()
     cap.add(0.0, _filler())
     mb = mbgen.ModbusClient(cap, client_port=50300, server_ip="192.168.2.60", client_ip="192.168.2.11",
                             t=0.01)
     adus = []
     for i in range(transactions):
-        adus += mb.read_regs(0.02 + 0.01 * i, 3, 0, bytes(20))
+        if image_shaped:
+            adus += mb.read_regs(0.02 + 0.01 * i, 4, 0, bytes(64))
+        else:
+            adus += mb.read_regs(0.02 + 0.01 * i, 3, 0, bytes(20))
     return _write(cap, work_dir, "modbus_plain.pcap"), adus
 
 
@@ -158,6 +164,16 @@ def test_modbus_connections_are_tried_a_bounded_number_of_frames(tshark, work_di
     calls = _probe(tshark, work_dir, cap, two_pass=two_pass)
     assert all(hook == "heuristic" and not visited for hook, _, visited in calls)
     assert [frame for _, frame, _ in calls] == adus[:MB_TRIES]
+
+
+@needs_c
+def test_modbus_without_image_shaped_requests_never_reaches_lua(tshark, work_dir):
+    """A client that never reads a whole input image nor writes an output
+    image gives no evidence the heuristic could accept: none of its frames
+    is handed to Lua (the cost of ordinary Modbus/TCP stays Wireshark's)."""
+    cap, adus = _modbus_plain(work_dir, 50, image_shaped=False)
+    assert len(adus) == 100
+    assert _probe(tshark, work_dir, cap) == []
 
 
 @needs_c

@@ -19,8 +19,11 @@
  *   (the Lua side puts takes itself out of the layer list): mbtcp first,
  *   the front end on   then the Lua decoder registered in vrshark.mbtcp.hook
  *   its port)          as "always" (every connection), or as "heuristic":
- *                      a TCP connection (conversation) is a candidate until
- *                      the decoder accepts one of its frames (returns
+ *                      a TCP connection (conversation) becomes a candidate
+ *                      when its client first asks for what a BU's image
+ *                      evidence needs (the whole input image read, or the
+ *                      output image written: mb_evidence_request), and stays
+ *                      one until the decoder accepts one of its frames (returns
  *                      non-zero); from then on every frame goes to it. After
  *                      VRSHARK_MB_CANDIDATE_TRIES refusals, first pass only,
  *                      the connection is left to mbtcp. On a port other
@@ -218,6 +221,60 @@ dissect_pn_cm(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
 /* ---- Modbus/TCP ----------------------------------------------------------- */
 
 #define MB_ACCEPTED 0x80000000u
+#define MB_LIVE     0x40000000u     /* a request shaped like BU evidence was seen */
+#define MB_TRIES_MASK 0x0FFFFFFFu
+
+/* Would this request, if the server were a BU, carry the evidence the Lua
+ * heuristic accepts a connection on (vrshark/modbus_detect.luam): the whole
+ * input image read (input registers 0-31, holding registers 2048-2079,
+ * discrete inputs 0-511) or the whole output image written (10 or 112
+ * holding registers from 0)? A connection whose client never asks for one
+ * can never be accepted, so its frames need not reach Lua at all: that keeps
+ * ordinary Modbus/TCP out of Lua. Every ADU of the buffer is looked at. */
+static gboolean
+mb_evidence_request(tvbuff_t *tvb)
+{
+    guint len = tvb_captured_length(tvb);
+    guint off = 0;
+
+    while (off + 12 <= len) {
+        guint adu = 6 + tvb_get_ntohs(tvb, off + 4);
+        guint8 fc = tvb_get_uint8(tvb, off + 7);
+        guint start = tvb_get_ntohs(tvb, off + 8), count = tvb_get_ntohs(tvb, off + 10);
+
+        if (adu < 8)
+            return FALSE;
+        switch (fc) {
+        case 2:     /* discrete inputs: the input image as 512 bits */
+            if (start == 0 && count >= 512)
+                return TRUE;
+            break;
+        case 3:     /* holding registers 2048-2079: the input image */
+            if (start <= 2048 && start + count >= 2080)
+                return TRUE;
+            break;
+        case 4:     /* input registers 0-31: the input image */
+            if (start == 0 && count >= 32)
+                return TRUE;
+            break;
+        case 16:    /* the output image written */
+            if (start == 0 && (count == 10 || count == 112))
+                return TRUE;
+            break;
+        case 23:    /* read and write: either part */
+            if (start <= 2048 && start + count >= 2080)
+                return TRUE;
+            if (off + 16 <= len && tvb_get_ntohs(tvb, off + 12) == 0 &&
+                (tvb_get_ntohs(tvb, off + 14) == 10 || tvb_get_ntohs(tvb, off + 14) == 112))
+                return TRUE;
+            break;
+        default:
+            break;
+        }
+        off += adu;
+    }
+    return FALSE;
+}
 #define MBTCP_DEFAULT_PORT 502
 
 /* Removes the front end's own entry from the layer list: Modbus/TCP looks as
@@ -291,6 +348,7 @@ dissect_mbtcp_front(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *d
     int consumed;
     const char *mode;
     gboolean quiet;
+    guint32 server_port = pinfo->match_uint;
 
     leave_layer_list(pinfo);
     /* mbtcp may use TCP desegmentation as if TCP had called it directly */
@@ -314,8 +372,13 @@ dissect_mbtcp_front(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *d
         return consumed;
     }
     /* a candidate: later passes keep the first pass's refusals */
-    if (pinfo->fd->visited || state >= VRSHARK_MB_CANDIDATE_TRIES)
+    if (pinfo->fd->visited || (state & MB_TRIES_MASK) >= VRSHARK_MB_CANDIDATE_TRIES)
         return consumed;
+    if (!(state & MB_LIVE)) {
+        if (pinfo->destport != server_port || !mb_evidence_request(tvb))
+            return consumed;
+        state |= MB_LIVE;
+    }
     if (call_mb_decoder(mode, FALSE, tvb, pinfo, tree))
         state = MB_ACCEPTED;
     else
