@@ -1,0 +1,72 @@
+--[[ vrshark_io.lua -- the machine's own data, named from its IO list.
+
+The areas whose layout is machine-specific (the terminal data of MC-MB2-PN,
+SP-14-023 §3.1.3/§3.2.3; the RU application content of EG-Link and EC-Link,
+TS-0006 §1 and TS-0007 §1.1) are decoded from CSV machine descriptions in
+the folder VRSHARK_IO_DIR or <personal configuration>/vrshark-io
+(docs/io.md). The loading and the decoder live in vrshark/iodata.luam, the
+CSV rules in vrshark/iodesc.luam; this plugin hooks the EG-Link areas:
+
+  eglink.data table key   area             device key
+  vrci                    cmd.from_ru      origin (the BU's, eglink.origin)
+  vrco                    cmd.to_ru        origin (the BU's, as learned by the analysis)
+  vrpo                    periodic.to_ru   origin (the BU's, as learned by the analysis)
+
+  The data handed on is the 16 bytes of command data (VRCI/VRCO) or the
+  periodic data of a burst (VRPO; reassembled when split).
+
+The MC-MB2-PN and EC-Link plugins call iodata.decode() themselves.
+]]
+
+local dir = debug.getinfo(1, "S").source:match("^@(.*)[/\\]")
+package.path = dir .. "/?.luam;" .. package.path
+set_plugin_info(require("vrshark.version").info("Machine data decoded from the machine's IO list (CSV)"))
+local iodata = require("vrshark.iodata")
+
+-- The BU origin: the packet's own for BU packets; controller packets carry
+-- origin 0, so theirs is the BU origin the EG-Link analysis learned.
+local f_origin = Field.new("eglink.origin")
+local f_bu_origin = Field.new("eglink.analysis.bu_origin")
+-- The controller's packets are matched to their BU's origin by the input
+-- port and group (what the EG-Link analysis does), remembered per frame.
+local bu_origin_of = {}   -- "dst address:input port" -> origin, first pass
+local frame_origin = {}   -- frame number -> origin
+
+local function origin(pinfo, from_bu)
+    local known = frame_origin[pinfo.number]
+    if known ~= nil then return known or nil end
+    local o = f_origin()
+    local value = o and o.value or nil
+    if from_bu then
+        if value and value ~= 0 then
+            bu_origin_of[tostring(pinfo.dst) .. ":" .. pinfo.dst_port] = value
+        end
+    elseif not value or value == 0 then
+        local b = f_bu_origin()
+        value = (b and b.value) or bu_origin_of[tostring(pinfo.dst) .. ":" .. (pinfo.dst_port - 2)]
+    end
+    if not pinfo.visited then frame_origin[pinfo.number] = value or false end
+    return value
+end
+
+local AREAS = {
+    vrci = { area = "cmd.from_ru", from_bu = true },
+    vrco = { area = "cmd.to_ru" },
+    vrpo = { area = "periodic.to_ru" },
+}
+
+local eglink_table = DissectorTable.get("eglink.data")
+for key, a in pairs(AREAS) do
+    local d = Proto("vrshark_io_eglink_" .. key, "Machine data from EG-Link " .. key:upper())
+    function d.dissector(tvb, pinfo, tree)
+        local o = origin(pinfo, a.from_bu)
+        iodata.decode(a.area, o and { origin = o } or nil, tvb(), tree, pinfo)
+        return tvb:len()
+    end
+    if eglink_table then eglink_table:add(key, d) end
+end
+
+function iodata.proto.init()
+    bu_origin_of = {}
+    frame_origin = {}
+end

@@ -1,0 +1,68 @@
+"""The demo crane of examples/crane/: its machine data (IO list crane.csv)
+carried over EG-Link (captures/crane_eglink.pcap).
+
+The RU sends the operator's commands (buttons, speed range, hoist and trolley
+joysticks) as VRCI command data; the crane controller answers with VRCO
+messages (a code and a text) and sends its state (load, hook height, slew
+angle, alarms, cycle counter, wind speed, status text) as VRPO periodic data.
+The layouts are those of examples/crane/crane.csv.
+"""
+import struct
+
+from . import eglink
+from .registry import capture
+
+
+def operator(horn=0, start=0, stop=0, gear=0, hoist=0, trolley=0, operator_id=7):
+    """cmd.from_ru: buttons (byte 0 bits 0-2), speed range (bits 4-5), joysticks in 0.1 %."""
+    buttons = horn | start << 1 | stop << 2 | gear << 4
+    return struct.pack("<BxhhB", buttons, hoist, trolley, operator_id)
+
+
+def message(code, text):
+    """cmd.to_ru: message code (byte 0), text (bytes 2-13)."""
+    return struct.pack("<Bx", code) + text.encode("ascii").ljust(12)[:12]
+
+
+def state(load, height, slew, overload=0, wind_alarm=0, mode=0, cycle=0, wind=0.0, text=""):
+    """periodic.to_ru: load 0.01 t, height 0.1 m - 20 m, slew 0.1 deg, alarms, cycle, wind, text."""
+    flags = overload | wind_alarm << 1 | mode << 4
+    return (struct.pack("<HhHBxIf", load, height, slew, flags, cycle, wind)
+            + text.encode("ascii").ljust(16)[:16])
+
+
+# (t, who, type, payload): the session of the demo, in time order.
+def _session():
+    return [
+        (0.000, "ctrl", "VRPO", state(0, 450, 900, mode=0, cycle=1, wind=3.5, text="READY")),
+        (0.100, "bu", "VRCI", eglink.command(1, operator(start=1))),
+        (0.110, "ctrl", "VRAO", eglink.ack(1)),
+        (0.200, "ctrl", "VRPO", state(1250, 450, 900, mode=3, cycle=2, wind=4.25, text="RUNNING")),
+        (0.300, "bu", "VRCI", eglink.command(2, operator(gear=1, hoist=755, trolley=-250))),
+        (0.310, "ctrl", "VRAO", eglink.ack(2)),
+        (0.400, "ctrl", "VRPO", state(1250, 512, 901, mode=1, cycle=3, wind=4.5, text="LIFTING")),
+        (0.500, "bu", "VRCI", eglink.command(3, operator(horn=1, gear=2, hoist=1000, trolley=-1000))),
+        (0.510, "ctrl", "VRAO", eglink.ack(3)),
+        (0.600, "ctrl", "VRPO", state(5230, 640, 3599, overload=1, mode=3, cycle=4, wind=12.75,
+                                      text="OVERLOAD")),
+        (0.700, "ctrl", "VRCO", eglink.command(4, message(1, "LOAD 52.3 T"))),
+        (0.710, "bu", "VRAI", eglink.ack(4)),
+        (0.800, "bu", "VRCI", eglink.command(5, operator(stop=1, gear=3, hoist=-500))),
+        (0.810, "ctrl", "VRAO", eglink.ack(5)),
+        (0.900, "ctrl", "VRPO", state(5230, 200, 0, wind_alarm=1, mode=2, cycle=5, wind=21.0,
+                                      text="WIND ALARM")),
+        (1.000, "ctrl", "VRCO", eglink.command(6, message(2, "WIND 21 M/S"))),
+        (1.010, "bu", "VRAI", eglink.ack(6)),
+    ]
+
+
+@capture("crane_eglink.pcap", "the demo crane (examples/crane/crane.csv) over EG-Link: "
+         "operator commands (VRCI), controller messages (VRCO) and crane state (VRPO)")
+def crane_eglink():
+    link = eglink.Link()
+    for t, who, ptype, payload in _session():
+        if who == "bu":
+            link.bu(t, ptype, payload)
+        else:
+            link.ctrl(t, ptype, eglink.vrpo(0, payload) if ptype == "VRPO" else payload)
+    return link.cap
