@@ -27,14 +27,16 @@ local iodata = require("vrshark.iodata")
 -- origin 0, so theirs is the BU origin the EG-Link analysis learned.
 local f_origin = Field.new("eglink.origin")
 local f_bu_origin = Field.new("eglink.analysis.bu_origin")
--- The controller's packets are matched to their BU's origin by the input
--- port and group (what the EG-Link analysis does), remembered per frame.
-local bu_origin_of = {}   -- "dst address:input port" -> origin, first pass
+-- The controller's packets are matched to their BU's origin by the group
+-- (or address) and input port, as the EG-Link analysis does: learned from
+-- the BU's VRCI, kept per frame once known. A first pass without a tree
+-- (tshark -2) sees no fields; the second pass then learns in frame order.
+local bu_origin_of = {}   -- "dst address:input port" -> origin
 local frame_origin = {}   -- frame number -> origin
 
 local function origin(pinfo, from_bu)
     local known = frame_origin[pinfo.number]
-    if known ~= nil then return known or nil end
+    if known then return known end
     local o = f_origin()
     local value = o and o.value or nil
     if from_bu then
@@ -45,7 +47,8 @@ local function origin(pinfo, from_bu)
         local b = f_bu_origin()
         value = (b and b.value) or bu_origin_of[tostring(pinfo.dst) .. ":" .. (pinfo.dst_port - 2)]
     end
-    if not pinfo.visited then frame_origin[pinfo.number] = value or false end
+    if value == 0 then value = nil end
+    frame_origin[pinfo.number] = value
     return value
 end
 
@@ -59,6 +62,9 @@ local eglink_table = DissectorTable.get("eglink.data")
 for key, a in pairs(AREAS) do
     local d = Proto("vrshark_io_eglink_" .. key, "Machine data from EG-Link " .. key:upper())
     function d.dissector(tvb, pinfo, tree)
+        -- Nothing described for the area: decline, so that the decode
+        -- (protocol stack included) is exactly as without this plugin.
+        if not iodata.areas[a.area] then return 0 end
         local o = origin(pinfo, a.from_bu)
         iodata.decode(a.area, o and { origin = o } or nil, tvb(), tree, pinfo)
         return tvb:len()
