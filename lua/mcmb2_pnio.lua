@@ -53,6 +53,7 @@ local eclink_handshake = require("vrshark.eclink_handshake")
 local image = require("vrshark.eclink_image")
 local wrap = require("vrshark.wrap")
 local fe = require("vrshark.frontends")
+local iodata = require("vrshark.iodata") -- vrshark_io hook
 image.proto()
 
 ------------------------------------------------------------------------
@@ -757,6 +758,8 @@ local function show_mcmb2(rec, tvb, pinfo, tree)
             attach(rec, "wd", wd)
             local r = data_range(tvb, base, plan.modules, "MC-MB2 uplink data")
             if r then attach(rec, "data", root:add(pf.uplink_data, r)) end
+            if r then iodata.decode("mcmb2.up", -- vrshark_io hook
+                { terminal = bit.rshift(sb, 4), frame_id = tvb(0, 2):uint() }, r, root, pinfo) end -- vrshark_io hook
             info = string.format("Uplink duplex: %s, terminal %d, watchdog %d",
                 DUPLEX_OK[bit.band(sb, 0x0F)] and STATUS[bit.band(sb, 0x0F)]
                     or string.format("undefined status 0x%X", bit.band(sb, 0x0F)),
@@ -784,6 +787,9 @@ local function show_mcmb2(rec, tvb, pinfo, tree)
                 if gi and rec.groups[gi] then
                     local r = data_range(tvb, base, rec.groups[gi], "MC-MB2 slot " .. k .. " uplink data")
                     if r then st:add(pf.slot_uplink_data, r) end
+                    if r then iodata.decode("mcmb2.up", -- vrshark_io hook
+                        { terminal = bit.rshift(s, 4), slot = k, frame_id = tvb(0, 2):uint() }, -- vrshark_io hook
+                        r, st, pinfo) end -- vrshark_io hook
                 end
                 attach(rec, SLOT_ANCHOR[k], st)
                 if sst ~= 0xF then parts[#parts + 1] = string.format("%d:T%d/%X", k, bit.rshift(s, 4), sst) end
@@ -803,6 +809,8 @@ local function show_mcmb2(rec, tvb, pinfo, tree)
         if plan.system == "duplex" then
             local r = data_range(tvb, base, plan.modules, "MC-MB2 downlink data")
             if r then root:add(pf.downlink_data, r) end
+            if r then iodata.decode("mcmb2.down", -- vrshark_io hook
+                { frame_id = tvb:range(0, 2):uint() }, r, root, pinfo) end -- vrshark_io hook
             info = string.format("Downlink duplex: base unit %d, watchdog %d", hr:uint(), wdv)
         else
             for i, g in ipairs(rec.groups or {}) do
@@ -812,6 +820,8 @@ local function show_mcmb2(rec, tvb, pinfo, tree)
                     local st = root:add(r, string.format("Slot %d", k))
                     st:add(pf.slot, k):set_generated()
                     st:add(pf.slot_downlink_data, r)
+                    iodata.decode("mcmb2.down", -- vrshark_io hook
+                        { slot = k, frame_id = tvb:range(0, 2):uint() }, r, st, pinfo) -- vrshark_io hook
                 end
             end
             info = string.format("Downlink polled: watchdog %d, %d slot(s)", wdv,

@@ -35,7 +35,8 @@ MESSAGES = [
     "broken.csv line 4: bytes 15-16 are beyond the cmd.from_ru area (16 bytes); fix: use a byte offset "
     "from 0 to 14 for a 2-byte field",
     "broken.csv line 5: unknown type 'u16'; fix: say the byte order: u16le or u16be",
-    "broken.csv line 6: duplicate name 'op' (first on line 2); fix: give every field its own name",
+    "broken.csv line 6: duplicate name 'op' (first on line 2); fix: give every field its own name, or "
+    "repeat the same field in another area with the same bit, type, label, unit, scale, offset and values",
     "broken.csv line 7: bad number 'abc' in column byte; fix: write the byte offset in the area as a "
     "whole number such as 4 or 0x04",
     "broken.csv line 8: bad number '0,01' in column scale; fix: write the decimal point as a point: 0.01",
@@ -47,7 +48,7 @@ MESSAGES = [
     "with a letter (it becomes vrshark.io.<name>)",
     "broken.csv line 16: bad value name 'x' in column values; fix: write value=name pairs separated by "
     "';', such as 0=Off;1=On",
-    "broken.csv line 17: bad device key 'unit=3'; fix: write terminal=N, frame_id=0xNNNN, origin=0xNNNN "
+    "broken.csv line 17: bad device key 'unit=3'; fix: write terminal=N, slot=N, frame_id=0xNNNN, origin=0xNNNN "
     "or server=<IP address>, or leave it empty for any device",
     "noheader.csv line 1: the header row has no column area, byte, type, name; fix: put the column names "
     "in the first row: area,byte,bit,type,name,label,unit,scale,offset,values,fault,severity,device",
@@ -96,16 +97,20 @@ def test_the_rest_still_decodes(broken, two_pass):
 
 def test_duplicate_across_files_and_empty_file(conf_dir, work_dir):
     write(work_dir, "a.csv", "area,byte,type,name\ncmd.from_ru,6,u8,op\n")
-    write(work_dir, "b.csv", "area;byte;type;name\ncmd.to_ru;0;u8;op\ncmd.to_ru;2;u8;code\n")
+    write(work_dir, "b.csv", "area;byte;type;name\ncmd.to_ru;0;u16le;op\ncmd.to_ru;2;u8;code\n")
+    write(work_dir, "d.csv", "area,byte,type,name\nperiodic.to_ru,8,u8,op\n")
     write(work_dir, "c.csv", "")
     t = io_tshark(conf_dir, work_dir)
     proc = t.run(["-n", "-r", str(CAP)])
     assert [line for line in proc.stderr.splitlines() if line.startswith("vrshark-io: ")] == [
         "vrshark-io: b.csv line 2: duplicate name 'op' (first in a.csv line 2); fix: give every field "
-        "of all description files its own name",
+        "of all description files its own name, or repeat the same field in another area with the same "
+        "bit, type, label, unit, scale, offset and values",
         "vrshark-io: c.csv line 1: the file has no header row; fix: put the column names in the first row: "
         "area,byte,bit,type,name,label,unit,scale,offset,values,fault,severity,device",
     ]
     # b.csv is separated by ";" (as spreadsheets of many locales export it) and still loads.
     t.expect(CAP, 16, {"vrshark.io.code": 0x57, "vrshark.io.op": None})
     t.expect(CAP, 2, {"vrshark.io.op": 7})
+    # the same field (same type, label...) in another area: one field, both places
+    t.expect(CAP, 1, {"vrshark.io.op": 1})

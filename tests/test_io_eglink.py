@@ -2,12 +2,10 @@
 every field of every area in captures/crane_eglink.pcap with its exact value,
 scaling and units as shown, bit fields, fault experts, device keys, and no
 change at all without a description."""
-import shutil
-
 import pytest
 
 from conftest import CAPTURES
-from io_testlib import crane_folder, io_tshark, world_folder, write
+from io_testlib import crane, expect_all, io_tshark, write  # noqa: F401 (crane is a fixture)
 
 CAP = CAPTURES / "crane_eglink.pcap"
 
@@ -48,21 +46,13 @@ EXPECTED = {
 }
 
 
-@pytest.fixture(scope="module")
-def crane(conf_dir):
-    folder = world_folder()
-    yield io_tshark(conf_dir, crane_folder(folder))
-    shutil.rmtree(folder, ignore_errors=True)
 
 
 @pytest.mark.parametrize("two_pass", [False, True])
 def test_every_crane_field_exact(crane, two_pass):
     frames = crane.frames(CAP, ALL, two_pass=two_pass)
     assert sorted(frames) == sorted(EXPECTED)
-    for number, values in EXPECTED.items():
-        want = {"vrshark.io." + k: v for k, v in values.items()}
-        want.update({name: None for name in ALL if name not in want})
-        crane.expect(CAP, number, want, two_pass=two_pass)
+    expect_all(crane, CAP, EXPECTED, ALL, two_pass=two_pass)
 
 
 def test_scaling_units_and_bits_as_shown(crane):

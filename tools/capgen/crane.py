@@ -1,5 +1,6 @@
 """The demo crane of examples/crane/: its machine data (IO list crane.csv)
-carried over EG-Link (captures/crane_eglink.pcap).
+carried over EG-Link (captures/crane_eglink.pcap) and MC-MB2-PN
+(captures/crane_mcmb2.pcap).
 
 The RU sends the operator's commands (buttons, speed range, hoist and trolley
 joysticks) as VRCI command data; the crane controller answers with VRCO
@@ -9,7 +10,8 @@ The layouts are those of examples/crane/crane.csv.
 """
 import struct
 
-from . import eglink
+from . import eglink, profinet
+from .pcap import Capture
 from .registry import capture
 
 
@@ -66,3 +68,22 @@ def crane_eglink():
         else:
             link.ctrl(t, ptype, eglink.vrpo(0, payload) if ptype == "VRPO" else payload)
     return link.cap
+
+
+@capture("crane_mcmb2.pcap", "the demo crane (examples/crane/crane.csv) over MC-MB2-PN duplex with its "
+         "Connect: the operator's terminal 1 uplink (8 bytes), messages downlink (14 bytes)")
+def crane_mcmb2():
+    cap = Capture()
+    d = profinet.Mcmb2("duplex", 8, 14, in_fid=0x8001, out_fid=0x8002)
+    d.connect(cap, 0.0)                                                       # frames 1, 2
+    steps = [  # (uplink data, downlink data): frames 3/4, 5/6, 7/8, 9/10
+        (operator(start=1), message(0, "")),
+        (operator(gear=1, hoist=755, trolley=-250), message(0, "")),
+        (operator(horn=1, gear=2, hoist=1000, trolley=-1000), message(1, "LOAD 52.3 T")),
+        (operator(stop=1, gear=3, hoist=-500), message(2, "WIND 21 M/S")),
+    ]
+    for i, (up, down) in enumerate(steps):
+        t = 0.1 * (i + 1)
+        d.uplink(cap, t, [0x11, i + 1], [up + bytes(8 - len(up))])
+        d.downlink(cap, t + 0.001, [1, i + 1], [down])
+    return cap
