@@ -851,6 +851,7 @@ local function show_eclink(rec, tvb, pinfo, tree)
     local o = plan.image
     local info = image.dissect(tvb, pinfo, root, { kind = up and "input" or "output", offset = base + o.off,
         length = o.len, image_len = o.len })
+    iodata.decode_eclink(info, { frame_id = tvb(0, 2):uint() }, pinfo) -- vrshark_io hook
     if rec.pci_age then root:add(epf.pci_age, nstime(rec.pci_age)):set_generated() end
     if rec.pco_age then root:add(epf.pco_age, nstime(rec.pco_age)):set_generated() end
     attach(rec, "image", info and info.item or root)

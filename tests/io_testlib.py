@@ -4,7 +4,7 @@ import shutil
 
 import pytest
 
-from conftest import ROOT, Tshark, _world_dir
+from conftest import CAPTURES, ROOT, Tshark, _world_dir
 
 CRANE_CSV = ROOT / "examples" / "crane" / "crane.csv"
 
@@ -51,3 +51,20 @@ def expect_all(t, capture, expected, names, two_pass=False):
         want = {"vrshark.io." + k: v for k, v in values.items()}
         want.update({name: None for name in names if name not in want})
         t.expect(capture, number, want, two_pass=two_pass)
+
+
+def assert_nothing_added(conf_dir, work_dir, captures):
+    """With an empty description folder nothing of vrshark_io is shown, and
+    the -V text is the same as with no folder at all."""
+    empty = io_tshark(conf_dir, work_dir)
+    missing = io_tshark(conf_dir, work_dir / "not-there")
+    for name in captures:
+        text = empty.verbose(CAPTURES / name)
+        assert "vrshark_io" not in text and "Machine data" not in text, name
+        assert text == missing.verbose(CAPTURES / name), name
+
+
+def described(conf_dir, folder, name, rows):
+    """A tshark with one description file made of rows (CSV lines, the header first)."""
+    write(folder, name, "\n".join(rows) + "\n")
+    return io_tshark(conf_dir, folder)

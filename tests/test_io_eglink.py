@@ -5,7 +5,7 @@ change at all without a description."""
 import pytest
 
 from conftest import CAPTURES
-from io_testlib import crane, expect_all, io_tshark, write  # noqa: F401 (crane is a fixture)
+from io_testlib import crane, described, expect_all, io_tshark, write  # noqa: F401 (crane is a fixture)
 
 CAP = CAPTURES / "crane_eglink.pcap"
 
@@ -109,7 +109,7 @@ def test_device_keys_select_the_origin(conf_dir, work_dir):
     """Rows limited to origin=0x1001 (the BU of the capture) apply on the BU's
     VRCI and, through the learned BU origin, on the controller's VRCO and VRPO;
     rows for another origin never apply."""
-    write(work_dir, "two.csv", "\n".join([
+    t = described(conf_dir, work_dir, "two.csv", [
         "area,byte,type,name,device",
         "cmd.from_ru,6,u8,op_here,origin=0x1001",
         "cmd.from_ru,6,u8,op_elsewhere,origin=0x2002",
@@ -117,8 +117,7 @@ def test_device_keys_select_the_origin(conf_dir, work_dir):
         "periodic.to_ru,8,u32le,cycle_here,origin=0x1001",
         "periodic.to_ru,8,u32le,cycle_elsewhere,origin=0x2002",
         "cmd.to_ru,0,u8,code_any,",
-    ]) + "\n")
-    t = io_tshark(conf_dir, work_dir)
+        ])
     names = ["vrshark.io." + n for n in ("op_here", "op_elsewhere", "code_here", "cycle_here",
                                          "cycle_elsewhere", "code_any")]
     for two_pass in (False, True):

@@ -4,7 +4,7 @@ polled slots with their device keys (terminal, slot, FrameID)."""
 import pytest
 
 from conftest import CAPTURES
-from io_testlib import crane, expect_all, io_tshark, write  # noqa: F401 (crane is a fixture)
+from io_testlib import assert_nothing_added, crane, described, expect_all  # noqa: F401 (crane is a fixture)
 
 CAP = CAPTURES / "crane_mcmb2.pcap"
 UP = ["horn", "start", "stop", "gear", "hoist_speed", "trolley_speed", "operator_id"]
@@ -53,7 +53,7 @@ def test_faults(crane):
 def test_polled_slots_and_device_keys(conf_dir, work_dir):
     """mcmb2_polled_connect.pcap: slots 1-3 carry terminals 1, 2 (later 5) and 3;
     uplink bytes are 0x10 + slot - 1, downlink bytes 0xa0 + slot - 1."""
-    write(work_dir, "polled.csv", "\n".join([
+    t = described(conf_dir, work_dir, "polled.csv", [
         "area,byte,type,name,device",
         "mcmb2.up,0,u8,any_up,",
         "mcmb2.up,1,u8,t5_up,terminal=5",
@@ -61,8 +61,7 @@ def test_polled_slots_and_device_keys(conf_dir, work_dir):
         "mcmb2.up,3,u8,other_fid,frame_id=0x8001",
         "mcmb2.down,0,u8,slot2_down,slot=2",
         "mcmb2.down,1,u8,fid_down,frame_id=0x8006",
-    ]) + "\n")
-    t = io_tshark(conf_dir, work_dir)
+        ])
     cap = CAPTURES / "mcmb2_polled_connect.pcap"
     names = ["vrshark.io." + n for n in ("any_up", "t5_up", "slot3_up", "other_fid", "slot2_down", "fid_down")]
     for two_pass in (False, True):
@@ -75,9 +74,5 @@ def test_polled_slots_and_device_keys(conf_dir, work_dir):
 
 
 def test_no_description_adds_nothing(conf_dir, work_dir):
-    empty = io_tshark(conf_dir, work_dir)
-    missing = io_tshark(conf_dir, work_dir / "not-there")
-    for name in ("crane_mcmb2.pcap", "mcmb2_polled_connect.pcap", "mcmb2_duplex_connect.pcap"):
-        text = empty.verbose(CAPTURES / name)
-        assert "vrshark_io" not in text and "Machine data" not in text
-        assert text == missing.verbose(CAPTURES / name)
+    assert_nothing_added(conf_dir, work_dir,
+                         ("crane_mcmb2.pcap", "mcmb2_polled_connect.pcap", "mcmb2_duplex_connect.pcap"))

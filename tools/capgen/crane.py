@@ -1,6 +1,7 @@
 """The demo crane of examples/crane/: its machine data (IO list crane.csv)
-carried over EG-Link (captures/crane_eglink.pcap) and MC-MB2-PN
-(captures/crane_mcmb2.pcap).
+carried over EG-Link (captures/crane_eglink.pcap), MC-MB2-PN
+(captures/crane_mcmb2.pcap) and EC-Link in PROFINET and Modbus/TCP
+(captures/crane_eclink_pnio.pcap, captures/crane_eclink_modbus.pcap).
 
 The RU sends the operator's commands (buttons, speed range, hoist and trolley
 joysticks) as VRCI command data; the crane controller answers with VRCO
@@ -10,7 +11,7 @@ The layouts are those of examples/crane/crane.csv.
 """
 import struct
 
-from . import eglink, profinet
+from . import eclink_modbus, eglink, profinet
 from .pcap import Capture
 from .registry import capture
 
@@ -86,4 +87,49 @@ def crane_mcmb2():
         t = 0.1 * (i + 1)
         d.uplink(cap, t, [0x11, i + 1], [up + bytes(8 - len(up))])
         d.downlink(cap, t + 0.001, [1, i + 1], [down])
+    return cap
+
+
+# (command from the RU, command to the RU, crane state) of the EC-Link captures
+def _eclink_steps():
+    return [
+        (operator(start=1), message(0, ""), state(0, 450, 900, cycle=1, wind=3.5, text="READY")),
+        (operator(gear=1, hoist=755, trolley=-250), message(0, ""),
+         state(1250, 512, 901, mode=1, cycle=3, wind=4.5, text="LIFTING")),
+        (operator(horn=1, gear=2, hoist=1000, trolley=-1000), message(1, "LOAD 52.3 T"),
+         state(5230, 640, 3599, overload=1, mode=3, cycle=4, wind=12.75, text="OVERLOAD")),
+        (operator(stop=1, gear=3, hoist=-500), message(2, "WIND 21 M/S"),
+         state(5230, 200, 0, wind_alarm=1, mode=2, cycle=5, wind=21.0, text="WIND ALARM")),
+    ]
+
+
+def _eclink_images(i, cmd_in, cmd_out, periodic):
+    """The input and output image of cycle i (the periodic data fits in block 0)."""
+    inp = eclink_modbus.input_image(pci=i + 1, cci=i + 1, pai=i, cmd=cmd_in)
+    out = eclink_modbus.output_image(pco=i + 1, cco=i, cao=i + 1, cmd=cmd_out, size=len(periodic),
+                                     block=0, data=periodic)
+    return inp, out
+
+
+@capture("crane_eclink_pnio.pcap", "the demo crane (examples/crane/crane.csv) over EC-Link in PROFINET "
+         "(64 in / 224 out) with its Connect: operator commands in the input image, messages and the "
+         "crane state (periodic data) in the output image")
+def crane_eclink_pnio():
+    cap = Capture()
+    bu = profinet.EclinkBu(224, in_fid=0x8010, out_fid=0x8011)
+    bu.connect(cap, 0.0)                                                     # frames 1, 2
+    for i, step in enumerate(_eclink_steps()):                               # frames 3/4 .. 9/10
+        inp, out = _eclink_images(i, *step)
+        bu.inputs(cap, 0.125 * (i + 1), inp)
+        bu.outputs(cap, 0.125 * (i + 1) + 0.001, out)
+    return cap
+
+
+@capture("crane_eclink_modbus.pcap", "the demo crane (examples/crane/crane.csv) over EC-Link in Modbus/TCP: "
+         "operator commands in the input image, messages and the crane state (periodic data) in the output image")
+def crane_eclink_modbus():
+    cap = Capture()
+    mb = eclink_modbus.ModbusClient(cap)                                     # frames 1-3: TCP handshake
+    for i, step in enumerate(_eclink_steps()):             # frames 4-7, 8-11, 12-15, 16-19
+        eclink_modbus.cycle(mb, 0.1 + 0.125 * i, *_eclink_images(i, *step))
     return cap
