@@ -1,17 +1,15 @@
 """EC-Link images over PROFINET IO and the handshake analysis."""
-import pytest
-
 CAP = "eclink_pnio_connect.pcap"
 
 
 def test_images_from_the_connect(tshark, capture_file):
-    rows = tshark.fields(capture_file(CAP), ["frame.number", "eclink.image", "eclink.pci", "eclink.cci",
-                                             "eclink.bu_state", "eclink.joystick1", "eclink.joystick2",
-                                             "eclink.pco", "eclink.periodic_size", "eclink_pnio.layout"],
-                         display_filter="frame.number <= 4")
-    assert rows[0][:2] == ["1", ""]
-    assert rows[2] == ["3", "input", "1", "0", "0x10", "500", "-250", "", "", "Connect in frame 1"]
-    assert rows[3] == ["4", "output", "", "", "", "", "", "1", "10", "Connect in frame 1"]
+    cap = capture_file(CAP)
+    tshark.expect(cap, 1, {"eclink.image": None, "eclink_pnio.layout": None})
+    tshark.expect(cap, 3, {"eclink.image": "input", "eclink.pci": 1, "eclink.cci": 0, "eclink.bu_state": 0x10,
+                           "eclink.joystick1": 500, "eclink.joystick2": -250, "eclink.pco": None,
+                           "eclink.periodic_size": None, "eclink_pnio.layout": "Connect in frame 1"})
+    tshark.expect(cap, 4, {"eclink.image": "output", "eclink.pci": None, "eclink.bu_state": None, "eclink.pco": 1,
+                           "eclink.periodic_size": 10, "eclink_pnio.layout": "Connect in frame 1"})
 
 
 def test_connect_learned(tshark, capture_file):
@@ -35,12 +33,11 @@ def test_handshake_experts(tshark, capture_file):
 
 
 def test_filters_by_expert_field(tshark, capture_file):
-    rows = tshark.fields(capture_file(CAP), ["frame.number"], display_filter="eclink_pnio.cmd_from_ru.late")
-    assert rows == [["76"]]
+    assert list(tshark.frames(capture_file(CAP), [], display_filter="eclink_pnio.cmd_from_ru.late")) == [76]
 
 
 def test_two_pass_agrees(tshark, capture_file):
-    fields = ["frame.number", "eclink.pci", "eclink_pnio.pci_age", "_ws.expert.message"]
-    one = tshark.fields(capture_file(CAP), fields)
-    assert one == tshark.fields(capture_file(CAP), fields, two_pass=True)
-    assert any(r[3] for r in one)
+    fields = ["eclink.pci", "eclink_pnio.pci_age", "_ws.expert.message"]
+    one = tshark.frames(capture_file(CAP), fields)
+    assert one == tshark.frames(capture_file(CAP), fields, two_pass=True)
+    assert any(r["_ws.expert.message"] for r in one.values())

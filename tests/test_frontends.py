@@ -17,6 +17,8 @@ from tools.capgen import profinet as pngen
 from tools.capgen.frames import pn_rt_frame, udp_frame
 from tools.capgen.pcap import Capture
 
+from conftest import CAPTURES
+
 # These tests are about the C plugin: a Lua-only run (VRSHARK_NO_C_PLUGIN=1) skips them.
 needs_c = pytest.mark.skipif(bool(os.environ.get("VRSHARK_NO_C_PLUGIN")), reason="runs without the C plugin")
 
@@ -190,3 +192,18 @@ def test_lua_only_run_leaves_the_c_plugin_out(tshark, capture_file):
     assert rows[2:] == ["eth:ethertype:vrshark_pnio:pn_rt:pn_io\tuplink", "eth:ethertype:vrshark_pnio:pn_rt:pn_io\tdownlink"]
     assert os.environ.get("VRSHARK_NO_C_PLUGIN") or "vrshark_mbtcp" in subprocess.run(
         [tshark.cmd, "-G", "protocols"], env=tshark.env, capture_output=True, text=True, timeout=600).stdout
+
+
+@pytest.mark.parametrize("capture", ["mcmb2_polled_connect.pcap", "eclink_modbus_faults.pcap"])
+def test_expert_statistics_see_the_lua_findings(tshark, capture):
+    """`tshark -q -z expert` builds no tree and no columns: the front ends must
+    still let the Lua decoders add their expert info, since the expert tap
+    listens. Every finding the decoders give in a normal run is counted."""
+    path = str(CAPTURES / capture)
+    out = tshark.run(["-n", "-q", "-r", path, "-z", "expert"]).stdout
+    messages = {m for msgs in tshark.experts(CAPTURES / capture).values() for m in msgs}
+    ours = {m for m in messages if not m.startswith(("Connection establish", "Connect request",
+                                                        "Connect response"))}
+    assert ours
+    missing = [m for m in ours if m not in out]
+    assert not missing, missing

@@ -53,7 +53,8 @@ def test_install_layout(installed_home):
 def test_installed_plugins_decode(installed_home):
     out = plain_tshark(installed_home, ["-G", "plugins"]).stdout
     assert "eglink.so" in out
-    assert "eclink_modbus.lua" in out and "mcmb2_pnio.lua" in out
+    for name in ("eclink_modbus.lua", "eclink_pnio.lua", "mcmb2.lua", "vrshark_pnio.lua"):
+        assert name in out
     proc = plain_tshark(installed_home, ["-n", "-r", str(ROOT / "captures" / "eglink_armed.pcap"),
                                          "-c", "1", "-T", "fields", "-e", "eglink.type",
                                          "-e", "eglink.armed_ru", "-e", "eglink.crc.status"])

@@ -3,23 +3,29 @@ DUPLEX = "mcmb2_duplex_noconnect.pcap"
 ECL = "eclink_pnio_noconnect.pcap"
 
 
+def systems(tshark, capture, **kw):
+    """{frame: mcmb2.system} of every frame."""
+    return {n: r["mcmb2.system"] for n, r in tshark.frames(capture, ["mcmb2.system"], **kw).items()}
+
+
 def test_not_decoded_without_the_table(tshark, capture_file):
-    assert tshark.field(capture_file(DUPLEX), "mcmb2.system") == [""] * 6
+    assert systems(tshark, capture_file(DUPLEX)) == dict.fromkeys(range(1, 7), "")
 
 
 def test_duplex_from_the_table(tshark, capture_file):
-    rows = tshark.fields(capture_file(DUPLEX), ["frame.number", "mcmb2.status", "mcmb2.terminal",
-                                                "mcmb2.uplink_data", "mcmb2.base_unit", "mcmb2.downlink_data",
-                                                "mcmb2.layout"],
-                         prefs={"mcmb2.layouts": "0xC010/0xC011=duplex:8/4"})
-    assert rows[0] == ["1", "0x01", "3", "0102030405060708", "", "", "preference"]
-    assert rows[1] == ["2", "", "", "", "2", "09080706", "preference"]
+    prefs = {"mcmb2.layouts": "0xC010/0xC011=duplex:8/4"}
+    tshark.expect(capture_file(DUPLEX), 1, {"mcmb2.status": 1, "mcmb2.terminal": 3,
+                                            "mcmb2.uplink_data": "0102030405060708", "mcmb2.base_unit": None,
+                                            "mcmb2.downlink_data": None, "mcmb2.layout": "preference"}, prefs=prefs)
+    tshark.expect(capture_file(DUPLEX), 2, {"mcmb2.status": None, "mcmb2.terminal": None, "mcmb2.uplink_data": None,
+                                            "mcmb2.base_unit": 2, "mcmb2.downlink_data": "09080706",
+                                            "mcmb2.layout": "preference"}, prefs=prefs)
 
 
 def test_uplink_only_entry(tshark, capture_file):
-    rows = tshark.fields(capture_file(DUPLEX), ["mcmb2.direction"],
-                         prefs={"mcmb2.layouts": "49168=duplex:8/4"})
-    assert [r[0] for r in rows] == ["uplink", ""] * 3
+    got = tshark.frames(capture_file(DUPLEX), ["mcmb2.direction"], prefs={"mcmb2.layouts": "49168=duplex:8/4"})
+    assert {n: r["mcmb2.direction"] for n, r in got.items()} == \
+        {1: "uplink", 2: "", 3: "uplink", 4: "", 5: "uplink", 6: ""}
 
 
 def test_wrong_sizes_are_flagged_not_crashed(tshark, capture_file):
@@ -29,14 +35,14 @@ def test_wrong_sizes_are_flagged_not_crashed(tshark, capture_file):
 
 
 def test_bad_table_entries_are_ignored(tshark, capture_file):
-    rows = tshark.fields(capture_file(DUPLEX), ["mcmb2.system"],
-                         prefs={"mcmb2.layouts": "garbage; 0xZZ=duplex; 0xC010/0xC011=duplex:8/4; 5=weird"})
-    assert [r[0] for r in rows] == ["duplex"] * 6
+    got = systems(tshark, capture_file(DUPLEX),
+                  prefs={"mcmb2.layouts": "garbage; 0xZZ=duplex; 0xC010/0xC011=duplex:8/4; 5=weird"})
+    assert got == dict.fromkeys(range(1, 7), "duplex")
 
 
 def test_eclink_from_the_table(tshark, capture_file):
-    rows = tshark.fields(capture_file(ECL), ["frame.number", "eclink.image", "eclink.pci", "eclink.pco",
-                                             "eclink_pnio.layout"],
-                         prefs={"mcmb2.layouts": "0xC020/0xC021=eclink:/20"})
-    assert rows[0] == ["1", "input", "1", "", "preference"]
-    assert rows[1] == ["2", "output", "", "1", "preference"]
+    prefs = {"mcmb2.layouts": "0xC020/0xC021=eclink:/20"}
+    tshark.expect(capture_file(ECL), 1, {"eclink.image": "input", "eclink.pci": 1, "eclink.pco": None,
+                                         "eclink_pnio.layout": "preference"}, prefs=prefs)
+    tshark.expect(capture_file(ECL), 2, {"eclink.image": "output", "eclink.pci": None, "eclink.pco": 1,
+                                         "eclink_pnio.layout": "preference"}, prefs=prefs)

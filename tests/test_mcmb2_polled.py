@@ -4,54 +4,83 @@ import pytest
 CONNECT = "mcmb2_polled_connect.pcap"
 NOCONNECT = "mcmb2_polled_noconnect.pcap"
 VLAN = "mcmb2_polled_vlan.pcap"
+SAFE = ": bring the system to a safe state"
+# _ws.expert.severity / .group as tshark -T fields prints them (epan/proto.h PI_*)
+ERROR, SEQUENCE, PROTOCOL = 0x00800000, 0x02000000, 0x09000000
 
 
 def test_uplink_header_and_slots(tshark, capture_file):
-    rows = tshark.fields(capture_file(CONNECT),
-                         ["mcmb2.system", "mcmb2.status", "mcmb2.uplink_watchdog", "mcmb2.uplink_size",
-                          "mcmb2.downlink_size", "mcmb2.slot", "mcmb2.slot.status", "mcmb2.slot.terminal",
-                          "mcmb2.slot.uplink_data"], display_filter="frame.number==3")
-    assert rows == [["polled", "0x0f", "1", "24", "10", "1,2,3,4", "0x01,0x01,0x01,0x0f", "1,2,3,0",
-                     ",".join(bytes([0x10 + k] * 24).hex() for k in range(3))]]
+    tshark.expect(capture_file(CONNECT), 3, {
+        "mcmb2.system": "polled", "mcmb2.status": 0xF, "mcmb2.uplink_watchdog": 1, "mcmb2.uplink_size": 24,
+        "mcmb2.downlink_size": 10, "mcmb2.slot": [1, 2, 3, 4], "mcmb2.slot.status": [1, 1, 1, 0xF],
+        "mcmb2.slot.terminal": [1, 2, 3, 0],
+        "mcmb2.slot.uplink_data": [bytes([0x10 + k] * 24).hex() for k in range(3)],
+        "_ws.col.Info": "Uplink polled: Polled system normal mode, watchdog 1, Y=24 Z=10, "
+                        "slots 1:T1 present, 2:T2 present, 3:T3 present"})
 
 
 def test_downlink_slots(tshark, capture_file):
-    rows = tshark.fields(capture_file(CONNECT), ["mcmb2.direction", "mcmb2.reserved", "mcmb2.downlink_watchdog",
-                                                 "mcmb2.slot", "mcmb2.slot.downlink_data"],
-                         display_filter="frame.number==4")
-    assert rows == [["downlink", "0x00", "1", "1,2,3", ",".join(bytes([0xA0 + k] * 10).hex() for k in range(3))]]
+    tshark.expect(capture_file(CONNECT), 4, {
+        "mcmb2.direction": "downlink", "mcmb2.reserved": 0, "mcmb2.downlink_watchdog": 1, "mcmb2.slot": [1, 2, 3],
+        "mcmb2.slot.downlink_data": [bytes([0xA0 + k] * 10).hex() for k in range(3)],
+        "_ws.col.Info": "Downlink polled: watchdog 1, 3 slot(s)"})
 
 
 def test_polled_experts(tshark, capture_file):
     ex = tshark.experts(capture_file(CONNECT))
     assert 3 not in ex and 4 not in ex
     assert ex[7] == ["Slot 2 now serves terminal 5 (was terminal 2): dynamic polling"]
-    assert ex[9] == ["Slot 3: undefined terminal status 0x3: bring the system to a safe state"]
-    assert ex[11] == ["Undefined MC-MB2-PN status 0x1 on a polled system: bring the system to a safe state"]
-    assert ex[13][0].startswith("Fieldbus update failure (E010)")
-    assert ex[15] == ["Y=20, Z=10, 3 used slot(s) differ from the configured layout (Y=24, Z=10, 3 slot(s)): "
-                      "bring the system to a safe state"]
+    assert ex[9] == ["Slot 3: terminal status Unknown (0x3) is undefined" + SAFE]
+    assert ex[11] == ["MC-MB2-PN status Unknown (0x1) is undefined on a polled system" + SAFE]
+    assert ex[13] == ["Fieldbus update failure (E010): no valid terminal data, the IO controller must keep the "
+                      "system in a safe state"]
+    assert ex[15] == ["Y=20, Z=10, 3 used slot(s) differ from the configured layout (Y=24, Z=10, 3 slot(s))" + SAFE]
     assert ex[17] == ["Terminal number bits are 2, not 0, on a polled system",
-                      "Slot 2: terminal status 0x7 is not 'Terminal present' but its uplink data is not all 0"]
+                      "Slot 2: terminal status Active stop is not 'Terminal present' but its uplink data is not all 0"]
     assert ex[18] == ["Reserved byte is 0x05, not 0"]
+
+
+def test_info_names_statuses_and_tags_findings(tshark, capture_file):
+    """Names as on the duplex side, never "status 0xA"; [E010] and [undefined] tags."""
+    cap = capture_file(CONNECT)
+    tshark.expect(cap, 7, {"_ws.col.Info": "Uplink polled: Polled system normal mode, watchdog 3, Y=24 Z=10, "
+                                           "slots 1:T1 present, 2:T5 present, 3:T3 present"})
+    tshark.expect(cap, 9, {"mcmb2.slot.status.undefined": True, "_ws.expert.severity": ERROR,
+                           "_ws.expert.group": PROTOCOL,
+                           "_ws.col.Info": "Uplink polled: Polled system normal mode, watchdog 4, Y=24 Z=10, "
+                                           "slots 1:T1 present, 2:T5 present, 3:T3 Unknown (0x3) [undefined]"})
+    tshark.expect(cap, 11, {"mcmb2.status.undefined": True, "_ws.expert.severity": ERROR,
+                            "_ws.expert.group": PROTOCOL,
+                            "_ws.col.Info": "Uplink polled: Unknown (0x1), watchdog 5, Y=24 Z=10, "
+                                            "slots 1:T1 present, 2:T5 present, 3:T3 present [undefined]"})
+    tshark.expect(cap, 13, {"mcmb2.status": 0xA, "mcmb2.status.e010": True, "mcmb2.no_valid_data": None,
+                            "_ws.expert.severity": ERROR, "_ws.expert.group": SEQUENCE,
+                            "_ws.col.Info": "Uplink polled: Fieldbus update failure (E010), watchdog 6, Y=24 Z=10, "
+                                            "slots 1:T1 absent, 2:T5 absent, 3:T3 absent [E010]"})
+    tshark.expect(cap, 17, {"_ws.col.Info": "Uplink polled: Polled system normal mode, watchdog 8, Y=24 Z=10, "
+                                            "slots 1:T1 present, 2:T5 active stop, 3:T3 present"})
+    infos = tshark.field(cap, "_ws.col.Info", display_filter="mcmb2")
+    assert infos and not any("status 0x" in i for i in infos)
 
 
 def test_slot_absent_with_zero_data_is_quiet(tshark, capture_file):
     assert 5 not in tshark.experts(capture_file(CONNECT))
-    assert tshark.field(capture_file(CONNECT), "mcmb2.slot.status", display_filter="frame.number==5") == \
-        ["0x01,0x00,0x01,0x0f"]
+    tshark.expect(capture_file(CONNECT), 5, {"mcmb2.slot.status": [1, 0, 1, 0xF], "_ws.expert.message": None})
 
 
 @pytest.mark.parametrize("name", [NOCONNECT, VLAN])
 def test_header_lays_out_both_directions(tshark, capture_file, name):
-    rows = tshark.fields(capture_file(name), ["frame.number", "mcmb2.direction", "mcmb2.layout",
-                                              "mcmb2.slot.uplink_data", "mcmb2.slot.downlink_data"])
-    by = {int(r[0]): r[1:] for r in rows}
+    fields = ["mcmb2.direction", "mcmb2.layout", "mcmb2.slot.uplink_data", "mcmb2.slot.downlink_data"]
     # The downlink sent before the first uplink header is not ours yet.
-    assert by[1] == ["", "", "", ""]
-    assert by[2] == ["uplink", "polled header in frame 2", "3030303030303030303030,3131313131313131313131"[:0]
-                     + bytes([0x30] * 10).hex() + "," + bytes([0x31] * 10).hex(), ""]
-    assert by[3] == ["downlink", "polled header in frame 2", "", "40404040,41414141"]
+    tshark.expect(capture_file(name), 1, dict.fromkeys(fields))
+    tshark.expect(capture_file(name), 2, {"mcmb2.direction": "uplink", "mcmb2.layout": "polled header in frame 2",
+                                          "mcmb2.slot.uplink_data": [bytes([0x30] * 10).hex(),
+                                                                     bytes([0x31] * 10).hex()],
+                                          "mcmb2.slot.downlink_data": None})
+    tshark.expect(capture_file(name), 3, {"mcmb2.direction": "downlink",
+                                          "mcmb2.layout": "polled header in frame 2",
+                                          "mcmb2.slot.uplink_data": None,
+                                          "mcmb2.slot.downlink_data": ["40404040", "41414141"]})
     assert tshark.experts(capture_file(name))[8] == \
         ["Slot 2 now serves terminal 4 (was terminal 2): dynamic polling"]
 
@@ -61,14 +90,14 @@ def test_vlan_frames_are_tagged(tshark, capture_file):
 
 
 def test_header_heuristic_can_be_switched_off(tshark, capture_file):
-    rows = tshark.fields(capture_file(NOCONNECT), ["mcmb2.system"], prefs={"mcmb2.heuristic": "FALSE"})
-    assert all(r == [""] for r in rows)
+    got = tshark.frames(capture_file(NOCONNECT), ["mcmb2.system"], prefs={"mcmb2.heuristic": "FALSE"})
+    assert got and all(r == {"mcmb2.system": ""} for r in got.values())
 
 
 @pytest.mark.parametrize("name", [CONNECT, NOCONNECT])
 def test_two_pass_agrees(tshark, capture_file, name):
-    fields = ["frame.number", "mcmb2.slot.terminal", "mcmb2.slot.uplink_data", "mcmb2.slot.downlink_data",
+    fields = ["mcmb2.slot.terminal", "mcmb2.slot.uplink_data", "mcmb2.slot.downlink_data", "_ws.col.Info",
               "_ws.expert.message"]
-    one = tshark.fields(capture_file(name), fields)
-    assert one == tshark.fields(capture_file(name), fields, two_pass=True)
-    assert any(r[4] for r in one)
+    one = tshark.frames(capture_file(name), fields)
+    assert one == tshark.frames(capture_file(name), fields, two_pass=True)
+    assert any(r["_ws.expert.message"] for r in one.values())

@@ -78,7 +78,7 @@ TIMELINES = {
     "eglink_analysis_vrpo_gap.pcap": [
         (35, 'note', 1, 'BU state Armed -> External link error (after 3.000 s or more)'),
         (35, 'warning', 1, 'ES-Link relays open (BU state External link error) for 0.750 s, closed in frame 44'),
-        (35, 'warning', 1, 'no VRPO for 2.600 s (after frame 18, limit 2000 ms), received again in frame 40'),
+        (35, 'error', 1, 'no VRPO for 2.600 s (after frame 18, limit 2000 ms), received again in frame 40'),
         (44, 'note', 1, 'BU state External link error -> Armed (after 0.750 s)'),
     ],
     "eglink_analysis_lost.pcap": [
@@ -98,7 +98,7 @@ TIMELINES = {
         (94, 'warning', 1, 'command 5 acknowledged after 2.300 s (late)'),
     ],
     "eglink_analysis_vrpi_gap.pcap": [
-        (16, 'warning', 1, 'no VRPI for 0.875 s (after frame 10, limit 500 ms), received again in frame 20'),
+        (16, 'error', 1, 'no VRPI for 0.875 s (after frame 10, limit 500 ms), received again in frame 20'),
     ],
     "eglink_bad_crc.pcap": [
         (1, 'error', 1, 'bad CRC (6x, frames 1-6 over 0.050 s)'),
@@ -146,7 +146,7 @@ TIMELINES = {
         (13, 'note', 1, 'slot 1 terminal 1 present -> terminal 1 absent (after 0.500 s or more)'),
         (13, 'note', 1, 'slot 2 terminal 5 present -> terminal 5 absent (after 0.300 s)'),
         (13, 'note', 1, 'slot 3 terminal 3 present -> terminal 3 absent (after 0.100 s)'),
-        (13, 'warning', 1, 'no valid terminal data'),
+        (13, 'error', 1, 'E010 reported by the base'),
         (15, 'note', 1, 'status fieldbus update failure (E010) -> normal mode (after 0.100 s)'),
         (15, 'note', 1, 'slot 1 terminal 1 absent -> terminal 1 present (after 0.100 s)'),
         (15, 'note', 1, 'slot 2 terminal 5 absent -> terminal 5 present (after 0.100 s)'),
@@ -162,13 +162,14 @@ TIMELINES = {
         (34, 'error', 1, 'downlink watchdog stalled at 5 for 2.600 s (unchanged since frame 12, limit 2000 ms: the base shows E010), moving again in frame 38'),
     ],
     "mcmb2_duplex_connect.pcap": [
-        (3, 'warning', 1, 'no valid terminal data (4x, frames 3-13 over 0.500 s)'),
+        (3, 'warning', 1, 'no valid terminal data (3x, frames 3-11 over 0.400 s)'),
         (5, 'note', 1, 'status absent -> blocked (after 0.100 s or more)'),
         (7, 'note', 1, 'status blocked -> present (after 0.100 s)'),
         (9, 'warning', 1, 'IOPS not GOOD'),
         (11, 'note', 1, 'status present -> active stop (after 0.200 s)'),
         (11, 'warning', 1, 'data not 0 while the terminal is not present'),
         (13, 'note', 1, 'status active stop -> fieldbus update failure (E010) (after 0.100 s)'),
+        (13, 'error', 1, 'E010 reported by the base'),
         (15, 'note', 1, 'status fieldbus update failure (E010) -> present (after 0.100 s)'),
         (16, 'warning', 1, 'IOCS not GOOD'),
         (17, 'note', 1, 'status present -> undefined 0x03 (after 0.100 s)'),
@@ -187,9 +188,8 @@ TIMELINES = {
     "eglink_header.pcap": [
         (1, 'warning', 1, 'unknown layout revision'),
         (2, 'warning', 1, 'origin not 0 in a controller packet (3x, frames 2-4 over 0.020 s)'),
-        (4, 'note', 1, 'acknowledges a command not in the capture'),
         (5, 'warning', 1, 'origin 0 in a BU packet (2x, frames 5-6 over 0.010 s)'),
-        (5, 'warning', 1, 'another origin on the same group and port (2x, frames 5-7 over 0.020 s)'),
+        (5, 'warning', 1, 'another origin at the same BU address (2x, frames 5-7 over 0.020 s)'),
         (7, 'warning', 1, 'header spare not 0'),
         (8, 'warning', 1, 'payload spare not 0 (2x, frames 8-9 over 0.010 s)'),
     ],
@@ -265,11 +265,11 @@ VRPO_GAP_TEXT = """\
   [1] EG-Link BU 0x1001 (192.168.32.10 to 239.255.42.20:5825)
       frames 1-56 (56), 0.000 s to 4.440 s; layout: TS-0006, UDP port 5825
       first: BU state Armed, RU state Enabled (RU 0xbeef)
-timeline (4 entries: 0 error, 2 warning, 2 note; seconds from the first frame):
+timeline (4 entries: 1 error, 1 warning, 2 note; seconds from the first frame):
       time   frame  severity  device
      3.000      35  note      [1]  BU state Armed -> External link error (after 3.000 s or more)
      3.000      35  warning   [1]  ES-Link relays open (BU state External link error) for 0.750 s, closed in frame 44
-     3.000      35  warning   [1]  no VRPO for 2.600 s (after frame 18, limit 2000 ms), received again in frame 40
+     3.000      35  error     [1]  no VRPO for 2.600 s (after frame 18, limit 2000 ms), received again in frame 40
      3.750      44  note      [1]  BU state External link error -> Armed (after 0.750 s)
 """
 
@@ -294,9 +294,9 @@ def test_faults_gate_warn(report):
         "limit 500 ms)"]
 
 
-@pytest.mark.parametrize("gate, status", [(None, 0), ("note", 1), ("warn", 1), ("error", 0)])
+@pytest.mark.parametrize("gate, status", [(None, 0), ("note", 1), ("warn", 1), ("error", 1)])
 def test_gate_levels(report, gate, status):
-    """eglink_analysis_vrpo_gap has notes and warnings, no error."""
+    """eglink_analysis_vrpo_gap has notes, warnings and an error (the VRPO gap)."""
     args = ["--fail-on", gate] if gate else []
     proc = report(*args, "captures/eglink_analysis_vrpo_gap.pcap")
     assert proc.returncode == status
@@ -461,7 +461,7 @@ def test_junit(report, tmp_path, bad_files):
         (35, "note", 1, "BU state Armed -> External link error (after 3.000 s or more)"),
         (35, "warning", 1, "ES-Link relays open (BU state External link error) for 0.375 s or more, "
          "until the end of the capture"),
-        (35, "warning", 1, "no VRPO for 2.435 s or more (after frame 18, limit 2000 ms), "
+        (35, "error", 1, "no VRPO for 2.435 s or more (after frame 18, limit 2000 ms), "
          "until the end of the capture")]),
 ])
 def test_open_at_the_end(report, tmp_path, name, frames, want):

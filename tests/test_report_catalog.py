@@ -15,6 +15,7 @@ PROTOCOLS = ("eglink", "eclink", "eclink_modbus", "eclink_pnio", "mcmb2")
 # and chat-level experts (commands acknowledged, layouts learned, partial access).
 NOT_FINDINGS = {
     "eglink.payload", "eglink.analysis", "eglink.fragments", "eclink.partial",
+    "eglink.analysis.command", "eglink.analysis.ack", "eglink.analysis.unknown_ack",
     "eclink_modbus.cmd_from_ru", "eclink_modbus.cmd_from_ru.ack", "eclink_modbus.cmd_to_ru",
     "eclink_modbus.cmd_to_ru.ack", "eclink_modbus.periodic.reassembled",
     "eclink_pnio.cmd_from_ru", "eclink_pnio.cmd_from_ru.ack", "eclink_pnio.cmd_to_ru",

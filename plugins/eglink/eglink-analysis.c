@@ -14,12 +14,18 @@
  *
  * Which packets belong to one BU: the BU sends VRPI/VRCI/VRAI to its input
  * port, the machine controller sends VRPO/VRCO/VRAO to the input port + 2,
- * both usually to the same multicast group. A BU is therefore keyed by
+ * both usually to the same multicast group. Packets meet on a channel:
  *   (multicast group, input port)                      for multicast, or
  *   (the two unicast addresses, unordered, input port)  for unicast,
  * where the input port is the destination port of a BU packet and the
- * destination port - 2 of a controller packet. The BU's origin (its unique
- * ID) is learned from its own packets; controller packets carry origin 0.
+ * destination port - 2 of a controller packet. Every BU ships with the same
+ * group and ports, so one channel may carry several BUs: on it, a BU is
+ * its origin and source address, a controller its source address (its
+ * packets carry origin 0). Each sender has its own serials, periodic
+ * interval and commands. A controller is joined to its BU when it is the
+ * only one beside the only BU of the channel, or by the command IDs
+ * acknowledged between them (a VRAO for a BU's VRCI, a VRAI for the
+ * controller's VRCO); until then its packets are analysed on their own.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -58,6 +64,8 @@ static int hf_ack_to = -1;
 static int hf_ack_time = -1;
 static int hf_failed_command = -1;
 static int hf_incomplete_burst = -1;
+static int hf_last_vrpi = -1;
+static int hf_last_vrpo = -1;
 
 static int hf_fragments = -1;
 static int hf_fragment = -1;
@@ -90,6 +98,9 @@ static expert_field ei_bu_state_changed = EI_INIT;
 static expert_field ei_origin_changed = EI_INIT;
 static expert_field ei_burst_incomplete = EI_INIT;
 static expert_field ei_burst_size = EI_INIT;
+static expert_field ei_shared_group = EI_INIT;
+static expert_field ei_command = EI_INIT;
+static expert_field ei_ack = EI_INIT;
 
 /* Preferences */
 static guint pref_vrpi_gap_ms = 500;
@@ -129,43 +140,81 @@ typedef struct {
     guint8 failed;              /* the deadline passed unacknowledged */
 } eglink_cmd_t;
 
+/* Where the packets of BUs and controllers meet: a multicast group and the
+ * BU's input port, or a unicast address pair and the input port. */
 typedef struct {
     address a;                  /* multicast group, or the lower unicast address */
     address b;                  /* AT_NONE for multicast, else the higher address */
     guint32 port;               /* the BU's input port */
-} eglink_bu_key_t;
+} eglink_chan_key_t;
+
+typedef struct eglink_bu eglink_bu_t;
+typedef struct eglink_ctrl eglink_ctrl_t;
 
 typedef struct {
+    const char *where;          /* "239.255.42.20 port 5825" */
+    eglink_bu_t *bus;           /* the BUs seen on it, newest first */
+    eglink_ctrl_t *ctrls;       /* the machine controllers seen on it, newest first */
+    guint n_bus;
+    guint n_ctrls;
+} eglink_chan_t;
+
+/* What one sender (a BU or a machine controller) tracks of its own packets:
+ * serials, its periodic packets (VRPI of a BU, VRPO of a controller) and
+ * the commands it sends (VRCI of a BU, VRCO of a controller). */
+typedef struct {
+    gboolean have_serial;
+    guint16 last_serial;
+    guint32 last_serial_frame;
+
+    guint32 last_periodic_frame;    /* 0: none yet */
+    nstime_t last_periodic_ts;
+    gboolean periodic_missing_reported;
+
+    eglink_cmd_t *cmds[EGLINK_CMD_SLOTS];
+    guint cmd_next;
+
+    gboolean shared_reported;   /* the shared-group warning was given */
+} eglink_sender_t;
+
+/* A BU: its origin and its address, on one channel. */
+struct eglink_bu {
+    eglink_sender_t s;
     guint32 index;              /* BU stream number, from 0 in order of appearance */
-    const char *name;
-    gboolean origin_known;
+    const char *name;           /* "BU 0x1001 (10.0.0.1)" */
+    eglink_chan_t *chan;
+    address addr;
     guint16 origin;
-
-    gboolean have_serial[2];    /* per sender: EGLINK_DIR_IN = BU, OUT = controller */
-    guint16 last_serial[2];
-    guint32 last_serial_frame[2];
-
-    guint32 last_vrpi_frame;    /* 0: none yet */
-    nstime_t last_vrpi_ts;
-    gboolean vrpi_missing_reported;
+    gboolean origin_known;      /* origin is from a valid packet (not one with a bad CRC) */
     gboolean have_bu_state;
     guint8 bu_state;
+    eglink_bu_t *next;          /* in chan->bus */
+};
 
-    guint32 last_vrpo_frame;
-    nstime_t last_vrpo_ts;
-    gboolean vrpo_missing_reported;
+/* A split VRPO burst of one controller. */
+typedef struct {
+    gboolean open;              /* a burst whose end is not seen yet */
+    gboolean broken;            /* ... with a packet missing: it cannot complete */
+    guint32 id;                 /* its reassembly ID (0 when broken from the start) */
+    guint32 first_frame;
+    guint16 next;               /* packet number expected next */
+    guint16 missing;            /* first missing packet number */
+    guint32 bytes;
+} eglink_burst_t;
 
-    gboolean burst_open;        /* a split VRPO burst whose end is not seen yet */
-    gboolean burst_broken;      /* ... with a packet missing: it cannot complete */
-    guint32 burst_id;           /* its reassembly ID (0 when broken from the start) */
-    guint32 burst_first_frame;
-    guint16 burst_next;         /* packet number expected next */
-    guint16 burst_missing;      /* first missing packet number */
-    guint32 burst_bytes;
-
-    eglink_cmd_t *cmds[2][EGLINK_CMD_SLOTS];
-    guint cmd_next[2];
-} eglink_bu_t;
+/* A machine controller: its address, on one channel; joined to the BU it
+ * talks to once that is known. */
+struct eglink_ctrl {
+    eglink_sender_t s;
+    guint32 index;              /* from 0 in order of appearance */
+    const char *name;           /* "Controller 10.0.0.11 (BU not known)" */
+    eglink_chan_t *chan;
+    address addr;
+    eglink_bu_t *bu;            /* its BU, NULL while not known */
+    gboolean joined_by_ack;     /* ... known from a command it or the BU acknowledged */
+    eglink_burst_t burst;
+    eglink_ctrl_t *next;        /* in chan->ctrls */
+};
 
 /* Findings that only some frames have; a list hung off the frame record. */
 typedef enum {
@@ -183,7 +232,8 @@ typedef enum {
     FND_UNKNOWN_ACK,            /* value: command ID */
     FND_BURST_DONE,             /* value: reassembly ID of the previous burst it completes */
     FND_BURST_INCOMPLETE,       /* frame: first packet of the burst, value: missing packet number */
-    FND_BURST_SIZE              /* value: bytes in the burst, ns: configured size */
+    FND_BURST_SIZE,             /* value: bytes in the burst, ns: configured size */
+    FND_SHARED_GROUP            /* value: BUs on the channel, ns: controllers on it */
 } eglink_finding_kind_t;
 
 typedef struct eglink_finding {
@@ -217,7 +267,8 @@ typedef enum {
 
 /* The full record of one EG-Link layer of a frame. */
 typedef struct {
-    eglink_bu_t *bu;
+    eglink_bu_t *bu;            /* the BU of the packet: its own, or the one its controller talks to */
+    eglink_ctrl_t *ctrl;        /* a controller packet whose BU is not known (bu is NULL) */
     eglink_cmd_t *cmd;          /* VRCI/VRCO: its command; VRAO/VRAI: the one it acknowledges */
     eglink_finding_t *findings;
     gint64 delta_ns;            /* VRPI/VRPO: since the previous one; VRAO/VRAI: ack time */
@@ -234,7 +285,7 @@ typedef struct {
  * layer, and of a frame whose full record does not fit, is stored with
  * p_add_proto_data (FF_FULL). */
 typedef struct {
-    guint32 bu_index;
+    guint32 unit;               /* BU index, or SLOT_CTRL | controller index */
     guint32 delta_ns;           /* delta_ns of the full record when FF_DELTA */
     guint16 flags;              /* FF_*, serial_status << FF_STATUS_SHIFT */
     guint16 expected_serial;
@@ -243,14 +294,16 @@ typedef struct {
     guint8 prev_bu_state;
 } eglink_slot_t;
 
+#define SLOT_CTRL 0x80000000u
+
 #define EGLINK_SLOT_PAGE_BITS 12
 #define EGLINK_SLOT_PAGE_SIZE (1u << EGLINK_SLOT_PAGE_BITS)
 
-static wmem_map_t *eglink_bus;
-static guint32 eglink_bu_count;
+static wmem_map_t *eglink_chans;
 static guint32 eglink_burst_count;
-/* File scope: the BUs by index, and the pages of slots by frame number. */
+/* File scope: the BUs and controllers by index, and the pages of slots by frame number. */
 static wmem_array_t *eglink_bu_by_index;
+static wmem_array_t *eglink_ctrl_by_index;
 static eglink_slot_t **eglink_slot_pages;
 static guint32 eglink_slot_page_count;
 
@@ -259,9 +312,9 @@ static guint32 eglink_slot_page_count;
 static void
 eglink_analysis_init(void)
 {
-    eglink_bu_count = 0;
     eglink_burst_count = 0;
     eglink_bu_by_index = NULL;
+    eglink_ctrl_by_index = NULL;
     eglink_slot_pages = NULL;
     eglink_slot_page_count = 0;
 }
@@ -317,7 +370,7 @@ eglink_frame_store(packet_info *pinfo, guint32 key, const eglink_frame_t *fd)
         if (compact) {
             slot->flags |= (guint16)((fd->flags & FF_FLAGS_MASK) |
                                      (fd->serial_status << FF_STATUS_SHIFT));
-            slot->bu_index = fd->bu->index;
+            slot->unit = fd->bu ? fd->bu->index : (SLOT_CTRL | fd->ctrl->index);
             slot->delta_ns = (fd->flags & FF_DELTA) ? (guint32)fd->delta_ns : 0;
             slot->expected_serial = fd->expected_serial;
             slot->bu_origin = fd->bu_origin;
@@ -339,7 +392,10 @@ eglink_frame_fetch(packet_info *pinfo, guint32 key, eglink_frame_t *buf)
     if (slot && (slot->flags & FF_USED) && !(slot->flags & FF_FULL) &&
         slot->layer == (guint8)pinfo->curr_layer_num) {
         memset(buf, 0, sizeof(*buf));
-        buf->bu = *(eglink_bu_t **)wmem_array_index(eglink_bu_by_index, slot->bu_index);
+        if (slot->unit & SLOT_CTRL)
+            buf->ctrl = *(eglink_ctrl_t **)wmem_array_index(eglink_ctrl_by_index, slot->unit & ~SLOT_CTRL);
+        else
+            buf->bu = *(eglink_bu_t **)wmem_array_index(eglink_bu_by_index, slot->unit);
         buf->delta_ns = slot->delta_ns;
         buf->flags = slot->flags & FF_FLAGS_MASK;
         buf->serial_status = (guint8)((slot->flags >> FF_STATUS_SHIFT) & 0x7);
@@ -378,12 +434,13 @@ ms_to_ns(guint ms)
     return (gint64)ms * 1000000;
 }
 
-/* "0.812 s" */
+/* "0.812 s": rounded to the millisecond */
 static const char *
 ns_str(wmem_allocator_t *scope, gint64 ns)
 {
-    return wmem_strdup_printf(scope, "%" G_GINT64_FORMAT ".%03d s",
-                              ns / 1000000000, (int)((ns % 1000000000) / 1000000));
+    gint64 ms = (ns + 500000) / 1000000;     /* rounded to the millisecond */
+
+    return wmem_strdup_printf(scope, "%" G_GINT64_FORMAT ".%03d s", ms / 1000, (int)(ms % 1000));
 }
 
 static gboolean
@@ -405,9 +462,9 @@ address_is_multicast(const address *addr)
 }
 
 static guint
-eglink_bu_hash(gconstpointer k)
+eglink_chan_hash(gconstpointer k)
 {
-    const eglink_bu_key_t *key = (const eglink_bu_key_t *)k;
+    const eglink_chan_key_t *key = (const eglink_chan_key_t *)k;
     guint h = key->port;
 
     h = add_address_to_hash(h, &key->a);
@@ -415,19 +472,19 @@ eglink_bu_hash(gconstpointer k)
 }
 
 static gboolean
-eglink_bu_equal(gconstpointer k1, gconstpointer k2)
+eglink_chan_equal(gconstpointer k1, gconstpointer k2)
 {
-    const eglink_bu_key_t *x = (const eglink_bu_key_t *)k1;
-    const eglink_bu_key_t *y = (const eglink_bu_key_t *)k2;
+    const eglink_chan_key_t *x = (const eglink_chan_key_t *)k1;
+    const eglink_chan_key_t *y = (const eglink_chan_key_t *)k2;
 
     return x->port == y->port && addresses_equal(&x->a, &y->a) && addresses_equal(&x->b, &y->b);
 }
 
-static eglink_bu_t *
-eglink_bu_lookup(packet_info *pinfo, eglink_type_t type)
+static eglink_chan_t *
+eglink_chan_lookup(packet_info *pinfo, eglink_type_t type)
 {
-    eglink_bu_key_t key, *stored;
-    eglink_bu_t *bu;
+    eglink_chan_key_t key, *stored;
+    eglink_chan_t *chan;
     guint32 port = pinfo->destport;
 
     if (!eglink_is_input(type) && port >= 2)
@@ -443,28 +500,102 @@ eglink_bu_lookup(packet_info *pinfo, eglink_type_t type)
         key.a = pinfo->dst;
         key.b = pinfo->src;
     }
-    bu = (eglink_bu_t *)wmem_map_lookup(eglink_bus, &key);
-    if (bu)
-        return bu;
+    chan = (eglink_chan_t *)wmem_map_lookup(eglink_chans, &key);
+    if (chan)
+        return chan;
 
-    stored = wmem_new(wmem_file_scope(), eglink_bu_key_t);
+    stored = wmem_new(wmem_file_scope(), eglink_chan_key_t);
     copy_address_wmem(wmem_file_scope(), &stored->a, &key.a);
     copy_address_wmem(wmem_file_scope(), &stored->b, &key.b);
     stored->port = key.port;
+    chan = wmem_new0(wmem_file_scope(), eglink_chan_t);
+    if (key.b.type == AT_NONE)
+        chan->where = wmem_strdup_printf(wmem_file_scope(), "%s port %u",
+                                         address_to_str(pinfo->pool, &key.a), key.port);
+    else
+        chan->where = wmem_strdup_printf(wmem_file_scope(), "%s <-> %s port %u",
+                                         address_to_str(pinfo->pool, &key.a),
+                                         address_to_str(pinfo->pool, &key.b), key.port);
+    wmem_map_insert(eglink_chans, stored, chan);
+    return chan;
+}
+
+/* Two BUs with the same origin and address on different ports or groups
+ * get the port or group in their name, so that each has its own row in
+ * the statistics. */
+static const char *
+eglink_bu_name(packet_info *pinfo, const eglink_chan_t *chan, guint16 origin)
+{
+    const char *name = wmem_strdup_printf(wmem_file_scope(), "BU 0x%04x (%s)", origin,
+                                          address_to_str(pinfo->pool, &pinfo->src));
+    guint i;
+
+    for (i = 0; eglink_bu_by_index && i < wmem_array_get_count(eglink_bu_by_index); i++) {
+        const eglink_bu_t *other = *(eglink_bu_t **)wmem_array_index(eglink_bu_by_index, i);
+        if (strcmp(other->name, name) == 0)
+            return wmem_strdup_printf(wmem_file_scope(), "BU 0x%04x (%s, %s)", origin,
+                                      address_to_str(pinfo->pool, &pinfo->src), chan->where);
+    }
+    return name;
+}
+
+/* A BU on one channel has one address. A packet from that address with
+ * another origin is the same BU with a new origin (replaced or
+ * reconfigured: flagged); one from another address is another BU. */
+static eglink_bu_t *
+eglink_bu_lookup(packet_info *pinfo, eglink_chan_t *chan, guint16 origin)
+{
+    eglink_bu_t *bu;
+
+    for (bu = chan->bus; bu; bu = bu->next)
+        if (addresses_equal(&bu->addr, &pinfo->src))
+            return bu;
     bu = wmem_new0(wmem_file_scope(), eglink_bu_t);
-    bu->index = eglink_bu_count++;
+    bu->chan = chan;
+    bu->origin = origin;
+    bu->name = eglink_bu_name(pinfo, chan, origin);
+    copy_address_wmem(wmem_file_scope(), &bu->addr, &pinfo->src);
     if (!eglink_bu_by_index)
         eglink_bu_by_index = wmem_array_new(wmem_file_scope(), sizeof(eglink_bu_t *));
+    bu->index = wmem_array_get_count(eglink_bu_by_index);
     wmem_array_append_one(eglink_bu_by_index, bu);
-    if (key.b.type == AT_NONE)
-        bu->name = wmem_strdup_printf(wmem_file_scope(), "BU %s port %u",
-                                      address_to_str(pinfo->pool, &key.a), key.port);
-    else
-        bu->name = wmem_strdup_printf(wmem_file_scope(), "BU %s <-> %s port %u",
-                                      address_to_str(pinfo->pool, &key.a),
-                                      address_to_str(pinfo->pool, &key.b), key.port);
-    wmem_map_insert(eglink_bus, stored, bu);
+    bu->next = chan->bus;
+    chan->bus = bu;
+    chan->n_bus++;
     return bu;
+}
+
+static eglink_ctrl_t *
+eglink_ctrl_lookup(packet_info *pinfo, eglink_chan_t *chan)
+{
+    eglink_ctrl_t *ctrl;
+
+    for (ctrl = chan->ctrls; ctrl; ctrl = ctrl->next)
+        if (addresses_equal(&ctrl->addr, &pinfo->src))
+            return ctrl;
+    ctrl = wmem_new0(wmem_file_scope(), eglink_ctrl_t);
+    ctrl->chan = chan;
+    ctrl->name = wmem_strdup_printf(wmem_file_scope(), "Controller %s (BU not known)",
+                                    address_to_str(pinfo->pool, &pinfo->src));
+    copy_address_wmem(wmem_file_scope(), &ctrl->addr, &pinfo->src);
+    if (!eglink_ctrl_by_index)
+        eglink_ctrl_by_index = wmem_array_new(wmem_file_scope(), sizeof(eglink_ctrl_t *));
+    ctrl->index = wmem_array_get_count(eglink_ctrl_by_index);
+    wmem_array_append_one(eglink_ctrl_by_index, ctrl);
+    ctrl->next = chan->ctrls;
+    chan->ctrls = ctrl;
+    chan->n_ctrls++;
+    return ctrl;
+}
+
+/* One BU and one controller on a channel belong together (the usual
+ * installation, and every single-BU capture). With more of either, a
+ * controller is joined to its BU by the commands acknowledged between them. */
+static void
+join_if_alone(eglink_chan_t *chan)
+{
+    if (chan->n_bus == 1 && chan->n_ctrls == 1 && !chan->ctrls->bu)
+        chan->ctrls->bu = chan->bus;
 }
 
 static void
@@ -486,83 +617,116 @@ add_finding(eglink_frame_t *fd, eglink_finding_kind_t kind, guint32 frame, guint
 /* First pass                                                              */
 
 static void
-track_serial(eglink_bu_t *bu, eglink_frame_t *fd, packet_info *pinfo, guint16 serial, int dir)
+track_serial(eglink_sender_t *s, eglink_frame_t *fd, packet_info *pinfo, guint16 serial)
 {
     guint16 expected, delta;
 
-    if (!bu->have_serial[dir]) {
+    if (!s->have_serial) {
         fd->serial_status = SERIAL_FIRST;
     } else {
-        expected = (guint16)(bu->last_serial[dir] + 1);
+        expected = (guint16)(s->last_serial + 1);
         fd->expected_serial = expected;
-        delta = (guint16)(serial - bu->last_serial[dir]);
+        delta = (guint16)(serial - s->last_serial);
         if (delta == 1) {
             fd->serial_status = SERIAL_OK;
         } else if (delta == 0) {
             fd->serial_status = SERIAL_REPEAT;
-            add_finding(fd, FND_REPEAT, bu->last_serial_frame[dir], bu->last_serial[dir], 0);
+            add_finding(fd, FND_REPEAT, s->last_serial_frame, s->last_serial, 0);
             return;
         } else if (delta < 0x8000) {
             fd->serial_status = SERIAL_LOST;
-        } else if ((guint16)(bu->last_serial[dir] - serial) <= EGLINK_SERIAL_REPEAT_WINDOW) {
+        } else if ((guint16)(s->last_serial - serial) <= EGLINK_SERIAL_REPEAT_WINDOW) {
             fd->serial_status = SERIAL_REPEAT;
-            add_finding(fd, FND_REPEAT, 0, bu->last_serial[dir], 0);
+            add_finding(fd, FND_REPEAT, 0, s->last_serial, 0);
             return;
         } else {
             fd->serial_status = SERIAL_RESTART;
-            add_finding(fd, FND_RESTART, 0, bu->last_serial[dir], 0);
+            add_finding(fd, FND_RESTART, 0, s->last_serial, 0);
         }
     }
-    bu->have_serial[dir] = TRUE;
-    bu->last_serial[dir] = serial;
-    bu->last_serial_frame[dir] = pinfo->num;
+    s->have_serial = TRUE;
+    s->last_serial = serial;
+    s->last_serial_frame = pinfo->num;
+}
+
+static gint64
+ack_timeout_ns(int dir)
+{
+    return ms_to_ns(dir == EGLINK_DIR_IN ? pref_vrci_ack_timeout_ms : pref_vrco_ack_timeout_ms);
+}
+
+/* Commands of one sender whose deadline passed before now. */
+static void
+check_commands(eglink_sender_t *s, eglink_frame_t *fd, packet_info *pinfo, int dir)
+{
+    gint64 timeout = ack_timeout_ns(dir);
+    int i;
+
+    for (i = 0; i < EGLINK_CMD_SLOTS; i++) {
+        eglink_cmd_t *cmd = s->cmds[i];
+        gint64 age;
+
+        if (!cmd || cmd->ack_frame || cmd->failed)
+            continue;
+        age = ns_between(&pinfo->abs_ts, &cmd->first_ts);
+        if (age > timeout) {
+            cmd->failed = TRUE;
+            add_finding(fd, dir == EGLINK_DIR_IN ? FND_FAILED_VRCI : FND_FAILED_VRCO,
+                        cmd->first_frame, cmd->command_id, age);
+        }
+    }
+}
+
+/* Periodic packets of one sender that stopped for longer than the threshold. */
+static void
+check_periodic(eglink_sender_t *s, eglink_frame_t *fd, packet_info *pinfo, guint threshold_ms,
+               eglink_finding_kind_t kind)
+{
+    gint64 age;
+
+    if (!s->last_periodic_frame || s->periodic_missing_reported)
+        return;
+    age = ns_between(&pinfo->abs_ts, &s->last_periodic_ts);
+    if (age > ms_to_ns(threshold_ms)) {
+        s->periodic_missing_reported = TRUE;
+        add_finding(fd, kind, s->last_periodic_frame, 0, age);
+    }
 }
 
 /* Reports what a one-pass reader learns from the time of this packet alone:
- * periodic packets that stopped, commands whose deadline passed. */
+ * periodic packets that stopped, commands whose deadline passed. A packet
+ * speaks for its BU and the controllers joined to it; a controller whose
+ * BU is not known speaks for itself only. */
 static void
-check_deadlines(eglink_bu_t *bu, eglink_frame_t *fd, packet_info *pinfo, eglink_type_t type)
+check_deadlines(eglink_chan_t *chan, eglink_bu_t *bu, eglink_ctrl_t *sender, eglink_frame_t *fd,
+                packet_info *pinfo, eglink_type_t type)
 {
-    const nstime_t *now = &pinfo->abs_ts;
-    int dir, i;
+    eglink_ctrl_t *ctrl;
 
-    if (type != EGLINK_TYPE_VRPI && bu->last_vrpi_frame && !bu->vrpi_missing_reported &&
-        ns_between(now, &bu->last_vrpi_ts) > ms_to_ns(pref_vrpi_gap_ms)) {
-        bu->vrpi_missing_reported = TRUE;
-        add_finding(fd, FND_VRPI_MISSING, bu->last_vrpi_frame, 0, ns_between(now, &bu->last_vrpi_ts));
+    if (bu && type != EGLINK_TYPE_VRPI)
+        check_periodic(&bu->s, fd, pinfo, pref_vrpi_gap_ms, FND_VRPI_MISSING);
+    for (ctrl = chan->ctrls; ctrl; ctrl = ctrl->next) {
+        if (ctrl != sender && (!bu || ctrl->bu != bu))
+            continue;
+        if (!(ctrl == sender && type == EGLINK_TYPE_VRPO))
+            check_periodic(&ctrl->s, fd, pinfo, pref_vrpo_gap_ms, FND_VRPO_MISSING);
     }
-    if (type != EGLINK_TYPE_VRPO && bu->last_vrpo_frame && !bu->vrpo_missing_reported &&
-        ns_between(now, &bu->last_vrpo_ts) > ms_to_ns(pref_vrpo_gap_ms)) {
-        bu->vrpo_missing_reported = TRUE;
-        add_finding(fd, FND_VRPO_MISSING, bu->last_vrpo_frame, 0, ns_between(now, &bu->last_vrpo_ts));
-    }
-    for (dir = 0; dir < 2; dir++) {
-        gint64 timeout = ms_to_ns(dir == EGLINK_DIR_IN ? pref_vrci_ack_timeout_ms : pref_vrco_ack_timeout_ms);
-        for (i = 0; i < EGLINK_CMD_SLOTS; i++) {
-            eglink_cmd_t *cmd = bu->cmds[dir][i];
-            gint64 age;
-
-            if (!cmd || cmd->ack_frame || cmd->failed)
-                continue;
-            age = ns_between(now, &cmd->first_ts);
-            if (age > timeout) {
-                cmd->failed = TRUE;
-                add_finding(fd, dir == EGLINK_DIR_IN ? FND_FAILED_VRCI : FND_FAILED_VRCO,
-                            cmd->first_frame, cmd->command_id, age);
-            }
-        }
-    }
+    if (bu)
+        check_commands(&bu->s, fd, pinfo, EGLINK_DIR_IN);
+    for (ctrl = chan->ctrls; ctrl; ctrl = ctrl->next)
+        if (ctrl == sender || (bu && ctrl->bu == bu))
+            check_commands(&ctrl->s, fd, pinfo, EGLINK_DIR_OUT);
 }
 
-/* The most recent command of this BU and direction with this ID. */
+/* The most recent command of this sender with this ID. */
 static eglink_cmd_t *
-find_command(eglink_bu_t *bu, int dir, guint16 command_id)
+find_command(eglink_sender_t *s, guint16 command_id)
 {
     eglink_cmd_t *best = NULL;
     int i;
 
     for (i = 0; i < EGLINK_CMD_SLOTS; i++) {
-        eglink_cmd_t *cmd = bu->cmds[dir][i];
+        eglink_cmd_t *cmd = s->cmds[i];
         if (cmd && cmd->command_id == command_id &&
             (!best || cmd->first_frame > best->first_frame))
             best = cmd;
@@ -571,15 +735,14 @@ find_command(eglink_bu_t *bu, int dir, guint16 command_id)
 }
 
 static void
-track_command(eglink_bu_t *bu, eglink_frame_t *fd, packet_info *pinfo, int dir, guint16 command_id)
+track_command(eglink_sender_t *s, eglink_frame_t *fd, packet_info *pinfo, int dir, guint16 command_id)
 {
-    gint64 timeout = ms_to_ns(dir == EGLINK_DIR_IN ? pref_vrci_ack_timeout_ms : pref_vrco_ack_timeout_ms);
-    eglink_cmd_t *cmd = find_command(bu, dir, command_id);
+    eglink_cmd_t *cmd = find_command(s, command_id);
 
     /* Same Command ID, sent again while the sender may still be waiting for
      * its acknowledgement: a retransmission. Much later it is a new command
      * that reuses the ID (wrap-around, restarted sender). */
-    if (cmd && ns_between(&pinfo->abs_ts, &cmd->last_ts) <= timeout) {
+    if (cmd && ns_between(&pinfo->abs_ts, &cmd->last_ts) <= ack_timeout_ns(dir)) {
         fd->flags |= FF_RETRANS;
         cmd->last_ts = pinfo->abs_ts;
     } else {
@@ -589,18 +752,83 @@ track_command(eglink_bu_t *bu, eglink_frame_t *fd, packet_info *pinfo, int dir, 
         cmd->first_frame = pinfo->num;
         cmd->command_id = command_id;
         cmd->dir = (guint8)dir;
-        bu->cmds[dir][bu->cmd_next[dir]] = cmd;
-        bu->cmd_next[dir] = (bu->cmd_next[dir] + 1) % EGLINK_CMD_SLOTS;
+        s->cmds[s->cmd_next] = cmd;
+        s->cmd_next = (s->cmd_next + 1) % EGLINK_CMD_SLOTS;
     }
     fd->cmd = cmd;
 }
 
-static void
-track_ack(eglink_bu_t *bu, eglink_frame_t *fd, packet_info *pinfo, int dir, guint16 command_id)
+static gboolean
+waits_for_ack(const eglink_cmd_t *cmd)
 {
-    gint64 timeout = ms_to_ns(dir == EGLINK_DIR_IN ? pref_vrci_ack_timeout_ms : pref_vrco_ack_timeout_ms);
-    eglink_cmd_t *cmd = find_command(bu, dir, command_id);
+    return cmd && !cmd->ack_frame;
+}
 
+/* The VRCI a VRAO from this controller acknowledges. Its own BU's first;
+ * while that is not known from an acknowledgement, the BU of the channel
+ * waiting longest for this Command ID, and the controller joins that BU. */
+static eglink_cmd_t *
+vrci_acknowledged(eglink_ctrl_t *ctrl, guint16 command_id)
+{
+    eglink_cmd_t *cmd = ctrl->bu ? find_command(&ctrl->bu->s, command_id) : NULL;
+    eglink_cmd_t *best = NULL;
+    eglink_bu_t *bu, *best_bu = NULL;
+
+    if (ctrl->joined_by_ack || waits_for_ack(cmd))
+        return cmd;
+    for (bu = ctrl->chan->bus; bu; bu = bu->next) {
+        eglink_cmd_t *c = find_command(&bu->s, command_id);
+        if (waits_for_ack(c) && (!best || c->first_frame < best->first_frame)) {
+            best = c;
+            best_bu = bu;
+        }
+    }
+    if (!best)
+        return cmd;
+    ctrl->bu = best_bu;
+    ctrl->joined_by_ack = TRUE;
+    return best;
+}
+
+/* The VRCO a VRAI from this BU acknowledges: from a controller joined to it
+ * first; else the one of the channel waiting longest for this Command ID,
+ * whose BU is not known from an acknowledgement yet: it joins this BU. */
+static eglink_cmd_t *
+vrco_acknowledged(eglink_bu_t *bu, guint16 command_id)
+{
+    eglink_ctrl_t *ctrl, *best_ctrl = NULL;
+    eglink_cmd_t *best = NULL, *mine = NULL;
+
+    for (ctrl = bu->chan->ctrls; ctrl; ctrl = ctrl->next) {
+        eglink_cmd_t *c;
+        if (ctrl->bu != bu)
+            continue;
+        c = find_command(&ctrl->s, command_id);
+        if (c && (!mine || c->first_frame > mine->first_frame))
+            mine = c;
+    }
+    if (waits_for_ack(mine))
+        return mine;
+    for (ctrl = bu->chan->ctrls; ctrl; ctrl = ctrl->next) {
+        eglink_cmd_t *c;
+        if (ctrl->joined_by_ack)
+            continue;
+        c = find_command(&ctrl->s, command_id);
+        if (waits_for_ack(c) && (!best || c->first_frame < best->first_frame)) {
+            best = c;
+            best_ctrl = ctrl;
+        }
+    }
+    if (!best)
+        return mine;
+    best_ctrl->bu = bu;
+    best_ctrl->joined_by_ack = TRUE;
+    return best;
+}
+
+static void
+track_ack(eglink_cmd_t *cmd, eglink_frame_t *fd, packet_info *pinfo, int dir, guint16 command_id)
+{
     if (!cmd) {
         add_finding(fd, FND_UNKNOWN_ACK, 0, command_id, 0);
         return;
@@ -611,176 +839,218 @@ track_ack(eglink_bu_t *bu, eglink_frame_t *fd, packet_info *pinfo, int dir, guin
     if (!cmd->ack_frame) {
         cmd->ack_frame = pinfo->num;
         fd->flags |= FF_FIRST_ACK;
-        if (fd->delta_ns > timeout)
+        if (fd->delta_ns > ack_timeout_ns(dir))
             add_finding(fd, FND_LATE_ACK, cmd->first_frame, command_id, fd->delta_ns);
     }
 }
 
 static gboolean
-burst_ends_here(const eglink_bu_t *bu, int data_len)
+burst_ends_here(const eglink_burst_t *b, int data_len)
 {
     if (data_len < EGLINK_VRPO_FRAGMENT_MAX)
         return TRUE;
-    return pref_periodic_size != 0 && bu->burst_bytes >= pref_periodic_size;
+    return pref_periodic_size != 0 && b->bytes >= pref_periodic_size;
 }
 
 static void
-burst_check_size(eglink_bu_t *bu, eglink_frame_t *fd)
+burst_check_size(const eglink_burst_t *b, eglink_frame_t *fd)
 {
-    if (pref_periodic_size != 0 && bu->burst_bytes != pref_periodic_size)
-        add_finding(fd, FND_BURST_SIZE, 0, bu->burst_bytes, pref_periodic_size);
+    if (pref_periodic_size != 0 && b->bytes != pref_periodic_size)
+        add_finding(fd, FND_BURST_SIZE, 0, b->bytes, pref_periodic_size);
 }
 
 /* VRPO packet numbers count 0..N-1 within a burst; all but the last carry
  * 488 bytes. A burst ends at a short packet, when it reaches the configured
  * periodic data size, or when the next burst starts at packet 0. */
 static void
-track_burst(eglink_bu_t *bu, eglink_frame_t *fd, packet_info *pinfo, const eglink_info_t *info)
+track_burst(eglink_burst_t *b, eglink_frame_t *fd, packet_info *pinfo, const eglink_info_t *info)
 {
     int len = info->periodic_len;
     guint16 pn = info->packet_number;
 
-    if (pn == 0 && bu->burst_open) {
+    if (pn == 0 && b->open) {
         /* The previous burst did not show its end. */
-        if (!bu->burst_broken && pref_periodic_size == 0) {
-            add_finding(fd, FND_BURST_DONE, bu->burst_first_frame, bu->burst_id, 0);
+        if (!b->broken && pref_periodic_size == 0) {
+            add_finding(fd, FND_BURST_DONE, b->first_frame, b->id, 0);
         } else {
-            add_finding(fd, FND_BURST_INCOMPLETE, bu->burst_first_frame,
-                        bu->burst_broken ? bu->burst_missing : bu->burst_next, 0);
+            add_finding(fd, FND_BURST_INCOMPLETE, b->first_frame,
+                        b->broken ? b->missing : b->next, 0);
         }
-        bu->burst_open = FALSE;
+        b->open = FALSE;
     }
 
     if (pn == 0) {
-        bu->burst_open = TRUE;
-        bu->burst_broken = FALSE;
-        bu->burst_first_frame = pinfo->num;
-        bu->burst_next = 1;
-        bu->burst_bytes = (guint32)len;
-        if (burst_ends_here(bu, len)) {
+        b->open = TRUE;
+        b->broken = FALSE;
+        b->first_frame = pinfo->num;
+        b->next = 1;
+        b->bytes = (guint32)len;
+        if (burst_ends_here(b, len)) {
             /* One packet: nothing to reassemble. */
-            burst_check_size(bu, fd);
-            bu->burst_open = FALSE;
+            burst_check_size(b, fd);
+            b->open = FALSE;
             return;
         }
-        bu->burst_id = ++eglink_burst_count;
-        fd->burst_id = bu->burst_id;
+        b->id = ++eglink_burst_count;
+        fd->burst_id = b->id;
         return;
     }
 
-    if (!bu->burst_open) {
+    if (!b->open) {
         /* Its packet 0 was not captured (or lost). */
-        bu->burst_open = TRUE;
-        bu->burst_broken = TRUE;
-        bu->burst_missing = 0;
-        bu->burst_id = 0;
-        bu->burst_first_frame = pinfo->num;
-        bu->burst_bytes = 0;
-    } else if (!bu->burst_broken && pn != bu->burst_next) {
-        bu->burst_broken = TRUE;
-        bu->burst_missing = bu->burst_next;
+        b->open = TRUE;
+        b->broken = TRUE;
+        b->missing = 0;
+        b->id = 0;
+        b->first_frame = pinfo->num;
+        b->bytes = 0;
+    } else if (!b->broken && pn != b->next) {
+        b->broken = TRUE;
+        b->missing = b->next;
     }
-    bu->burst_next = (guint16)(pn + 1);
-    bu->burst_bytes += (guint32)len;
-    if (!bu->burst_broken)
-        fd->burst_id = bu->burst_id;
-    if (burst_ends_here(bu, len)) {
-        if (bu->burst_broken) {
-            add_finding(fd, FND_BURST_INCOMPLETE, bu->burst_first_frame, bu->burst_missing, 0);
+    b->next = (guint16)(pn + 1);
+    b->bytes += (guint32)len;
+    if (!b->broken)
+        fd->burst_id = b->id;
+    if (burst_ends_here(b, len)) {
+        if (b->broken) {
+            add_finding(fd, FND_BURST_INCOMPLETE, b->first_frame, b->missing, 0);
         } else {
             fd->flags |= FF_BURST_LAST;
-            burst_check_size(bu, fd);
+            burst_check_size(b, fd);
         }
-        bu->burst_open = FALSE;
+        b->open = FALSE;
     }
 }
 
+/* VRPI of a BU or VRPO of a controller: the interval since the previous one. */
 static void
-track_periodic(eglink_bu_t *bu, eglink_frame_t *fd, packet_info *pinfo, const eglink_info_t *info)
+track_interval(eglink_sender_t *s, eglink_frame_t *fd, packet_info *pinfo, guint threshold_ms,
+               eglink_finding_kind_t gap)
 {
-    if (info->type == EGLINK_TYPE_VRPI) {
-        if (bu->last_vrpi_frame) {
-            fd->delta_ns = ns_between(&pinfo->abs_ts, &bu->last_vrpi_ts);
-            fd->flags |= FF_DELTA;
-            if (fd->delta_ns > ms_to_ns(pref_vrpi_gap_ms))
-                add_finding(fd, FND_VRPI_GAP, bu->last_vrpi_frame, 0, fd->delta_ns);
-        }
-        if (info->has_bu_state) {
-            if (bu->have_bu_state) {
-                fd->prev_bu_state = bu->bu_state;
-                fd->flags |= FF_PREV_STATE;
-                if (bu->bu_state != info->bu_state)
-                    add_finding(fd, FND_BU_STATE, 0, bu->bu_state, 0);
-            }
-            bu->have_bu_state = TRUE;
-            bu->bu_state = info->bu_state;
-        }
-        bu->last_vrpi_frame = pinfo->num;
-        bu->last_vrpi_ts = pinfo->abs_ts;
-        bu->vrpi_missing_reported = FALSE;
-    } else {
-        if (bu->last_vrpo_frame) {
-            fd->delta_ns = ns_between(&pinfo->abs_ts, &bu->last_vrpo_ts);
-            fd->flags |= FF_DELTA;
-            if (fd->delta_ns > ms_to_ns(pref_vrpo_gap_ms))
-                add_finding(fd, FND_VRPO_GAP, bu->last_vrpo_frame, 0, fd->delta_ns);
-        }
-        bu->last_vrpo_frame = pinfo->num;
-        bu->last_vrpo_ts = pinfo->abs_ts;
-        bu->vrpo_missing_reported = FALSE;
-        if (info->has_packet_number)
-            track_burst(bu, fd, pinfo, info);
+    if (s->last_periodic_frame) {
+        fd->delta_ns = ns_between(&pinfo->abs_ts, &s->last_periodic_ts);
+        fd->flags |= FF_DELTA;
+        if (fd->delta_ns > ms_to_ns(threshold_ms))
+            add_finding(fd, gap, s->last_periodic_frame, 0, fd->delta_ns);
     }
+    s->last_periodic_frame = pinfo->num;
+    s->last_periodic_ts = pinfo->abs_ts;
+    s->periodic_missing_reported = FALSE;
+}
+
+static void
+track_vrpi(eglink_bu_t *bu, eglink_frame_t *fd, packet_info *pinfo, const eglink_info_t *info)
+{
+    track_interval(&bu->s, fd, pinfo, pref_vrpi_gap_ms, FND_VRPI_GAP);
+    if (info->has_bu_state) {
+        if (bu->have_bu_state) {
+            fd->prev_bu_state = bu->bu_state;
+            fd->flags |= FF_PREV_STATE;
+            if (bu->bu_state != info->bu_state)
+                add_finding(fd, FND_BU_STATE, 0, bu->bu_state, 0);
+        }
+        bu->have_bu_state = TRUE;
+        bu->bu_state = info->bu_state;
+    }
+}
+
+/* Several BUs or controllers on one group and port: every controller's
+ * VRPO and VRCO reach every BU there. Said once per sender. */
+static void
+check_shared(eglink_chan_t *chan, eglink_sender_t *s, eglink_frame_t *fd)
+{
+    if (s->shared_reported || (chan->n_bus < 2 && chan->n_ctrls < 2))
+        return;
+    s->shared_reported = TRUE;
+    add_finding(fd, FND_SHARED_GROUP, 0, chan->n_bus, chan->n_ctrls);
 }
 
 static void
 analyse_packet(packet_info *pinfo, const eglink_info_t *info, eglink_frame_t *fd)
 {
-    eglink_bu_t *bu = eglink_bu_lookup(pinfo, info->type);
+    eglink_chan_t *chan = eglink_chan_lookup(pinfo, info->type);
     gboolean input = eglink_is_input(info->type);
-    int dir = input ? EGLINK_DIR_IN : EGLINK_DIR_OUT;
+    eglink_bu_t *bu = NULL;
+    eglink_ctrl_t *ctrl = NULL;
+    eglink_sender_t *s;
 
-    fd->bu = bu;
+    if (input) {
+        bu = eglink_bu_lookup(pinfo, chan, info->origin);
+        s = &bu->s;
+    } else {
+        ctrl = eglink_ctrl_lookup(pinfo, chan);
+        s = &ctrl->s;
+    }
+    join_if_alone(chan);
+    fd->bu = input ? bu : ctrl->bu;
+    fd->ctrl = fd->bu ? NULL : ctrl;
+    if (fd->bu) {
+        fd->flags |= FF_ORIGIN;
+        fd->bu_origin = fd->bu->origin;
+    }
     /* Receivers silently drop illegal packets (TS-0006 5.1.5); so does the analysis. */
     if (!info->crc_ok || !info->size_ok) {
         fd->flags |= FF_INVALID;
         return;
     }
 
-    if (input) {
-        if (!bu->origin_known) {
-            bu->origin_known = TRUE;
-            bu->origin = info->origin;
-        } else if (bu->origin != info->origin) {
-            add_finding(fd, FND_ORIGIN, 0, bu->origin, 0);
-            bu->origin = info->origin;
-        }
-    }
-    if (bu->origin_known) {
-        fd->flags |= FF_ORIGIN;
+    if (input && !bu->origin_known) {
+        /* Known so far only from packets that failed their check: no origin
+         * change (the BU keeps its name, so that every pass names it alike). */
+        bu->origin = info->origin;
+        fd->bu_origin = bu->origin;
+    } else if (input && bu->origin != info->origin) {
+        /* Another device at the BU's address: it counts its own serials. */
+        add_finding(fd, FND_ORIGIN, 0, bu->origin, 0);
+        bu->origin = info->origin;
+        bu->s.have_serial = FALSE;
         fd->bu_origin = bu->origin;
     }
+    if (input)
+        bu->origin_known = TRUE;
 
-    track_serial(bu, fd, pinfo, info->serial, dir);
+    track_serial(s, fd, pinfo, info->serial);
     if (fd->serial_status == SERIAL_REPEAT)
         return;
 
-    check_deadlines(bu, fd, pinfo, info->type);
+    /* An acknowledgement may tell which BU a controller talks to. */
+    if (info->type == EGLINK_TYPE_VRAO && info->has_command_id) {
+        fd->cmd = vrci_acknowledged(ctrl, info->command_id);
+    } else if (info->type == EGLINK_TYPE_VRAI && info->has_command_id) {
+        fd->cmd = vrco_acknowledged(bu, info->command_id);
+    }
+    if (ctrl && ctrl->bu != fd->bu) {
+        fd->bu = ctrl->bu;
+        fd->ctrl = NULL;
+        fd->flags |= FF_ORIGIN;
+        fd->bu_origin = fd->bu->origin;
+    }
+
+    check_shared(chan, s, fd);
+    check_deadlines(chan, fd->bu, ctrl, fd, pinfo, info->type);
 
     switch (info->type) {
     case EGLINK_TYPE_VRPI:
+        track_vrpi(bu, fd, pinfo, info);
+        break;
     case EGLINK_TYPE_VRPO:
-        track_periodic(bu, fd, pinfo, info);
+        track_interval(s, fd, pinfo, pref_vrpo_gap_ms, FND_VRPO_GAP);
+        if (info->has_packet_number)
+            track_burst(&ctrl->burst, fd, pinfo, info);
         break;
     case EGLINK_TYPE_VRCI:
     case EGLINK_TYPE_VRCO:
         if (info->has_command_id)
-            track_command(bu, fd, pinfo, dir, info->command_id);
+            track_command(s, fd, pinfo, input ? EGLINK_DIR_IN : EGLINK_DIR_OUT, info->command_id);
         break;
     case EGLINK_TYPE_VRAO:      /* acknowledges a VRCI */
     case EGLINK_TYPE_VRAI:      /* acknowledges a VRCO */
-        if (info->has_command_id)
-            track_ack(bu, fd, pinfo, input ? EGLINK_DIR_OUT : EGLINK_DIR_IN, info->command_id);
+        if (info->has_command_id) {
+            eglink_cmd_t *cmd = fd->cmd;
+            fd->cmd = NULL;
+            track_ack(cmd, fd, pinfo, input ? EGLINK_DIR_OUT : EGLINK_DIR_IN, info->command_id);
+        }
         break;
     default:
         break;
@@ -825,14 +1095,27 @@ show_serial(proto_tree *at, tvbuff_t *tvb, packet_info *pinfo, const eglink_info
         expert_add_info_format(pinfo, ti, &ei_serial_gap,
             "%u packet%s lost from this sender: serial %u expected, %u received",
             lost, lost == 1 ? "" : "s", fd->expected_serial, info->serial);
+        col_append_fstr(pinfo->cinfo, COL_INFO, " [lost %u]", lost);
     }
 }
 
+static const eglink_finding_t *
+find_finding(const eglink_frame_t *fd, eglink_finding_kind_t kind)
+{
+    const eglink_finding_t *f;
+
+    for (f = fd->findings; f; f = f->next)
+        if (f->kind == kind)
+            return f;
+    return NULL;
+}
+
 static void
-show_command(proto_tree *at, tvbuff_t *tvb, packet_info *pinfo, const eglink_info_t *info,
-             const eglink_frame_t *fd)
+show_command(proto_tree *at, proto_item *aitem, tvbuff_t *tvb, packet_info *pinfo,
+             const eglink_info_t *info, const eglink_frame_t *fd)
 {
     const eglink_cmd_t *cmd = fd->cmd;
+    const eglink_finding_t *late;
     proto_item *ti;
     const char *what = cmd->dir == EGLINK_DIR_IN ? "VRCI" : "VRCO";
     const char *ack = cmd->dir == EGLINK_DIR_IN ? "VRAO" : "VRAI";
@@ -841,9 +1124,10 @@ show_command(proto_tree *at, tvbuff_t *tvb, packet_info *pinfo, const eglink_inf
         if (fd->flags & FF_RETRANS) {
             ti = add_generated_uint(at, hf_retransmission_of, tvb, cmd->first_frame);
             expert_add_info_format(pinfo, ti, &ei_retransmission,
-                "Retransmission of %s command %u (first sent in frame %u)",
-                what, cmd->command_id, cmd->first_frame);
+                "Retransmission of %s command %u", what, cmd->command_id);
             col_append_str(pinfo->cinfo, COL_INFO, " [Retransmission]");
+        } else {
+            expert_add_info_format(pinfo, aitem, &ei_command, "New %s command %u", what, cmd->command_id);
         }
         /* Known on the first pass only when the acknowledgement came first. */
         if (cmd->ack_frame) {
@@ -855,7 +1139,24 @@ show_command(proto_tree *at, tvbuff_t *tvb, packet_info *pinfo, const eglink_inf
         proto_item_append_text(ti, " (%s command %u)", what, cmd->command_id);
         if (fd->flags & FF_DELTA)
             add_generated_time(at, hf_ack_time, tvb, fd->delta_ns);
+        late = find_finding(fd, FND_LATE_ACK);
+        if (late) {
+            expert_add_info_format(pinfo, ti, &ei_late_ack,
+                "Acknowledges %s command %u %s after its first transmission, later than %u ms",
+                what, cmd->command_id, ns_str(pinfo->pool, late->ns),
+                info->type == EGLINK_TYPE_VRAO ? pref_vrci_ack_timeout_ms : pref_vrco_ack_timeout_ms);
+            col_append_str(pinfo->cinfo, COL_INFO, " [late ack]");
+        } else if ((fd->flags & FF_FIRST_ACK) && (fd->flags & FF_DELTA)) {
+            expert_add_info_format(pinfo, ti, &ei_ack, "Acknowledges %s command %u after %s",
+                                   what, cmd->command_id, ns_str(pinfo->pool, fd->delta_ns));
+        }
     }
+}
+
+static const char *
+plural(guint n, const char *one, const char *many)
+{
+    return n == 1 ? one : many;
 }
 
 static void
@@ -864,8 +1165,10 @@ show_findings(proto_tree *at, proto_item *aitem, tvbuff_t *tvb, packet_info *pin
 {
     const eglink_finding_t *f;
     proto_item *ti;
+    const char *t;
 
     for (f = fd->findings; f; f = f->next) {
+        t = ns_str(pinfo->pool, f->ns);
         switch ((eglink_finding_kind_t)f->kind) {
         case FND_REPEAT:
             ti = aitem;
@@ -873,8 +1176,8 @@ show_findings(proto_tree *at, proto_item *aitem, tvbuff_t *tvb, packet_info *pin
                 ti = add_generated_uint(at, hf_repeat_of, tvb, f->frame);
             if (f->value == info->serial)
                 expert_add_info_format(pinfo, ti, &ei_serial_repeat,
-                    "Repeated packet: serial %u was already received%s; not analysed further",
-                    info->serial, f->frame ? wmem_strdup_printf(pinfo->pool, " in frame %u", f->frame) : "");
+                    "Repeated packet: serial %u was already received; not analysed further",
+                    info->serial);
             else
                 expert_add_info_format(pinfo, ti, &ei_serial_repeat,
                     "Repeated or reordered packet: serial %u is older than the last one received (%u); "
@@ -887,8 +1190,8 @@ show_findings(proto_tree *at, proto_item *aitem, tvbuff_t *tvb, packet_info *pin
             break;
         case FND_ORIGIN:
             expert_add_info_format(pinfo, aitem, &ei_origin_changed,
-                "Origin changed from %u to %u on the same group and port: another BU uses them, "
-                "or the BU was replaced", f->value, info->origin);
+                "Origin changed from 0x%04x to 0x%04x at the same address: the BU was replaced "
+                "or reconfigured", f->value, info->origin);
             break;
         case FND_BU_STATE:
             expert_add_info_format(pinfo, aitem, &ei_bu_state_changed,
@@ -897,45 +1200,45 @@ show_findings(proto_tree *at, proto_item *aitem, tvbuff_t *tvb, packet_info *pin
                 eglink_bu_state_name(info->bu_state), info->bu_state);
             break;
         case FND_VRPI_GAP:
-            expert_add_info_format(pinfo, aitem, &ei_vrpi_gap,
-                "No VRPI for %s since frame %u (more than %u ms): the machine controller "
-                "should have flagged an error", ns_str(pinfo->pool, f->ns), f->frame, pref_vrpi_gap_ms);
+            ti = add_generated_uint(at, hf_last_vrpi, tvb, f->frame);
+            expert_add_info_format(pinfo, ti, &ei_vrpi_gap,
+                "No VRPI for %s (more than %u ms): the machine controller should have flagged "
+                "an error", t, pref_vrpi_gap_ms);
+            col_append_fstr(pinfo->cinfo, COL_INFO, " [gap %s]", t);
             break;
         case FND_VRPO_GAP:
-            expert_add_info_format(pinfo, aitem, &ei_vrpo_gap,
-                "No VRPO for %s since frame %u (more than %u ms): the BU flags an error and, "
-                "with an RU armed, opens the ES-Link relays", ns_str(pinfo->pool, f->ns), f->frame,
-                pref_vrpo_gap_ms);
+            ti = add_generated_uint(at, hf_last_vrpo, tvb, f->frame);
+            expert_add_info_format(pinfo, ti, &ei_vrpo_gap,
+                "No VRPO for %s (more than %u ms): the BU flags an error and, with an RU armed, "
+                "opens the ES-Link relays", t, pref_vrpo_gap_ms);
+            col_append_fstr(pinfo->cinfo, COL_INFO, " [gap %s]", t);
             break;
         case FND_VRPI_MISSING:
-            expert_add_info_format(pinfo, aitem, &ei_vrpi_missing,
-                "No VRPI from this BU for %s (more than %u ms, last in frame %u)",
-                ns_str(pinfo->pool, f->ns), pref_vrpi_gap_ms, f->frame);
+            ti = add_generated_uint(at, hf_last_vrpi, tvb, f->frame);
+            expert_add_info_format(pinfo, ti, &ei_vrpi_missing,
+                "No VRPI from this BU for %s (more than %u ms)", t, pref_vrpi_gap_ms);
+            col_append_fstr(pinfo->cinfo, COL_INFO, " [no VRPI %s]", t);
             break;
         case FND_VRPO_MISSING:
-            expert_add_info_format(pinfo, aitem, &ei_vrpo_missing,
-                "No VRPO to this BU for %s (more than %u ms, last in frame %u): the BU flags an "
-                "error and, with an RU armed, opens the ES-Link relays",
-                ns_str(pinfo->pool, f->ns), pref_vrpo_gap_ms, f->frame);
+            ti = add_generated_uint(at, hf_last_vrpo, tvb, f->frame);
+            expert_add_info_format(pinfo, ti, &ei_vrpo_missing,
+                "No VRPO to this BU for %s (more than %u ms): the BU flags an error and, with "
+                "an RU armed, opens the ES-Link relays", t, pref_vrpo_gap_ms);
+            col_append_fstr(pinfo->cinfo, COL_INFO, " [no VRPO %s]", t);
             break;
         case FND_FAILED_VRCI:
             ti = add_generated_uint(at, hf_failed_command, tvb, f->frame);
             expert_add_info_format(pinfo, ti, &ei_vrci_unacked,
-                "VRCI command %u (frame %u) not acknowledged by a VRAO within %u ms: the BU "
-                "reports to the RU application that the command failed",
-                f->value, f->frame, pref_vrci_ack_timeout_ms);
+                "VRCI command %u not acknowledged by a VRAO within %u ms: the BU reports to the "
+                "RU application that the command failed", f->value, pref_vrci_ack_timeout_ms);
+            col_append_str(pinfo->cinfo, COL_INFO, " [unacked]");
             break;
         case FND_FAILED_VRCO:
             ti = add_generated_uint(at, hf_failed_command, tvb, f->frame);
             expert_add_info_format(pinfo, ti, &ei_vrco_unacked,
-                "VRCO command %u (frame %u) not acknowledged by a VRAI within %u ms",
-                f->value, f->frame, pref_vrco_ack_timeout_ms);
-            break;
-        case FND_LATE_ACK:
-            expert_add_info_format(pinfo, aitem, &ei_late_ack,
-                "Acknowledges command %u %s after its first transmission (frame %u), later than %u ms",
-                f->value, ns_str(pinfo->pool, f->ns), f->frame,
-                info->type == EGLINK_TYPE_VRAO ? pref_vrci_ack_timeout_ms : pref_vrco_ack_timeout_ms);
+                "VRCO command %u not acknowledged by a VRAI within %u ms",
+                f->value, pref_vrco_ack_timeout_ms);
+            col_append_str(pinfo->cinfo, COL_INFO, " [unacked]");
             break;
         case FND_UNKNOWN_ACK:
             expert_add_info_format(pinfo, aitem, &ei_unknown_ack,
@@ -945,16 +1248,27 @@ show_findings(proto_tree *at, proto_item *aitem, tvbuff_t *tvb, packet_info *pin
         case FND_BURST_INCOMPLETE:
             ti = add_generated_uint(at, hf_incomplete_burst, tvb, f->frame);
             expert_add_info_format(pinfo, ti, &ei_burst_incomplete,
-                "VRPO burst from frame %u is incomplete (packet %u missing): its periodic data "
-                "cannot be reassembled", f->frame, f->value);
+                "VRPO burst is incomplete (packet %u missing): its periodic data cannot be "
+                "reassembled", f->value);
             break;
         case FND_BURST_SIZE:
             expert_add_info_format(pinfo, aitem, &ei_burst_size,
                 "VRPO burst carries %u bytes of periodic data; the periodic data size "
                 "preference says %u", f->value, (guint)f->ns);
             break;
-        case FND_BURST_DONE:
-            break;              /* shown with the reassembly */
+        case FND_SHARED_GROUP:
+            expert_add_info_format(pinfo, aitem, &ei_shared_group,
+                "%s is shared by several BUs or controllers (so far %u %s%s): each "
+                "controller's VRPO and VRCO reach every BU on it; give each BU a group or port "
+                "of its own", fd->bu ? fd->bu->chan->where : fd->ctrl->chan->where,
+                f->value, plural(f->value, "BU", "BUs"),
+                f->ns == 0 ? "" : wmem_strdup_printf(pinfo->pool, " and %u %s", (guint)f->ns,
+                                                     plural((guint)f->ns, "controller", "controllers")));
+            col_append_str(pinfo->cinfo, COL_INFO, " [shared group]");
+            break;
+        case FND_LATE_ACK:      /* shown with the command link */
+        case FND_BURST_DONE:    /* shown with the reassembly */
+            break;
         }
     }
 }
@@ -1018,7 +1332,8 @@ queue_tap(packet_info *pinfo, const eglink_info_t *info, const eglink_frame_t *f
     eglink_tap_info_t *t = wmem_new0(pinfo->pool, eglink_tap_info_t);
     const eglink_finding_t *f;
 
-    t->bu_name = fd->bu->name;
+    t->bu_name = fd->bu ? fd->bu->name : fd->ctrl->name;
+    t->is_bu = fd->bu != NULL;
     t->type = info->type;
     t->invalid = (fd->flags & FF_INVALID) != 0;
     t->repeated = fd->serial_status == SERIAL_REPEAT;
@@ -1084,8 +1399,9 @@ eglink_analysis_dissect(tvbuff_t *tvb, packet_info *pinfo, proto_tree *eglink_tr
     aitem = proto_tree_add_item(eglink_tree, hf_analysis, tvb, 0, 0, ENC_NA);
     proto_item_set_generated(aitem);
     at = proto_item_add_subtree(aitem, ett_analysis);
-    proto_item_append_text(aitem, ": %s", fd->bu->name);
-    add_generated_uint(at, hf_bu_stream, tvb, fd->bu->index);
+    proto_item_append_text(aitem, ": %s", fd->bu ? fd->bu->name : fd->ctrl->name);
+    if (fd->bu)
+        add_generated_uint(at, hf_bu_stream, tvb, fd->bu->index);
     if (fd->flags & FF_ORIGIN)
         add_generated_uint(at, hf_bu_origin, tvb, fd->bu_origin);
 
@@ -1098,7 +1414,7 @@ eglink_analysis_dissect(tvbuff_t *tvb, packet_info *pinfo, proto_tree *eglink_tr
         if ((fd->flags & FF_DELTA) && info->type == EGLINK_TYPE_VRPO)
             add_generated_time(at, hf_time_since_prev_vrpo, tvb, fd->delta_ns);
         if (fd->cmd)
-            show_command(at, tvb, pinfo, info, fd);
+            show_command(at, aitem, tvb, pinfo, info, fd);
         show_findings(at, aitem, tvb, pinfo, info, fd);
         show_reassembly(tvb, pinfo, eglink_tree, info, fd);
     }
@@ -1116,12 +1432,14 @@ eglink_analysis_register(int proto, module_t *prefs)
             "Conversation analysis of this packet within its BU", HFILL } },
         { &hf_bu_stream,
           { "BU stream index", "eglink.analysis.bu_stream", FT_UINT32, BASE_DEC, NULL, 0x0,
-            "Number of the BU (multicast group or address pair, and input port) this packet "
-            "belongs to, from 0 in order of appearance", HFILL } },
+            "Number of the BU (origin and address, on its group or address pair and input "
+            "port) this packet belongs to, from 0 in order of appearance; absent on a "
+            "controller packet whose BU is not known yet", HFILL } },
         { &hf_bu_origin,
           { "BU origin", "eglink.analysis.bu_origin", FT_UINT16, BASE_HEX, NULL, 0x0,
             "Unique ID of the BU this packet belongs to, learned from its VRPI/VRCI/VRAI "
-            "(also on the machine controller's packets, which carry origin 0)", HFILL } },
+            "(also on the packets of the machine controller joined to it, which carry "
+            "origin 0)", HFILL } },
         { &hf_expected_serial,
           { "Expected serial", "eglink.analysis.expected_serial", FT_UINT16, BASE_DEC, NULL, 0x0,
             "Serial that follows the previous packet of the same sender", HFILL } },
@@ -1162,6 +1480,14 @@ eglink_analysis_register(int proto, module_t *prefs)
           { "Incomplete VRPO burst", "eglink.analysis.incomplete_burst", FT_FRAMENUM, BASE_NONE,
             FRAMENUM_TYPE(FT_FRAMENUM_NONE), 0x0,
             "First packet of a split VRPO burst that cannot be reassembled", HFILL } },
+        { &hf_last_vrpi,
+          { "Last VRPI before the gap", "eglink.analysis.last_vrpi", FT_FRAMENUM, BASE_NONE,
+            FRAMENUM_TYPE(FT_FRAMENUM_NONE), 0x0,
+            "The BU's VRPI before a VRPI gap (eglink.analysis.vrpi_gap, vrpi_missing)", HFILL } },
+        { &hf_last_vrpo,
+          { "Last VRPO before the gap", "eglink.analysis.last_vrpo", FT_FRAMENUM, BASE_NONE,
+            FRAMENUM_TYPE(FT_FRAMENUM_NONE), 0x0,
+            "The controller's VRPO before a VRPO gap (eglink.analysis.vrpo_gap, vrpo_missing)", HFILL } },
 
         { &hf_fragments,
           { "VRPO fragments", "eglink.fragments", FT_NONE, BASE_NONE, NULL, 0x0,
@@ -1202,6 +1528,10 @@ eglink_analysis_register(int proto, module_t *prefs)
         &ett_fragments,
     };
 
+    /* Severities and groups as README.md "How findings read" says: a VRPI or
+     * VRPO gap forces the safe state (error); lost, repeated, unacknowledged
+     * and late packets and a shared group are warnings; state changes,
+     * retransmissions and restarts notes; commands and acknowledgements chat. */
     static ei_register_info ei[] = {
         { &ei_serial_gap,
           { "eglink.analysis.serial_gap", PI_SEQUENCE, PI_WARN,
@@ -1213,16 +1543,16 @@ eglink_analysis_register(int proto, module_t *prefs)
           { "eglink.analysis.serial_restart", PI_SEQUENCE, PI_NOTE,
             "Serial jumped back: the sender restarted", EXPFILL } },
         { &ei_vrpi_gap,
-          { "eglink.analysis.vrpi_gap", PI_SEQUENCE, PI_WARN,
+          { "eglink.analysis.vrpi_gap", PI_SEQUENCE, PI_ERROR,
             "VRPI gap longer than the threshold", EXPFILL } },
         { &ei_vrpo_gap,
-          { "eglink.analysis.vrpo_gap", PI_SEQUENCE, PI_WARN,
+          { "eglink.analysis.vrpo_gap", PI_SEQUENCE, PI_ERROR,
             "VRPO gap longer than the threshold", EXPFILL } },
         { &ei_vrpi_missing,
-          { "eglink.analysis.vrpi_missing", PI_SEQUENCE, PI_WARN,
+          { "eglink.analysis.vrpi_missing", PI_SEQUENCE, PI_ERROR,
             "No VRPI from the BU for longer than the threshold", EXPFILL } },
         { &ei_vrpo_missing,
-          { "eglink.analysis.vrpo_missing", PI_SEQUENCE, PI_WARN,
+          { "eglink.analysis.vrpo_missing", PI_SEQUENCE, PI_ERROR,
             "No VRPO to the BU for longer than the threshold", EXPFILL } },
         { &ei_retransmission,
           { "eglink.analysis.retransmission", PI_SEQUENCE, PI_NOTE,
@@ -1237,20 +1567,29 @@ eglink_analysis_register(int proto, module_t *prefs)
           { "eglink.analysis.late_ack", PI_SEQUENCE, PI_WARN,
             "Acknowledgement after the deadline", EXPFILL } },
         { &ei_unknown_ack,
-          { "eglink.analysis.unknown_ack", PI_SEQUENCE, PI_NOTE,
+          { "eglink.analysis.unknown_ack", PI_SEQUENCE, PI_CHAT,
             "Acknowledges a command that is not in the capture", EXPFILL } },
         { &ei_bu_state_changed,
           { "eglink.analysis.bu_state_changed", PI_SEQUENCE, PI_NOTE,
             "BU state changed", EXPFILL } },
         { &ei_origin_changed,
           { "eglink.analysis.origin_changed", PI_SEQUENCE, PI_WARN,
-            "Another origin on the same BU group and port", EXPFILL } },
+            "Another origin from the same BU address", EXPFILL } },
         { &ei_burst_incomplete,
           { "eglink.analysis.burst_incomplete", PI_REASSEMBLE, PI_WARN,
             "Split VRPO burst incomplete", EXPFILL } },
         { &ei_burst_size,
           { "eglink.analysis.burst_size", PI_REASSEMBLE, PI_WARN,
             "VRPO burst size differs from the periodic data size preference", EXPFILL } },
+        { &ei_shared_group,
+          { "eglink.analysis.shared_group", PI_SEQUENCE, PI_WARN,
+            "Several BUs or controllers on one group and port", EXPFILL } },
+        { &ei_command,
+          { "eglink.analysis.command", PI_SEQUENCE, PI_CHAT,
+            "New command (first transmission)", EXPFILL } },
+        { &ei_ack,
+          { "eglink.analysis.ack", PI_SEQUENCE, PI_CHAT,
+            "Command acknowledged in time", EXPFILL } },
     };
     expert_module_t *expert;
 
@@ -1282,8 +1621,8 @@ eglink_analysis_register(int proto, module_t *prefs)
         "Reassemble the periodic data of VRPO bursts split into several packets",
         &pref_reassemble);
 
-    eglink_bus = wmem_map_new_autoreset(wmem_epan_scope(), wmem_file_scope(),
-                                        eglink_bu_hash, eglink_bu_equal);
+    eglink_chans = wmem_map_new_autoreset(wmem_epan_scope(), wmem_file_scope(),
+                                          eglink_chan_hash, eglink_chan_equal);
     register_init_routine(eglink_analysis_init);
     reassembly_table_register(&eglink_reassembly_table, &addresses_ports_reassembly_table_functions);
     eglink_tap = register_tap("eglink");

@@ -14,7 +14,8 @@
 enum { EGLINK_DIR_IN = 0, EGLINK_DIR_OUT = 1 };
 
 typedef struct {
-    const char *bu_name;        /* "BU 239.255.42.20 port 5825" */
+    const char *bu_name;        /* "BU 0x1001 (10.0.0.1)", or "Controller 10.0.0.11 (BU not known)" */
+    gboolean is_bu;             /* bu_name names a BU */
     eglink_type_t type;
     gboolean invalid;           /* CRC or size check failed: not analysed */
     gboolean repeated;          /* serial already seen: not analysed */

@@ -58,6 +58,15 @@
 #define EGLINK_HAVE_PLUGIN_DESCRIBE 1
 #endif
 
+/* A stat_tap_ui init callback (-z) returns bool from 4.6 on, nothing before. */
+#if EGLINK_WS_AT_LEAST(4, 6)
+#define EGLINK_STAT_INIT_RET bool
+#define EGLINK_STAT_INIT_RETURN(ok) return (ok)
+#else
+#define EGLINK_STAT_INIT_RET void
+#define EGLINK_STAT_INIT_RETURN(ok) do { (void)(ok); return; } while (0)
+#endif
+
 #if !EGLINK_WS_AT_LEAST(4, 6)
 #define dissector_try_uint_with_data    dissector_try_uint_new
 #define dissector_try_string_with_data  dissector_try_string_new

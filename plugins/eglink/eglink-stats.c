@@ -1,9 +1,30 @@
 /* eglink-stats.c
  * Statistics > EG-Link (tshark -z eglink,stat): per base unit, the packets
- * by type, lost and repeated packets, VRPI/VRPO intervals (the maximum is
- * the longest gap), commands in both directions with their retransmissions,
- * failures and acknowledgement times, VRPO bursts, and the time the BU spent
- * in each state. Fed by the "eglink" tap of eglink-analysis.c.
+ * by type with the VRPI/VRPO intervals (the maximum is the longest gap) and
+ * the command retransmissions, lost, repeated and invalid packets, commands
+ * in both directions (acknowledged with their delay, failed), VRPO bursts,
+ * and the time each BU spent in each state. Fed by the "eglink" tap of
+ * eglink-analysis.c. Only the public stats_tree API (epan/stats_tree.h).
+ *
+ * How it reads in the GUI and in tshark alike:
+ * - Wireshark's Statistics dialog (seen on 4.0; later versions have the
+ *   same code) sorts every level of the
+ *   tree by name, descending, until a column header is clicked, whatever
+ *   the tree asks for; rows flagged ST_FLG_SORT_TOP stay above the others.
+ *   The tree is registered to sort the same way (ST_SORT_COL_NAME and
+ *   ST_FLG_SORT_DESC in the flags of stats_tree_register_plugin, which
+ *   Wireshark keeps as the tree's default), so tshark prints what the
+ *   dialog shows, and the labels are chosen so that this order reads
+ *   right: the base units and each BU's packets first (SORT_TOP), packet
+ *   types VRPO, VRPI, VRCO, VRCI, VRAO, VRAI, then repeated, lost and
+ *   invalid packets; the commands; failures before acknowledgements; BU
+ *   states by their code, Armed and Disarmed first, then the states with
+ *   the relays open.
+ * - Every row's Percent is a part of its parent: packet types of the BU's
+ *   packets, acknowledged of the commands, a state's time of the BU's time.
+ *   Times in a state are in their own top-level tree ("Time in BU states
+ *   (ms)"), set (not added) to the running total, so they have no burst
+ *   rate, and their Rate is the share of the capture's time.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -12,14 +33,11 @@
 
 #include <stdio.h>
 #include <epan/stats_tree.h>
-#include <epan/stats_tree_priv.h>
 #include <epan/stat_tap_ui.h>
 #include <epan/tap.h>
-#include <wsutil/report_message.h>
 
 #define ST_ROOT_NAME "EG-Link base units"
-
-static int st_node_root = -1;
+#define ST_TIME_NAME "Time in BU states (ms)"
 
 static const char *const type_names[] = { "VRPI", "VRPO", "VRCI", "VRCO", "VRAI", "VRAO" };
 
@@ -35,50 +53,142 @@ ms_of(gint64 ns)
     return (int)((ns + 500000) / 1000000);
 }
 
+/* The running totals of time in each state, per statistics tree: a node
+ * set to its total has no burst rate (an added amount would count as a
+ * burst of milliseconds). A tap starts again at a lower frame number when
+ * the packets are tapped again (GUI retap): the totals start again too. */
+typedef struct {
+    guint32 last_frame;
+    GHashTable *totals;         /* node name ("<BU>\t<state>", "<BU>", "") -> gint64 ms */
+} eglink_state_times_t;
+
+static GHashTable *state_times;  /* stats_tree * -> eglink_state_times_t */
+
+static void
+state_times_free(gpointer p)
+{
+    eglink_state_times_t *t = (eglink_state_times_t *)p;
+
+    g_hash_table_destroy(t->totals);
+    g_free(t);
+}
+
+static gint64
+add_total(eglink_state_times_t *t, const char *key, int ms)
+{
+    gint64 *total = (gint64 *)g_hash_table_lookup(t->totals, key);
+
+    if (!total) {
+        total = g_new0(gint64, 1);
+        g_hash_table_insert(t->totals, g_strdup(key), total);
+    }
+    *total += ms;
+    return *total;
+}
+
+static eglink_state_times_t *
+state_times_of(stats_tree *st, guint32 frame)
+{
+    eglink_state_times_t *t;
+
+    if (!state_times)
+        state_times = g_hash_table_new_full(g_direct_hash, g_direct_equal, NULL, state_times_free);
+    t = (eglink_state_times_t *)g_hash_table_lookup(state_times, st);
+    if (!t) {
+        t = g_new0(eglink_state_times_t, 1);
+        t->totals = g_hash_table_new_full(g_str_hash, g_str_equal, g_free, g_free);
+        g_hash_table_insert(state_times, st, t);
+    } else if (frame < t->last_frame) {
+        g_hash_table_remove_all(t->totals);
+    }
+    t->last_frame = frame;
+    return t;
+}
+
 static void
 eglink_stats_init(stats_tree *st)
 {
-    st_node_root = stats_tree_create_node(st, ST_ROOT_NAME, 0, STAT_DT_INT, TRUE);
+    stats_tree_create_node(st, ST_ROOT_NAME, 0, STAT_DT_INT, TRUE);
+    if (state_times)
+        g_hash_table_remove(state_times, st);
 }
 
-/* Commands of one direction: new ones counted on the parent. */
+static void
+eglink_stats_cleanup(stats_tree *st)
+{
+    if (state_times)
+        g_hash_table_remove(state_times, st);
+}
+
+/* Keeps a row above its siblings. A reset of the tree clears the flags of
+ * its rows, so they are set again whenever the row counts. */
+static void
+keep_on_top(stats_tree *st, const char *name, int parent_id, gboolean with_children)
+{
+    stats_tree_manip_node_int(MN_SET_FLAGS, st, name, parent_id, with_children, ST_FLG_SORT_TOP);
+}
+
+/* Commands of one direction: new ones counted on the node itself. */
 static void
 command_stats(stats_tree *st, int bu_node, const char *name, const eglink_tap_info_t *t,
               gboolean command, gboolean ack, int dir)
 {
-    int node;
+    int node, acked;
 
-    if (!command && !ack && !t->failed[dir])
+    if (!(command && t->new_command) && !(ack && t->first_ack) && !t->failed[dir])
         return;
     node = increase_stat_node(st, name, bu_node, TRUE, command && t->new_command ? 1 : 0);
-    increase_stat_node(st, "Retransmissions", node, FALSE, command && t->retransmission ? 1 : 0);
-    increase_stat_node(st, "Acknowledged", node, FALSE, ack && t->first_ack ? 1 : 0);
+    acked = increase_stat_node(st, "Acknowledged", node, TRUE, ack && t->first_ack ? 1 : 0);
     increase_stat_node(st, "Failed (not acknowledged in time)", node, FALSE, (int)t->failed[dir]);
     if (ack && t->first_ack)
-        avg_stat_node_add_value_int(st, "Acknowledgement time (ms)", node, FALSE, ms_of(t->ack_ns));
+        avg_stat_node_add_value_int(st, "Acknowledgement time (ms)", acked, FALSE, ms_of(t->ack_ns));
+}
+
+static void
+state_time_stats(stats_tree *st, packet_info *pinfo, const eglink_tap_info_t *t)
+{
+    eglink_state_times_t *times = state_times_of(st, pinfo->num);
+    int ms = ms_of(t->state_ns);
+    char state[64], key[256];
+    int root, bu;
+
+    /* "0x11 Armed": by code, as the dialog sorts them. */
+    snprintf(state, sizeof state, "0x%02x %s", t->prev_state, eglink_bu_state_name(t->prev_state));
+    snprintf(key, sizeof key, "%s\t%s", t->bu_name, state);
+    root = stats_tree_manip_node_int(MN_SET, st, ST_TIME_NAME, 0, TRUE, (int)add_total(times, "", ms));
+    bu = stats_tree_manip_node_int(MN_SET, st, t->bu_name, root, TRUE,
+                                   (int)add_total(times, t->bu_name, ms));
+    stats_tree_manip_node_int(MN_SET, st, state, bu, FALSE, (int)add_total(times, key, ms));
 }
 
 static tap_packet_status
-eglink_stats_packet(stats_tree *st, packet_info *pinfo _U_, epan_dissect_t *edt _U_,
+eglink_stats_packet(stats_tree *st, packet_info *pinfo, epan_dissect_t *edt _U_,
                     const void *p, tap_flags_t flags _U_)
 {
     const eglink_tap_info_t *t = (const eglink_tap_info_t *)p;
-    int bu_node, node, i;
+    int root, bu_node, node, type_node, i;
 
-    tick_stat_node(st, ST_ROOT_NAME, 0, TRUE);
-    bu_node = tick_stat_node(st, t->bu_name, st_node_root, TRUE);
+    root = tick_stat_node(st, ST_ROOT_NAME, 0, TRUE);
+    keep_on_top(st, ST_ROOT_NAME, 0, TRUE);
+    bu_node = tick_stat_node(st, t->bu_name, root, TRUE);
+    if (t->is_bu)
+        keep_on_top(st, t->bu_name, root, TRUE);
 
-    /* The fixed rows first, so that every BU lists them in the same order. */
+    /* The fixed rows first, so that every BU lists them all. */
     node = increase_stat_node(st, "Packets", bu_node, TRUE, 1);
-    for (i = 0; i < (int)G_N_ELEMENTS(type_names); i++)
-        increase_stat_node(st, type_names[i], node, FALSE, (int)t->type == i ? 1 : 0);
-    increase_stat_node(st, "Invalid (CRC or size, not analysed)", bu_node, FALSE, t->invalid ? 1 : 0);
-    increase_stat_node(st, "Lost", bu_node, FALSE, (int)t->lost);
-    increase_stat_node(st, "Repeated", bu_node, FALSE, t->repeated ? 1 : 0);
-
-    if (t->has_interval)
-        avg_stat_node_add_value_int(st, t->type == EGLINK_TYPE_VRPI ? "VRPI interval (ms)"
-                                        : "VRPO interval (ms)", bu_node, FALSE, ms_of(t->interval_ns));
+    keep_on_top(st, "Packets", bu_node, TRUE);
+    for (i = 0; i < (int)G_N_ELEMENTS(type_names); i++) {
+        type_node = increase_stat_node(st, type_names[i], node, TRUE, (int)t->type == i ? 1 : 0);
+        if ((int)t->type != i)
+            continue;
+        if (t->has_interval)
+            avg_stat_node_add_value_int(st, "Interval (ms)", type_node, FALSE, ms_of(t->interval_ns));
+        if (t->retransmission)
+            increase_stat_node(st, "Retransmissions", type_node, FALSE, 1);
+    }
+    increase_stat_node(st, "Repeated", node, FALSE, t->repeated ? 1 : 0);
+    increase_stat_node(st, "Lost", node, FALSE, (int)t->lost);
+    increase_stat_node(st, "Invalid (CRC or size, not analysed)", node, FALSE, t->invalid ? 1 : 0);
 
     command_stats(st, bu_node, "VRCI commands (BU to controller)", t,
                   t->type == EGLINK_TYPE_VRCI, t->type == EGLINK_TYPE_VRAO, EGLINK_DIR_IN);
@@ -92,75 +202,26 @@ eglink_stats_packet(stats_tree *st, packet_info *pinfo _U_, epan_dissect_t *edt 
         increase_stat_node(st, "Incomplete", node, FALSE, t->burst_incomplete ? 1 : 0);
     }
 
-    if (t->has_state_time) {
-        int ms = ms_of(t->state_ns);
-        char name[48];
-
-        snprintf(name, sizeof name, "%s (0x%02x)", eglink_bu_state_name(t->prev_state), t->prev_state);
-        node = increase_stat_node(st, "Time in BU state (ms)", bu_node, TRUE, ms);
-        increase_stat_node(st, name, node, FALSE, ms);
-    }
+    if (t->has_state_time)
+        state_time_stats(st, pinfo, t);
     return TAP_PACKET_REDRAW;
 }
 
-/* tshark -z eglink,stat[,FILTER]: the stats tree registered below, printed
- * as tshark prints "-z eglink,tree" (which works too). stats_tree names its
- * command "<abbr>,tree", so the "stat" spelling gets its own, small command
- * line entry doing what tshark's tap-stats_tree.c does. */
+/* tshark -z eglink,stat[,FILTER]: stats_tree names its command line
+ * "<abbr>,tree"; the "stat" spelling hands the same request, with its
+ * filter, to that one (tshark starts every requested statistic in turn,
+ * including one requested while it does so). */
 #define EGLINK_STAT_CLI "eglink,stat"
-
-static void
-eglink_stat_draw(void *p)
-{
-    stats_tree *st = (stats_tree *)p;
-    GString *s = stats_tree_format_as_str(st, ST_FORMAT_PLAIN, stats_tree_get_default_sort_col(st),
-                                          stats_tree_is_default_sort_DESC(st));
-
-    printf("%s", s->str);
-    g_string_free(s, TRUE);
-}
-
-static void
-eglink_stat_free(void *p)
-{
-    stats_tree_free((stats_tree *)p);
-}
-
-/* The callback returns bool from Wireshark 4.6 on, nothing before. */
-#if EGLINK_WS_AT_LEAST(4, 6)
-#define EGLINK_STAT_INIT_RET bool
-#define EGLINK_STAT_INIT_RETURN(ok) return (ok)
-#else
-#define EGLINK_STAT_INIT_RET void
-#define EGLINK_STAT_INIT_RETURN(ok) do { (void)(ok); return; } while (0)
-#endif
+#define EGLINK_TREE_CLI "eglink,tree"
 
 static EGLINK_STAT_INIT_RET
 eglink_stat_init(const char *opt_arg, void *userdata _U_)
 {
-    stats_tree_cfg *cfg = stats_tree_get_cfg_by_abbr("eglink");
-    const char *filter = NULL;
-    stats_tree *st;
-    GString *error;
+    char *tree_arg = g_strconcat(EGLINK_TREE_CLI, opt_arg + strlen(EGLINK_STAT_CLI), NULL);
+    gboolean ok = process_stat_cmd_arg(tree_arg);
 
-    if (cfg == NULL) {
-        report_failure("eglink statistics are not registered");
-        EGLINK_STAT_INIT_RETURN(false);
-    }
-    if (strncmp(opt_arg, EGLINK_STAT_CLI ",", strlen(EGLINK_STAT_CLI ",")) == 0)
-        filter = opt_arg + strlen(EGLINK_STAT_CLI ",");
-    st = stats_tree_new(cfg, NULL, filter);
-    error = register_tap_listener(cfg->tapname, st, st->filter, cfg->flags, stats_tree_reset,
-                                  stats_tree_packet, eglink_stat_draw, eglink_stat_free);
-    if (error) {
-        report_failure("-z " EGLINK_STAT_CLI ": %s", error->str);
-        g_string_free(error, TRUE);
-        stats_tree_free(st);
-        EGLINK_STAT_INIT_RETURN(false);
-    }
-    if (cfg->init)
-        cfg->init(st);
-    EGLINK_STAT_INIT_RETURN(true);
+    g_free(tree_arg);
+    EGLINK_STAT_INIT_RETURN(ok);
 }
 
 void
@@ -170,7 +231,8 @@ eglink_stats_register(void)
         REGISTER_STAT_GROUP_GENERIC, NULL, EGLINK_STAT_CLI, eglink_stat_init, 0, NULL
     };
 
-    stats_tree_register_plugin("eglink", "eglink", "EG-Link", 0,
-                               eglink_stats_packet, eglink_stats_init, NULL);
+    stats_tree_register_plugin("eglink", "eglink", "EG-Link",
+                               (ST_SORT_COL_NAME << ST_FLG_SRTCOL_SHIFT) | ST_FLG_SORT_DESC,
+                               eglink_stats_packet, eglink_stats_init, eglink_stats_cleanup);
     register_stat_tap_ui(&stat_ui, NULL);
 }

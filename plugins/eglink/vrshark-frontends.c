@@ -100,13 +100,17 @@ static const char *pn_lua_protos[] = { "mcmb2", "eclink_pnio", "eclink", "_ws.ex
 static const char *mb_lua_protos[] = { "eclink_modbus", "eclink", "_ws.expert", NULL };
 static int pn_lua_ids[G_N_ELEMENTS(pn_lua_protos)];
 static int mb_lua_ids[G_N_ELEMENTS(mb_lua_protos)];
-static int expert_tap = -1;
+static int expert_tap;         /* 0 until found (find_tap_id's "not registered") */
 
 static gboolean
 lua_output_wanted(packet_info *pinfo, proto_tree *tree, const char **names, int *ids)
 {
     int i;
 
+    /* Looked up here, not at hand-off: the expert tap is registered after
+     * the plugins' hand-off, and find_tap_id() says 0 until then. */
+    if (expert_tap <= 0)
+        expert_tap = find_tap_id("expert");
     if (pinfo->cinfo || !tree || have_tap_listener(expert_tap))
         return pinfo->cinfo || have_tap_listener(expert_tap);
     for (i = 0; names[i]; i++) {
@@ -340,7 +344,6 @@ proto_reg_handoff_vrshark_frontends(void)
         pn_rt_handle = find_dissector_add_dependency("pn_rt", proto_vrshark_pnio);
     mbtcp_handle = find_dissector_add_dependency("mbtcp", proto_vrshark_mbtcp);
     udp_heur_list = find_heur_dissector_list("udp");
-    expert_tap = find_tap_id("expert");
     dissector_add_uint("ethertype", ETHERTYPE_PNRT, pn_cyclic_handle);
     dissector_add_uint("udp.port", UDP_PORT_PNIO_CM, pn_cm_handle);
 }

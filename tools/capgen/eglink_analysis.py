@@ -5,7 +5,8 @@ One finding per capture, on the link of tools/capgen/eglink.py (BU origin
 in VRPI and VRPO, lost and repeated packets, command retransmissions,
 acknowledgements and timeouts in both directions, split VRPO bursts
 (reassembled, incomplete, with and without the periodic data size), two BUs
-side by side, and a session with BU state changes for the statistics.
+side by side, two BUs and their controllers on one group, a BU replaced at
+its address, and a session with BU state changes for the statistics.
 """
 from .eglink import (EXT_LINK_ERROR, INITIAL, RU_STOPPED, STOPPED, Link, ack, armed, command,
                      disarmed, machine_data, vrpi, vrpo)
@@ -58,6 +59,12 @@ def timeline(link, start, end, vrpi_at=None, vrpo_at=None, events=(), vrpi_paylo
             link.ctrl(t, "VRPO", vrpo(0, (vrpo_payload or machine_data)(arg)))
         else:
             arg(t)
+
+
+def play(plan):
+    """Runs the events (t, fn(t)) of a plan in time order."""
+    for t, fn in sorted(plan, key=lambda p: p[0]):
+        fn(round(t, 6))
 
 
 def lose(link, serial, times):
@@ -240,8 +247,7 @@ def two_bus():
         (0.33, lambda t: b.ctrl(t, "VRAO", ack(1))),
         (0.36, lambda t: a.ctrl(t, "VRAO", ack(1))),
     ]
-    for t, fn in sorted(plan, key=lambda p: p[0]):
-        fn(round(t, 6))
+    play(plan)
     return a.cap
 
 
@@ -272,3 +278,73 @@ def session():
     timeline(link, 0.0, 3.0, vrpi_at=lose(link, "bu_serial", (1.5,)), events=events, vrpi_payload=state)
     return link.cap
 
+
+
+class SharedLink(Link):
+    """A BU and its controller at their own addresses, on the factory-default group and
+    ports that every BU ships with (several of them share one group)."""
+
+    def __init__(self, bu_ip, ctrl_ip, bu_mac, ctrl_mac, **kw):
+        super().__init__(bu_ip=bu_ip, ctrl_ip=ctrl_ip, **kw)
+        self.bu_mac, self.ctrl_mac = bu_mac, ctrl_mac
+
+    def raw_bu(self, t, pkt, snap=None):
+        return self._send(t, self.bu_ip, self.bu_mac, self.input_port, pkt, snap)
+
+    def raw_ctrl(self, t, pkt, snap=None):
+        return self._send(t, self.ctrl_ip, self.ctrl_mac, self.input_port + 2, pkt, snap)
+
+
+@capture("eglink_analysis_shared_group.pcap", "two armed BUs (10.0.0.1 origin 0x1001, 10.0.0.2 "
+         "origin 0x2002) and their controllers (10.0.0.11, 10.0.0.12) on the default group "
+         "239.255.42.20:5825/5827, nothing lost; commands both ways, the same Command IDs on "
+         "both BUs once the controllers are joined")
+def shared_group():
+    a = SharedLink("10.0.0.1", "10.0.0.11", "00:30:11:20:01:01", "00:1b:1b:20:01:11")
+    b = SharedLink("10.0.0.2", "10.0.0.12", "00:30:11:20:02:02", "00:1b:1b:20:02:12",
+                   cap=a.cap, origin=0x2002)
+    plan = []
+    for k in range(12):
+        t = 0.125 * k
+        plan.append((t, lambda t: a.bu(t, "VRPI", armed())))
+        plan.append((t + 0.005, lambda t: b.bu(t, "VRPI", armed(armed_ru=0xCAFE))))
+    for k in range(15):
+        plan.append((0.04 + 0.1 * k, lambda t, k=k: a.ctrl(t, "VRPO", vrpo(0, machine_data(k)))))
+        plan.append((0.045 + 0.1 * k, lambda t, k=k: b.ctrl(t, "VRPO", vrpo(0, machine_data(50 + k)))))
+    plan += [
+        # Each controller is joined to its BU by the first command it acknowledges ...
+        (0.30, lambda t: a.bu(t, "VRCI", command(5, b"\x01\x00HORN"))),
+        (0.32, lambda t: a.ctrl(t, "VRAO", ack(5))),
+        (0.33, lambda t: b.bu(t, "VRCI", command(9, b"\x01\x00LIGHTS"))),
+        (0.35, lambda t: b.ctrl(t, "VRAO", ack(9))),
+        # ... then the same Command IDs on both BUs are kept apart.
+        (0.60, lambda t: a.ctrl(t, "VRCO", command(2, b"\x10\x00LOAD A"))),
+        (0.61, lambda t: b.ctrl(t, "VRCO", command(2, b"\x10\x00LOAD B"))),
+        (0.62, lambda t: a.bu(t, "VRAI", ack(2))),
+        (0.64, lambda t: b.bu(t, "VRAI", ack(2))),
+        (0.90, lambda t: a.bu(t, "VRCI", command(1, b"\x01\x00STOP A"))),
+        (0.91, lambda t: b.bu(t, "VRCI", command(1, b"\x01\x00STOP B"))),
+        (0.93, lambda t: b.ctrl(t, "VRAO", ack(1))),
+        (0.95, lambda t: a.ctrl(t, "VRAO", ack(1))),
+    ]
+    play(plan)
+    return a.cap
+
+
+@capture("eglink_analysis_origin_changed.pcap", "the BU at 192.168.32.10 is replaced: origin "
+         "0x1001 until 0.5 s, then 0x1003 counting its serials from 0; one controller. Then "
+         "a BU on 239.255.42.22 whose first VRPI has a bad CRC and a garbled origin 0xdead, "
+         "then origin 0x1004: not an origin change")
+def origin_changed():
+    link = Link()
+
+    def vrpi_at(t):
+        if t >= 0.5 and link.origin == 0x1001:
+            link.origin, link.bu_serial = 0x1003, 0
+        return True
+    timeline(link, 0.0, 1.0, vrpi_at=vrpi_at)
+    other = GroupLink("239.255.42.22", cap=link.cap, origin=0x1004, bu_ip="192.168.32.12")
+    other.bu(1.1, "VRPI", armed(), origin=0xDEAD, crc_value=0)
+    for k in range(3):
+        other.bu(1.225 + 0.125 * k, "VRPI", armed())
+    return link.cap

@@ -1,0 +1,122 @@
+--[[ eclink_pnio.lua -- EC-Link images (TS-0007) in PROFINET IO cyclic data
+(protocol "eclink_pnio").
+
+The carrier (vrshark_pnio.lua) finds the frames and their layout; this file
+decodes the images and supervises the handshake. The BU's submodules:
+
+  slot 1 "Inputs"            64 bytes, input CR (BU -> controller)
+  slot 2 "Command Outputs"   20 bytes, or "Standard Outputs" 224 bytes, output CR
+         (no slot 2 on an "Input Only" BU)
+
+each followed by its IOPS; the IOCS of the other direction sit at their own
+offsets. The images are decoded by vrshark/eclink_image.luam (the fields of
+protocol "eclink", the same as over Modbus/TCP); the handshake counters (PCI,
+PCO, CCI -> CAO, CCO -> CAI, BU state) are supervised by
+vrshark/eclink_handshake.luam with the same rules and messages as over
+Modbus/TCP, on the first pass in frame order, per device, and stored in the
+frame's record, so tshark -2 and clicking around show the same as one pass.
+]]
+
+local dir = debug.getinfo(1, "S").source:match("^@(.*)[/\\]")
+package.path = dir .. "/?.luam;" .. package.path
+set_plugin_info(require("vrshark.version").info("EC-Link images (TS-0007) in PROFINET IO cyclic data"))
+local eclink_handshake = require("vrshark.eclink_handshake")
+local image = require("vrshark.eclink_image")
+local record = require("vrshark.pnio_record")
+local systems = require("vrshark.pnio_systems")
+local iodata = require("vrshark.iodata") -- vrshark_io hook
+image.proto()  -- the single Proto("eclink"), shared with the other EC-Link plugins
+
+local add_finding, attach, nstime = record.add_finding, record.attach, record.nstime
+
+local eclp = Proto("eclink_pnio", "EC-Link over PROFINET IO")
+
+------------------------------------------------------------------------
+-- Fields and experts
+------------------------------------------------------------------------
+local epf = {
+    pci_age = ProtoField.relative_time("eclink_pnio.pci_age", "Time since PCI changed"),
+    pco_age = ProtoField.relative_time("eclink_pnio.pco_age", "Time since PCO changed"),
+    layout = ProtoField.string("eclink_pnio.layout", "Layout from"),
+    iops = ProtoField.uint8("eclink_pnio.iops", "IOPS", base.HEX, record.IOXS),
+    iocs = ProtoField.uint8("eclink_pnio.iocs", "IOCS", base.HEX, record.IOXS),
+}
+eclp.fields = epf
+-- the handshake experts (same wording as over Modbus/TCP) come from vrshark.eclink_handshake
+local eef, eclp_experts = eclink_handshake.experts("eclink_pnio")
+eef.iops_bad = ProtoExpert.new("eclink_pnio.iops.bad", "IOPS is not GOOD (0x80)", expert.group.PROTOCOL,
+    expert.severity.WARN)
+eef.short = ProtoExpert.new("eclink_pnio.short", "C-SDU shorter than the layout", expert.group.MALFORMED,
+    expert.severity.ERROR)
+eef.learned = ProtoExpert.new("eclink_pnio.layout.learned", "Cyclic data layout learned from this Connect",
+    expert.group.SEQUENCE, expert.severity.CHAT)
+for _, k in ipairs({ "iops_bad", "short", "learned" }) do eclp_experts[#eclp_experts + 1] = eef[k] end
+eclp.experts = eclp_experts
+
+------------------------------------------------------------------------
+-- Per-capture state
+------------------------------------------------------------------------
+local devs -- device key (plan.dev) -> handshake state
+
+function eclp.init()
+    devs = {}
+end
+
+------------------------------------------------------------------------
+-- First pass
+------------------------------------------------------------------------
+local function analyse(rec, ba, t, frame)
+    local plan = rec.plan
+    local hs = devs[plan.dev]
+    if not hs then
+        hs = eclink_handshake.new()
+        devs[plan.dev] = hs
+    end
+    local o = plan.image.off
+    record.check_ioxs(rec, ba, eef.iops_bad, nil)
+    local inp, out
+    if plan.dir == "up" then
+        inp = { pci = ba:get_index(o), cci = ba:get_index(o + 1), cai = ba:get_index(o + 3), bu = ba:get_index(o + 20) }
+    else
+        out = { pco = ba:get_index(o), cco = ba:get_index(o + 1), cao = ba:get_index(o + 3) }
+    end
+    local r = eclink_handshake.update(hs, inp, out, t, frame)
+    for _, f in ipairs(r.findings) do add_finding(rec, "image", eef[f[1]], f[2]) end
+    rec.pci_age, rec.pco_age = r.pci_age, r.pco_age
+end
+
+------------------------------------------------------------------------
+-- Display
+------------------------------------------------------------------------
+local function show(rec, tvb, pinfo, tree)
+    local plan, base = rec.plan, rec.base
+    local up = plan.dir == "up"
+    local root = record.root(rec, tvb, tree, eclp, up and ", input image" or ", output image")
+    root:add(epf.layout, plan.source):set_generated()
+    attach(rec, "top", root)
+    pinfo.cols.protocol = "EC-Link"
+    if rec.size < plan.need then
+        pinfo.cols.info = "EC-Link: C-SDU too short for the layout"
+        return
+    end
+    local o = plan.image
+    local info = image.dissect(tvb, pinfo, root, { kind = up and "input" or "output", offset = base + o.off,
+        length = o.len, image_len = o.len })
+    iodata.decode_eclink(info, { frame_id = tvb(0, 2):uint() }, pinfo) -- vrshark_io hook
+    if rec.pci_age then root:add(epf.pci_age, nstime(rec.pci_age)):set_generated() end
+    if rec.pco_age then root:add(epf.pco_age, nstime(rec.pco_age)):set_generated() end
+    attach(rec, "image", info and info.item or root)
+    record.add_ioxs(root, rec, tvb, epf.iops, epf.iocs)
+    record.finish(rec, nil)
+    pinfo.cols.info = (up and "Input image " or "Output image ") .. ((info and info.summary) or "")
+end
+
+local function show_connect(rec, tvb, tree, text)
+    local _ = rec
+    local item = tree:add(eclp, tvb:range(0, 0))
+    item:append_text(": layout learned, " .. text)
+    item:add_proto_expert_info(eef.learned, "Cyclic data layout learned: " .. text)
+end
+
+systems.register({ "eclink" }, { proto = eclp, short = eef.short, analyse = analyse, show = show,
+                                 show_connect = show_connect })

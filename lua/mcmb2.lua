@@ -1,0 +1,565 @@
+--[[ mcmb2.lua -- the MC-MB2-PN radio base unit (SP-14-023) in PROFINET IO
+cyclic data (protocol "mcmb2").
+
+The carrier (vrshark_pnio.lua) finds the frames and their layout; this file
+checks and shows what an MC-MB2-PN sends and receives. Inside the C-SDU
+every submodule's data is followed by its IOPS byte; they are shown and
+stripped: the data of one terminal is the concatenation of its modules'
+data (SP-14-023 section 5.3: headers first, then per terminal the data
+modules, downlink data modules before downlink ASCII modules).
+
+Duplex/simplex uplink (device -> controller, section 3.1):
+  0 status (bits 0-3 status 0,1,2,7,0xA; bits 4-7 terminal) | 1 watchdog | 2.. data
+Duplex/simplex downlink (section 3.2):
+  0 base unit number | 1 watchdog | 2.. data (none on simplex)
+Polled uplink (section 4.1):
+  0 status (0xA or 0xF, bits 4-7 zero) | 1 watchdog | 2 Y | 3 Z |
+  4..7 slot status (bits 0-3 0,1,2,7,0xF; bits 4-7 terminal) | Y bytes per used slot
+Polled downlink (section 4.2):
+  0 reserved (0) | 1 watchdog | Z bytes per used slot
+
+The watchdogs (section 2.4), the status values and the slots are checked on
+the first pass in frame order, per device, and the findings stored in the
+frame's record, so tshark -2 and clicking around show the same as one pass.
+The preferences of this protocol also steer the carrier (layout table,
+Connect, polled-header recognition).
+]]
+
+local dir = debug.getinfo(1, "S").source:match("^@(.*)[/\\]")
+package.path = dir .. "/?.luam;" .. package.path
+set_plugin_info(require("vrshark.version").info("Cavotec MC-MB2-PN radio base unit in PROFINET IO cyclic data"))
+local handshake = require("vrshark.handshake")
+local record = require("vrshark.pnio_record")
+local systems = require("vrshark.pnio_systems")
+local iodata = require("vrshark.iodata") -- vrshark_io hook
+
+local add_finding, attach, nstime = record.add_finding, record.attach, record.nstime
+
+local mcmb2 = systems.mcmb2_proto()
+
+------------------------------------------------------------------------
+-- Value tables
+------------------------------------------------------------------------
+local STATUS = {
+    [0x0] = "Terminal absent",
+    [0x1] = "Terminal present",
+    [0x2] = "Terminal blocked (waiting for start key)",
+    [0x7] = "Active stop",
+    [0xA] = "Fieldbus update failure (E010)",
+    [0xF] = "Polled system normal mode",
+}
+local SLOT_STATUS = {
+    [0x0] = "Terminal absent",
+    [0x1] = "Terminal present",
+    [0x2] = "Terminal blocked (waiting for start key)",
+    [0x7] = "Active stop",
+    [0xF] = "Slot not used",
+}
+local DUPLEX_OK = { [0x0] = true, [0x1] = true, [0x2] = true, [0x7] = true, [0xA] = true }
+local POLLED_OK = { [0xA] = true, [0xF] = true }
+local SLOT_OK = { [0x0] = true, [0x1] = true, [0x2] = true, [0x7] = true, [0xF] = true }
+local SLOT_ANCHOR = { "slot1", "slot2", "slot3", "slot4" }
+-- Slot states in the Info column ("1:T1 present").
+local SLOT_SHORT = { [0x0] = "absent", [0x1] = "present", [0x2] = "blocked", [0x7] = "active stop" }
+local IOXS = record.IOXS
+
+-- The name of a status value, or "Unknown (0x3)" when `known` does not
+-- define it, as Wireshark shows the undefined value of the 4-bit status
+-- fields.
+local function name_of(names, known, v)
+    if known[v] and names[v] then return names[v] end
+    return string.format("Unknown (0x%x)", v)
+end
+
+------------------------------------------------------------------------
+-- Fields
+------------------------------------------------------------------------
+local pf = {
+    system = ProtoField.string("mcmb2.system", "System"),
+    direction = ProtoField.string("mcmb2.direction", "Direction"),
+    layout = ProtoField.string("mcmb2.layout", "Layout from"),
+    status = ProtoField.uint8("mcmb2.status", "MC-MB2-PN status", base.HEX, STATUS, 0x0F),
+    terminal = ProtoField.uint8("mcmb2.terminal", "Terminal number", base.DEC, nil, 0xF0),
+    uplink_watchdog = ProtoField.uint8("mcmb2.uplink_watchdog", "Uplink watchdog counter", base.DEC),
+    uplink_data = ProtoField.bytes("mcmb2.uplink_data", "Uplink data from terminal"),
+    uplink_size = ProtoField.uint8("mcmb2.uplink_size", "Uplink data area size (Y)", base.DEC),
+    downlink_size = ProtoField.uint8("mcmb2.downlink_size", "Downlink data area size (Z)", base.DEC),
+    slot = ProtoField.uint8("mcmb2.slot", "Data slot", base.DEC),
+    slot_status = ProtoField.uint8("mcmb2.slot.status", "Terminal status", base.HEX, SLOT_STATUS, 0x0F),
+    slot_terminal = ProtoField.uint8("mcmb2.slot.terminal", "Terminal number", base.DEC, nil, 0xF0),
+    slot_uplink_data = ProtoField.bytes("mcmb2.slot.uplink_data", "Uplink data"),
+    base_unit = ProtoField.uint8("mcmb2.base_unit", "Base unit number", base.DEC),
+    reserved = ProtoField.uint8("mcmb2.reserved", "Reserved", base.HEX),
+    downlink_watchdog = ProtoField.uint8("mcmb2.downlink_watchdog", "Downlink watchdog counter", base.DEC),
+    downlink_data = ProtoField.bytes("mcmb2.downlink_data", "Downlink data to terminal"),
+    slot_downlink_data = ProtoField.bytes("mcmb2.slot.downlink_data", "Downlink data"),
+    iops = ProtoField.uint8("mcmb2.iops", "IOPS", base.HEX, IOXS),
+    iocs = ProtoField.uint8("mcmb2.iocs", "IOCS", base.HEX, IOXS),
+    watchdog_age = ProtoField.relative_time("mcmb2.watchdog_age", "Watchdog unchanged for"),
+    watchdog_since = ProtoField.framenum("mcmb2.watchdog_since", "Watchdog value unchanged since"),
+    frame_id = ProtoField.uint16("mcmb2.frame_id", "FrameID", base.HEX),
+}
+mcmb2.fields = pf
+
+local ef = {
+    status_undefined = ProtoExpert.new("mcmb2.status.undefined",
+        "Undefined MC-MB2-PN status: bring the system to a safe state", expert.group.PROTOCOL,
+        expert.severity.ERROR),
+    slot_status_undefined = ProtoExpert.new("mcmb2.slot.status.undefined",
+        "Undefined terminal status: bring the system to a safe state", expert.group.PROTOCOL,
+        expert.severity.ERROR),
+    terminal_not_zero = ProtoExpert.new("mcmb2.terminal.not_zero",
+        "Terminal number bits of a polled status byte are not 0", expert.group.PROTOCOL, expert.severity.WARN),
+    not_valid = ProtoExpert.new("mcmb2.no_valid_data",
+        "No valid terminal data: the IO controller must keep the system in a safe state",
+        expert.group.RESPONSE_CODE, expert.severity.WARN),
+    e010 = ProtoExpert.new("mcmb2.status.e010",
+        "Fieldbus update failure (E010) reported by the base: no valid terminal data", expert.group.SEQUENCE,
+        expert.severity.ERROR),
+    data_not_zero = ProtoExpert.new("mcmb2.data_not_zero",
+        "Status is not 'present' but the uplink data is not all 0", expert.group.PROTOCOL, expert.severity.WARN),
+    uplink_stalled = ProtoExpert.new("mcmb2.uplink_watchdog.stalled",
+        "Uplink watchdog unchanged for over 1 s: bring the system to a safe state", expert.group.SEQUENCE,
+        expert.severity.ERROR),
+    downlink_stalled = ProtoExpert.new("mcmb2.downlink_watchdog.stalled",
+        "Downlink watchdog unchanged for over 2000 ms: the base shows E010", expert.group.SEQUENCE,
+        expert.severity.ERROR),
+    terminal_changed = ProtoExpert.new("mcmb2.slot.terminal_changed",
+        "Slot changed terminal (dynamic polling)", expert.group.SEQUENCE, expert.severity.NOTE),
+    layout_mismatch = ProtoExpert.new("mcmb2.layout_mismatch",
+        "Polled layout (Y/Z/slots) differs from the configured layout: bring the system to a safe state",
+        expert.group.PROTOCOL, expert.severity.ERROR),
+    iops_bad = ProtoExpert.new("mcmb2.iops.bad", "IOPS is not GOOD (0x80)", expert.group.PROTOCOL,
+        expert.severity.WARN),
+    iocs_bad = ProtoExpert.new("mcmb2.iocs.bad", "IOCS is not GOOD (0x80)", expert.group.PROTOCOL,
+        expert.severity.WARN),
+    reserved_not_zero = ProtoExpert.new("mcmb2.reserved.not_zero", "Reserved byte is not 0",
+        expert.group.PROTOCOL, expert.severity.WARN),
+    short = ProtoExpert.new("mcmb2.short", "C-SDU shorter than the layout", expert.group.MALFORMED,
+        expert.severity.ERROR),
+    learned = ProtoExpert.new("mcmb2.layout.learned", "Cyclic data layout learned from this Connect",
+        expert.group.SEQUENCE, expert.severity.CHAT),
+}
+mcmb2.experts = { ef.status_undefined, ef.slot_status_undefined, ef.terminal_not_zero, ef.not_valid, ef.e010,
+                  ef.data_not_zero, ef.uplink_stalled, ef.downlink_stalled, ef.terminal_changed,
+                  ef.layout_mismatch, ef.iops_bad, ef.iocs_bad, ef.reserved_not_zero, ef.short, ef.learned }
+
+------------------------------------------------------------------------
+-- Preferences
+------------------------------------------------------------------------
+mcmb2.prefs.layouts = Pref.string("Layout table", "",
+    "FrameID layouts used when the capture has no Connect, separated by ';'. "
+    .. "IN[/OUT]=SYSTEM[:UP[/DOWN]][@DAP], e.g. 0x8001/0x8002=duplex:26/10,a20 ; "
+    .. "0x8003/0x8004=polled:4x24/4x2,a8 (a: ASCII modules) ; 0x8005/0x8006=eclink:/224 (see docs/profinet.md)")
+mcmb2.prefs.connect = Pref.bool("Learn layouts from the Connect", true,
+    "Recognise MC-MB2-PN and EC-Link devices by the modules of a Connect request in the capture")
+mcmb2.prefs.heuristic = Pref.bool("Recognise polled uplink headers", true,
+    "Decode unknown cyclic frames that start (after the DAP IOPS) with a consistent polled MC-MB2-PN header")
+mcmb2.prefs.uplink_timeout = Pref.uint("Uplink watchdog timeout (ms)", 1000,
+    "Flag an uplink watchdog that keeps its value longer than this")
+mcmb2.prefs.downlink_timeout = Pref.uint("Downlink watchdog timeout (ms)", 2000,
+    "Flag a downlink watchdog that keeps its value longer than this (the base shows E010)")
+
+systems.set_prefs(mcmb2.prefs)
+
+------------------------------------------------------------------------
+-- Per-capture state
+------------------------------------------------------------------------
+local devs        -- device key (plan.dev) -> { up_wd, down_wd, slot_term, z, used }
+local up_limit, down_limit -- watchdog timeouts (s), read from the preferences in init()
+
+systems.on_init(function()
+    devs = {}
+    up_limit, down_limit = mcmb2.prefs.uplink_timeout / 1000, mcmb2.prefs.downlink_timeout / 1000
+end)
+
+local function dev_state(key)
+    local d = devs[key]
+    if not d then
+        d = { up_wd = {}, down_wd = {}, slot_term = {} }
+        devs[key] = d
+    end
+    return d
+end
+
+------------------------------------------------------------------------
+-- Helpers
+------------------------------------------------------------------------
+local function all_zero(ba, objs)
+    for _, o in ipairs(objs) do
+        for i = o.off, o.off + o.len - 1 do
+            if ba:get_index(i) ~= 0 then return false end
+        end
+    end
+    return true
+end
+
+-- Splits modules into groups of `size` bytes; nil if they do not add up.
+local function group_by(mods, size, count)
+    local groups, cur, acc = {}, {}, 0
+    if size == 0 then return nil end
+    for _, o in ipairs(mods) do
+        cur[#cur + 1] = o
+        acc = acc + o.len
+        if acc == size then
+            groups[#groups + 1] = cur
+            cur, acc = {}, 0
+        elseif acc > size then
+            return nil
+        end
+    end
+    if acc ~= 0 or (count and #groups ~= count) then return nil end
+    return groups
+end
+
+-- group_by() for the modules of a plan, cached in the plan (the records
+-- share the result and only read it).
+local function plan_groups(plan, size, count)
+    local cache = plan.groups_cache
+    if not cache then
+        cache = {}
+        plan.groups_cache = cache
+    end
+    local key = size * 8 + (count or 7)
+    local g = cache[key]
+    if g == nil then
+        g = group_by(plan.modules, size, count) or false
+        cache[key] = g
+    end
+    return g or nil
+end
+
+-- The used slots of a polled header as a shared list, by bit mask.
+local used_lists = {}
+local function used_slots(mask)
+    local l = used_lists[mask]
+    if not l then
+        l = {}
+        for k = 1, 4 do if bit.band(mask, bit.lshift(1, k - 1)) ~= 0 then l[#l + 1] = k end end
+        used_lists[mask] = l
+    end
+    return l
+end
+
+------------------------------------------------------------------------
+-- First pass: the analysis of one cyclic frame
+------------------------------------------------------------------------
+-- Seconds rounded to the millisecond (ages are differences of capture
+-- times: 1.2 s, not 1.200000048 s).
+local function ms(s)
+    return math.floor(s * 1000 + 0.5) / 1000
+end
+
+-- The watchdog's age in this frame; past the limit the frame is "stalled"
+-- (Info tag on every such frame, the finding on the first).
+local function watchdog(rec, st, value, t, frame, limit, ex, what)
+    local r = handshake.stall(st, value, t, frame, limit)
+    rec.wd_age = ms(t - st.t)
+    if t - st.t > limit then rec.wd_since = st.frame end
+    if r and r.kind == "stalled" then
+        add_finding(rec, "wd", ex, string.format("%s watchdog unchanged for %.3f s (value %d)%s",
+            what, ms(r.age), r.value,
+            (what == "Uplink") and ": bring the system to a safe state" or ": the base shows E010"))
+    end
+end
+
+local function analyse_duplex(rec, d, ba, t, frame)
+    local plan = rec.plan
+    local h = plan.header.off
+    if plan.dir == "up" then
+        local sb = ba:get_index(h)
+        local st = bit.band(sb, 0x0F)
+        if not DUPLEX_OK[st] then
+            rec.undefined = true
+            add_finding(rec, "status", ef.status_undefined, string.format(
+                "MC-MB2-PN status %s is undefined: bring the system to a safe state", name_of(STATUS, DUPLEX_OK, st)))
+        elseif st == 0xA then
+            rec.e010 = true
+            add_finding(rec, "status", ef.e010,
+                "Fieldbus update failure (E010): no valid terminal data, the IO controller must keep the "
+                .. "system in a safe state")
+        elseif st ~= 1 then
+            add_finding(rec, "status", ef.not_valid, string.format(
+                "%s: no valid terminal data, the IO controller must keep the system in a safe state",
+                STATUS[st]))
+        end
+        if st ~= 1 and not all_zero(ba, plan.modules) then
+            add_finding(rec, "data", ef.data_not_zero, string.format(
+                "Status %s is not 'Terminal present' but the uplink data is not all 0",
+                name_of(STATUS, DUPLEX_OK, st)))
+        end
+        watchdog(rec, d.up_wd, ba:get_index(h + 1), t, frame, up_limit,
+            ef.uplink_stalled, "Uplink")
+    else
+        watchdog(rec, d.down_wd, ba:get_index(h + 1), t, frame, down_limit,
+            ef.downlink_stalled, "Downlink")
+    end
+    plan.one_group = plan.one_group or { plan.modules }
+    rec.groups = plan.one_group
+end
+
+local function analyse_polled_up(rec, d, ba, t, frame)
+    local plan = rec.plan
+    local h = plan.header.off
+    local cfg = plan.cfg
+    local sb = ba:get_index(h)
+    local st = bit.band(sb, 0x0F)
+    if not POLLED_OK[st] then
+        rec.undefined = true
+        add_finding(rec, "status", ef.status_undefined, string.format(
+            "MC-MB2-PN status %s is undefined on a polled system: bring the system to a safe state",
+            name_of(STATUS, POLLED_OK, st)))
+    elseif st == 0xA then
+        rec.e010 = true
+        add_finding(rec, "status", ef.e010,
+            "Fieldbus update failure (E010): no valid terminal data, the IO controller must keep the "
+            .. "system in a safe state")
+    end
+    if bit.band(sb, 0xF0) ~= 0 then
+        add_finding(rec, "status", ef.terminal_not_zero, string.format(
+            "Terminal number bits are %d, not 0, on a polled system", bit.rshift(sb, 4)))
+    end
+    watchdog(rec, d.up_wd, ba:get_index(h + 1), t, frame, up_limit,
+        ef.uplink_stalled, "Uplink")
+    local y, z = ba:get_index(h + 2), ba:get_index(h + 3)
+    local mask = 0
+    for k = 1, 4 do
+        local s = ba:get_index(h + 3 + k)
+        if bit.band(s, 0x0F) ~= 0x0F then mask = mask + bit.lshift(1, k - 1) end
+    end
+    local used = used_slots(mask)
+    local groups = plan_groups(plan, y, #used)
+    local mismatch = not groups
+    if groups and not plan.from_header then
+        mismatch = true
+        for _, c in ipairs(plan.cfgs) do
+            if c.y == y and c.z == z and c.n == #used then mismatch = false end
+        end
+    end
+    if mismatch then
+        add_finding(rec, "size", ef.layout_mismatch, string.format(
+            "Y=%d, Z=%d, %d used slot(s) differ from the configured layout (Y=%d, Z=%d, %d slot(s)): "
+            .. "bring the system to a safe state", y, z, #used, cfg.y, cfg.z, cfg.n))
+        groups = plan_groups(plan, cfg.y) or {}
+    end
+    rec.groups, rec.slots = groups, used
+    d.z, d.used = z, used
+    for k = 1, 4 do
+        local s = ba:get_index(h + 3 + k)
+        local sst, term = bit.band(s, 0x0F), bit.rshift(s, 4)
+        local anchor = SLOT_ANCHOR[k]
+        if not SLOT_OK[sst] then
+            rec.undefined = true
+            add_finding(rec, anchor, ef.slot_status_undefined, string.format(
+                "Slot %d: terminal status %s is undefined: bring the system to a safe state", k,
+                name_of(SLOT_STATUS, SLOT_OK, sst)))
+        end
+        if sst ~= 0xF then
+            local prev = d.slot_term[k]
+            if prev ~= nil and prev ~= term then
+                add_finding(rec, anchor, ef.terminal_changed, string.format(
+                    "Slot %d now serves terminal %d (was terminal %d): dynamic polling", k, term, prev))
+            end
+            d.slot_term[k] = term
+            local gi
+            for i, u in ipairs(used) do if u == k then gi = i end end
+            if sst ~= 1 and gi and groups[gi] and not all_zero(ba, groups[gi]) then
+                add_finding(rec, anchor, ef.data_not_zero, string.format(
+                    "Slot %d: terminal status %s is not 'Terminal present' but its uplink data is not all 0",
+                    k, name_of(SLOT_STATUS, SLOT_OK, sst)))
+            end
+        end
+    end
+end
+
+local function analyse_polled_down(rec, d, ba, t, frame)
+    local plan = rec.plan
+    local h = plan.header.off
+    local cfg = plan.cfg
+    local r = ba:get_index(h)
+    if r ~= 0 then
+        add_finding(rec, "reserved", ef.reserved_not_zero, string.format("Reserved byte is 0x%02x, not 0", r))
+    end
+    watchdog(rec, d.down_wd, ba:get_index(h + 1), t, frame, down_limit,
+        ef.downlink_stalled, "Downlink")
+    local z = d.z or cfg.z
+    local groups = plan_groups(plan, z) or plan_groups(plan, cfg.z) or {}
+    local slots = d.used
+    if not slots and #groups <= 4 then
+        slots = used_slots(bit.lshift(1, #groups) - 1)
+    elseif not slots then
+        slots = {}
+        for i = 1, #groups do slots[i] = i end
+    end
+    rec.groups, rec.slots = groups, slots
+end
+
+local function analyse(rec, ba, t, frame)
+    local plan = rec.plan
+    local d = dev_state(plan.dev)
+    record.check_ioxs(rec, ba, ef.iops_bad, ef.iocs_bad)
+    if plan.system == "duplex" then
+        analyse_duplex(rec, d, ba, t, frame)
+    elseif plan.dir == "up" then
+        analyse_polled_up(rec, d, ba, t, frame)
+    else
+        analyse_polled_down(rec, d, ba, t, frame)
+    end
+end
+
+------------------------------------------------------------------------
+-- Display
+------------------------------------------------------------------------
+-- The data of several modules as one range (a new data source when they
+-- are not contiguous).
+local function data_range(tvb, base, objs, name)
+    if #objs == 0 then return nil end
+    if #objs == 1 then return tvb:range(base + objs[1].off, objs[1].len) end
+    local parts = {}
+    for i, o in ipairs(objs) do parts[i] = tvb:raw(base + o.off, o.len) end
+    return ByteArray.new(table.concat(parts), true):tvb(name):range()
+end
+
+local function add_watchdog(root, rec, field, range)
+    local wd = root:add(field, range)
+    if rec.wd_age then wd:add(pf.watchdog_age, nstime(rec.wd_age)):set_generated() end
+    if rec.wd_since then wd:add(pf.watchdog_since, rec.wd_since):set_generated() end
+    attach(rec, "wd", wd)
+end
+
+local function show_duplex_up(rec, tvb, root, hr, wr, pinfo) -- vrshark_io hook: pinfo
+    local sb = hr:uint()
+    local st = bit.band(sb, 0x0F)
+    root:add(pf.terminal, hr)
+    add_watchdog(root, rec, pf.uplink_watchdog, wr)
+    local r = data_range(tvb, rec.base, rec.plan.modules, "MC-MB2 uplink data")
+    if r then attach(rec, "data", root:add(pf.uplink_data, r)) end
+    if r then iodata.decode("mcmb2.up", -- vrshark_io hook
+        { terminal = bit.rshift(sb, 4), frame_id = tvb(0, 2):uint() }, r, root, pinfo) end -- vrshark_io hook
+    return string.format("Uplink duplex: %s, terminal %d, watchdog %d", name_of(STATUS, DUPLEX_OK, st),
+        bit.rshift(sb, 4), wr:uint())
+end
+
+local function show_polled_up(rec, tvb, root, h, pinfo) -- vrshark_io hook: pinfo
+    local hr, wr = tvb:range(h, 1), tvb:range(h + 1, 1)
+    root:add(pf.terminal, hr)
+    add_watchdog(root, rec, pf.uplink_watchdog, wr)
+    local yr, zr = tvb:range(h + 2, 1), tvb:range(h + 3, 1)
+    attach(rec, "size", root:add(pf.uplink_size, yr))
+    root:add(pf.downlink_size, zr)
+    local parts = {}
+    for k = 1, 4 do
+        local sr = tvb:range(h + 3 + k, 1)
+        local s = sr:uint()
+        local sst = bit.band(s, 0x0F)
+        local st = root:add(sr, string.format("Slot %d: %s, terminal %d", k, name_of(SLOT_STATUS, SLOT_OK, sst),
+            bit.rshift(s, 4)))
+        st:add(pf.slot, k):set_generated()
+        st:add(pf.slot_status, sr)
+        st:add(pf.slot_terminal, sr)
+        local gi
+        for i, u in ipairs(rec.slots or {}) do if u == k then gi = i end end
+        if gi and rec.groups[gi] then
+            local r = data_range(tvb, rec.base, rec.groups[gi], "MC-MB2 slot " .. k .. " uplink data")
+            if r then st:add(pf.slot_uplink_data, r) end
+            if r then iodata.decode("mcmb2.up", -- vrshark_io hook
+                { terminal = bit.rshift(s, 4), slot = k, frame_id = tvb(0, 2):uint() }, -- vrshark_io hook
+                r, st, pinfo) end -- vrshark_io hook
+        end
+        attach(rec, SLOT_ANCHOR[k], st)
+        if sst ~= 0xF then
+            parts[#parts + 1] = string.format("%d:T%d %s", k, bit.rshift(s, 4),
+                SLOT_SHORT[sst] or name_of(SLOT_STATUS, SLOT_OK, sst))
+        end
+    end
+    return string.format("Uplink polled: %s, watchdog %d, Y=%d Z=%d, slots %s",
+        name_of(STATUS, POLLED_OK, bit.band(hr:uint(), 0x0F)), wr:uint(), yr:uint(), zr:uint(),
+        (#parts > 0) and table.concat(parts, ", ") or "none")
+end
+
+local function show_down(rec, tvb, root, hr, wr, pinfo) -- vrshark_io hook: pinfo
+    local duplex = rec.plan.system == "duplex"
+    if duplex then
+        root:add(pf.base_unit, hr)
+    else
+        attach(rec, "reserved", root:add(pf.reserved, hr))
+    end
+    add_watchdog(root, rec, pf.downlink_watchdog, wr)
+    if duplex then
+        local r = data_range(tvb, rec.base, rec.plan.modules, "MC-MB2 downlink data")
+        if r then root:add(pf.downlink_data, r) end
+        if r then iodata.decode("mcmb2.down", { frame_id = tvb(0, 2):uint() }, r, root, pinfo) end -- vrshark_io hook
+        return string.format("Downlink duplex: base unit %d, watchdog %d", hr:uint(), wr:uint())
+    end
+    for i, g in ipairs(rec.groups or {}) do
+        local k = rec.slots and rec.slots[i] or i
+        local r = data_range(tvb, rec.base, g, "MC-MB2 slot " .. k .. " downlink data")
+        if r then
+            local st = root:add(r, string.format("Slot %d", k))
+            st:add(pf.slot, k):set_generated()
+            st:add(pf.slot_downlink_data, r)
+            iodata.decode("mcmb2.down", { slot = k, frame_id = tvb(0, 2):uint() }, r, st, pinfo) -- vrshark_io hook
+        end
+    end
+    return string.format("Downlink polled: watchdog %d, %d slot(s)", wr:uint(), #(rec.groups or {}))
+end
+
+-- The Info column tags of the findings that matter in the packet list
+-- (README "How findings read"): [E010], [watchdog stalled 1.2 s], [undefined].
+local function info_tags(rec)
+    local tags = ""
+    if rec.e010 then tags = tags .. " [E010]" end
+    if rec.wd_since then tags = tags .. string.format(" [watchdog stalled %.1f s]", rec.wd_age) end
+    if rec.undefined then tags = tags .. " [undefined]" end
+    return tags
+end
+
+local function show(rec, tvb, pinfo, tree)
+    local plan, base = rec.plan, rec.base
+    local up = plan.dir == "up"
+    if not plan.title then plan.title = string.format(", %s %s", plan.system, up and "uplink" or "downlink") end
+    local root = record.root(rec, tvb, tree, mcmb2, plan.title)
+    root:add(pf.system, plan.system):set_generated()
+    root:add(pf.direction, up and "uplink" or "downlink"):set_generated()
+    root:add(pf.layout, plan.source):set_generated()
+    attach(rec, "top", root)
+    pinfo.cols.protocol = "MC-MB2"
+    if rec.size < plan.need then
+        pinfo.cols.info = "MC-MB2-PN: C-SDU too short for the layout"
+        return
+    end
+    local h = base + plan.header.off
+    local hr, wr = tvb:range(h, 1), tvb:range(h + 1, 1)
+    local info
+    if up then
+        local item = root:add(pf.status, hr)
+        local known = (plan.system == "duplex") and DUPLEX_OK or POLLED_OK
+        if not known[bit.band(hr:uint(), 0x0F)] then
+            item:append_text(" [undefined on a " .. plan.system .. " system]")
+        end
+        attach(rec, "status", item)
+        if plan.system == "duplex" then
+            info = show_duplex_up(rec, tvb, root, hr, wr, pinfo) -- vrshark_io hook: pinfo
+        else
+            info = show_polled_up(rec, tvb, root, h, pinfo) -- vrshark_io hook: pinfo
+        end
+    else
+        info = show_down(rec, tvb, root, hr, wr, pinfo) -- vrshark_io hook: pinfo
+    end
+    record.add_ioxs(root, rec, tvb, pf.iops, pf.iocs)
+    record.finish(rec, root)
+    pinfo.cols.info = info .. info_tags(rec)
+end
+
+local function show_connect(rec, tvb, tree, text)
+    local item = tree:add(mcmb2, tvb:range(0, 0))
+    item:append_text(": layout learned, " .. text)
+    item:add(pf.system, rec.system):set_generated()
+    for _, plan in ipairs({ rec.up or false, rec.down or false }) do
+        if plan and plan.fid and plan.fid ~= 0xFFFF then item:add(pf.frame_id, plan.fid):set_generated() end
+    end
+    item:add_proto_expert_info(ef.learned, "Cyclic data layout learned: " .. text)
+end
+
+systems.register({ "duplex", "polled" }, { proto = mcmb2, short = ef.short, analyse = analyse, show = show,
+                                          show_connect = show_connect })

@@ -1,0 +1,445 @@
+--[[ vrshark_pnio.lua -- the carrier of our systems in PROFINET IO (protocol
+"vrshark_pnio"): finds the cyclic frames of MC-MB2-PN bases (decoded by
+mcmb2.lua) and EC-Link BUs (decoded by eclink_pnio.lua) and learns where
+their data sit.
+
+Transport: PROFINET RT, EtherType 0x8892 (optionally 802.1Q tagged):
+
+  FrameID (2) | C-SDU (40..1440) | CycleCounter (2) | DataStatus (1) | TransferStatus (1)
+
+Wireshark's own pn_rt/pn_io dissectors decode the frame as always. With the
+C front ends of the C plugin (vrshark/frontends.luam), the C plugin is the
+protocol "vrshark_pnio": it runs PN-RT and DCE/RPC itself and calls this
+carrier only for the FrameIDs it registered, for candidate FrameIDs while
+polled-header recognition is on ("candidate" and "pending" hooks) and for
+Connects ("connect" hook); the carrier then registers under the Proto of
+mcmb2 (the C plugin owns the name). Without the C plugin the carrier is the
+protocol "vrshark_pnio" itself: it takes EtherType 0x8892 (tagged frames
+reach it through the same table), calls Wireshark's PN-RT dissector first and
+then hands the C-SDU of the FrameIDs it knows to their decoder (an unknown
+FrameID costs a table lookup). The Connect request/response (DCE/RPC over
+UDP, PNIO-CM) reaches it through UDP port 34964 and, for the response coming
+from the device's own port, through the controller's port learned from the
+request; it hands the datagram to the UDP heuristics (where Wireshark finds
+DCE/RPC) and reads the blocks from the bytes. Other traffic never reaches the
+plugin.
+
+Layouts (vrshark/pnio_layout.luam) come from, best first:
+  1. the Connect request/response in the capture (IOCR blocks give FrameIDs
+     and frame offsets, ExpectedSubmodule blocks the lengths);
+  2. the preference table (mcmb2.layouts, format in README and
+     vrshark/pnio_layout.luam);
+  3. a polled MC-MB2-PN uplink header, which describes itself (Y, Z, slot
+     status); the downlink from the controller to the same device is laid
+     out with it.
+
+The decoders register themselves in vrshark/pnio_systems.luam by system
+("duplex", "polled", "eclink"); the per-frame record they fill is described
+in vrshark/pnio_record.luam. Everything runs on the first pass in frame order
+and is stored per frame, so tshark -2 and clicking around show the same as
+one pass.
+]]
+
+local dir = debug.getinfo(1, "S").source:match("^@(.*)[/\\]")
+package.path = dir .. "/?.luam;" .. package.path
+set_plugin_info(require("vrshark.version").info(
+    "PROFINET IO carrier of MC-MB2-PN and EC-Link cyclic frames (layouts from Connect, table, polled header)"))
+local layout = require("vrshark.pnio_layout")
+local record = require("vrshark.pnio_record")
+local systems = require("vrshark.pnio_systems")
+local wrap = require("vrshark.wrap")
+local fe = require("vrshark.frontends")
+
+-- With the C front ends the C plugin is "vrshark_pnio"; the carrier is then
+-- called through the front ends' tables under mcmb2's Proto.
+local C = fe.pn_frame_id ~= nil
+local carrier = C and systems.mcmb2_proto() or Proto("vrshark_pnio", "vrshark PROFINET IO cyclic data")
+local ethertype_table = DissectorTable.get("ethertype")
+local udp_table = DissectorTable.get("udp.port")
+local pn_rt = ethertype_table:get_dissector(0x8892)
+local ETH_PNRT, UDP_PNIO_CM = 0x8892, 34964
+
+-- Failed polled-header checks per unknown FrameID before it is given up.
+local HEUR_TRIES = 64
+
+------------------------------------------------------------------------
+-- Per-capture state
+------------------------------------------------------------------------
+local by_fid      -- FrameID -> { plan, ... } (plan.sender: Ethernet source Address, or nil = any)
+local pending_down -- { { ctl = Address, dev = Address, plan = downlink plan waiting for its FrameID }, ... }
+local cm_ports    -- UDP port -> true: controller ports added to udp.port for Connect responses
+local tries       -- FrameID -> failed header checks
+local frames      -- frame number -> record
+local ars         -- AR UUID -> parsed Connect
+local heuristic, learn -- the preferences mcmb2.heuristic and mcmb2.connect, read in init()
+
+local function register(plan)
+    if not plan or not plan.fid or plan.fid == 0xFFFF then return end
+    if C then fe.pn_frame_id:add(plan.fid, carrier) end
+    local t = by_fid[plan.fid]
+    if not t then
+        t = {}
+        by_fid[plan.fid] = t
+    end
+    for i, p in ipairs(t) do
+        if p.sender == plan.sender then -- Addresses compare by value; nil is "any sender"
+            t[i] = plan
+            return
+        end
+    end
+    t[#t + 1] = plan
+end
+
+-- The plan of FrameID `fid` sent by `src`: the one for that sender, else
+-- the one for any sender.
+local function lookup(t, src)
+    local any
+    for _, p in ipairs(t) do
+        if p.sender == nil then any = p elseif p.sender == src then return p end
+    end
+    return any
+end
+
+-- The plans of the layout table preference. A polled entry without sizes
+-- gives placeholders ("deferred"): the frames of its FrameIDs are laid out
+-- by their polled header, as the heuristic does, but whatever the
+-- preference mcmb2.heuristic says.
+local function table_plans(text)
+    local plans = {}
+    local entries = layout.parse_table(text)
+    for i, e in ipairs(entries) do
+        local up, down
+        local dev = "pref" .. i
+        if e.system == "eclink" then
+            up, down = layout.eclink_plans(e.outlen, e.dap, "preference", dev)
+        elseif e.system == "polled" and #e.up == 0 then
+            up = { system = "polled", dir = "up", deferred = true, out_fid = e.out_fid or nil }
+            down = { system = "polled", dir = "down", deferred = true }
+        else
+            local n = (e.system == "polled") and (e.slots or 4) or 1
+            up, down = layout.mcmb2_plans(e.system, n, e.up, e.down, e.dap, "preference", dev)
+        end
+        if up and e.in_fid then up.fid = e.in_fid; plans[#plans + 1] = up end
+        if down and e.out_fid then down.fid = e.out_fid; plans[#plans + 1] = down end
+    end
+    return plans
+end
+
+-- The C front ends' hooks: which frames the C plugin hands to the carrier.
+local function set_hooks()
+    if not C then return end
+    fe.hook(fe.pn_hook, "candidate", carrier, heuristic)
+    fe.hook(fe.pn_hook, "connect", carrier, learn)
+    fe.hook(fe.pn_hook, "pending", carrier, pending_down ~= nil and #pending_down > 0)
+end
+
+local function init()
+    for port in pairs(cm_ports or {}) do udp_table:remove(port, carrier) end
+    by_fid, pending_down, tries, frames, ars, cm_ports = {}, {}, {}, {}, {}, {}
+    local prefs = systems.prefs()
+    heuristic, learn = prefs.heuristic, prefs.connect
+    if C then fe.pn_frame_id:remove_all(carrier) end
+    set_hooks()
+    for _, p in ipairs(table_plans(prefs.layouts)) do register(p) end
+end
+if C then systems.on_init(init) else carrier.init = init end
+
+------------------------------------------------------------------------
+-- Learning from the Connect
+------------------------------------------------------------------------
+-- A DCE/RPC connectionless PDU (version 4, request or response): the
+-- datagrams the carrier hands to the UDP heuristics.
+local function is_dcerpc_dg(tvb)
+    if tvb:len() < 80 or tvb:range(0, 1):uint() ~= 4 then return false end
+    local ptype = tvb:range(1, 1):uint()
+    return ptype == 0 or ptype == 2
+end
+
+-- The PNIO blocks of an unfragmented Connect request/response (opnum 0) in
+-- a DCE/RPC datagram: { { source = tvb, offset = o, value = block type }, ... },
+-- and whether it is the request.
+local function connect_blocks(tvb)
+    if tvb:len() < 80 + 20 then return nil end
+    local ptype = tvb:range(1, 1):uint()
+    if bit.band(tvb:range(2, 1):uint(), 0x04) ~= 0 then return nil end -- a fragment
+    local le = bit.band(tvb:range(4, 1):uint(), 0x10) ~= 0
+    local function u16(o) return le and tvb:range(o, 2):le_uint() or tvb:range(o, 2):uint() end
+    local function u32(o) return le and tvb:range(o, 4):le_uint() or tvb:range(o, 4):uint() end
+    if u16(68) ~= 0 then return nil end -- opnum 0: Connect
+    local p = 80
+    if ptype == 2 and u32(p) ~= 0 then return nil end -- PNIO status not OK
+    local args = u32(p + 4)
+    local start, stop = p + 20, math.min(p + 20 + args, tvb:len())
+    local list = {}
+    while start + 6 <= stop do
+        list[#list + 1] = { source = tvb, offset = start, value = tvb:range(start, 2):uint() }
+        start = start + 4 + tvb:range(start + 2, 2):uint()
+    end
+    return list, ptype == 0
+end
+
+local function learn_connect(pinfo, blocks)
+    local ar = {}
+    local any = false
+    for _, fi in ipairs(blocks) do
+        local v = fi.value
+        if v == 0x0101 or v == 0x0102 or v == 0x0104 or v == 0x8101 or v == 0x8102 then
+            local src = fi.source
+            if src then
+                if layout.parse_block(ar, src, fi.offset) then any = true end
+            end
+        end
+    end
+    if not any or not ar.uuid then return nil end
+    local known = ars[ar.uuid]
+    -- The senders of the cyclic frames: the Ethernet addresses of the two
+    -- ends of the Connect (compared with those of the cyclic frames).
+    if ar.subs then
+        -- A request: from the controller to the device.
+        ar.ctl_mac, ar.dev_mac = pinfo.dl_src, pinfo.dl_dst
+        ar.frame = pinfo.number
+        ars[ar.uuid] = ar
+        known = ar
+    elseif known and (ar.res_fids or ar.dev_mac) then
+        known.res_fids = ar.res_fids or known.res_fids
+        known.dev_mac = pinfo.dl_src
+    else
+        return nil
+    end
+    if not known.subs or not known.iocrs then return nil end
+    local cls = layout.classify(known.subs)
+    if not cls then return nil end
+    local up, down = layout.plans_from_ar(known, cls, "Connect in frame " .. known.frame)
+    register(up)
+    register(down)
+    return { kind = "connect", system = cls.system, up = up, down = down }
+end
+
+------------------------------------------------------------------------
+-- Cyclic frames
+------------------------------------------------------------------------
+-- The plans of a device recognised by its polled header `h` with the
+-- downlink candidate `cand` (laid out as controllers usually do it).
+local function header_plans(w, cand)
+    if not cand.up then
+        cand.up, cand.down = layout.mcmb2_plans("polled", w.h.used, w.h.up_mods, cand.mods, w.h.dap, w.source,
+            w.dev)
+        cand.up.fid, cand.up.sender, cand.up.from_header = w.up_fid, w.dev_mac, true
+        cand.down.sender, cand.down.from_header = w.ctl_mac, true
+    end
+    return cand.up, cand.down
+end
+
+-- A frame from the controller to a device whose polled header was seen:
+-- the downlink candidate that fits it best (layout.best_fit) becomes the
+-- layout of both directions (the uplink's IOCS bytes follow the downlink
+-- modules). When another candidate fits as well (all data 0 and the IOPS
+-- BAD while the controller starts, say), the plan stays open and the
+-- following frames of its FrameID are checked again (HEUR_TRIES at most).
+-- Returns the downlink plan, or nil if no candidate fits this frame.
+local function settle_downlink(w, fid, get, size)
+    local downs, exact = {}, {}
+    for i, c in ipairs(w.h.downs) do
+        local _, down = header_plans(w, c)
+        downs[i], exact[i] = down, c.exact
+    end
+    local best, sure = layout.best_fit(downs, get, size, exact)
+    if not best then return nil end
+    local up, down = header_plans(w, w.h.downs[best])
+    if up ~= w.up then
+        w.up = up
+        register(up)
+    end
+    down.fid = fid
+    down.unsettled = (not sure) and w or nil
+    register(down)
+    return down
+end
+
+-- A downlink plan chosen among equals: this frame may tell them apart.
+local function resettle(plan, fid, tvb, base, size)
+    local w = plan.unsettled
+    w.tries = w.tries + 1
+    if w.tries > HEUR_TRIES then
+        plan.unsettled = nil
+        return plan
+    end
+    local s = tvb:raw(base, size)
+    return settle_downlink(w, fid, function(i) return string.byte(s, i + 1) end, size) or plan
+end
+
+-- A cyclic FrameID without a layout (entry: a placeholder of the layout
+-- table, or nil): the downlink of a device whose polled header was seen
+-- (same two MAC addresses, the other way; the FrameID of the table entry),
+-- or a polled uplink header. Bounded: HEUR_TRIES header checks per FrameID,
+-- HEUR_TRIES frames per waiting downlink.
+local function recognise(fid, tvb, base, size, pinfo, entry)
+    local s
+    local function get(i)
+        s = s or tvb:raw(base, size)
+        return string.byte(s, i + 1)
+    end
+    if #pending_down > 0 then
+        local src, dst = pinfo.dl_src, pinfo.dl_dst
+        for i, w in ipairs(pending_down) do
+            if w.ctl_mac == src and w.dev_mac == dst and (w.down_fid == nil or w.down_fid == fid) then
+                local plan = settle_downlink(w, fid, get, size)
+                w.tries = w.tries + 1
+                if plan or w.tries >= HEUR_TRIES then
+                    table.remove(pending_down, i)
+                    set_hooks()
+                end
+                if plan then return plan end
+                break
+            end
+        end
+    end
+    if entry and entry.dir == "down" then return nil end -- waits for its uplink
+    local n = tries[fid] or 0
+    if n >= HEUR_TRIES then return nil end
+    local h = layout.polled_header(get, size)
+    if not h then
+        tries[fid] = n + 1
+        return nil
+    end
+    local w = { h = h, up_fid = fid, dev_mac = pinfo.dl_src, ctl_mac = pinfo.dl_dst, tries = 0,
+                down_fid = entry and entry.out_fid, dev = "hdr" .. pinfo.number,
+                source = (entry and "preference, sizes from the polled header in frame " or "polled header in frame ")
+                    .. pinfo.number }
+    w.up = header_plans(w, h.downs[1])
+    register(w.up)
+    if not entry or w.down_fid then
+        pending_down[#pending_down + 1] = w
+        set_hooks()
+    end
+    return w.up
+end
+
+-- The C-SDU as a Lua string with ByteArray's get_index (0-based): one copy
+-- per frame instead of a C call per byte read.
+local RawBytes = { __index = { get_index = function(self, i) return string.byte(self.s, i + 1) end } }
+
+-- tvb: the PN-RT frame from the FrameID on.
+local function first_pass(fid, tvb, pinfo)
+    local cands = by_fid[fid]
+    local base = 2
+    local size = tvb:len() - base - 4
+    if size <= 0 then return nil end
+    local plan = cands and lookup(cands, pinfo.dl_src)
+    if plan and plan.unsettled then
+        plan = resettle(plan, fid, tvb, base, size)
+    elseif plan and plan.deferred then
+        plan = recognise(fid, tvb, base, size, pinfo, plan)
+    elseif not plan then
+        if not heuristic or fid < 0x8000 or fid > 0xFBFF then return nil end
+        plan = recognise(fid, tvb, base, size, pinfo, nil)
+    end
+    if not plan then return nil end
+    local dec = systems.decoder(plan.system)
+    if not dec then return nil end
+    local rec = record.new(plan, base, size)
+    if size < plan.need then
+        record.add_finding(rec, "top", dec.short, string.format(
+            "C-SDU has %d bytes, the layout needs %d", size, plan.need))
+        return rec
+    end
+    dec.analyse(rec, setmetatable({ s = tvb:raw(base, size) }, RawBytes), pinfo.abs_ts, pinfo.number)
+    return rec
+end
+
+local function show(rec, tvb, pinfo, tree)
+    if rec.kind ~= "connect" then
+        systems.decoder(rec.plan.system).show(rec, tvb, pinfo, tree)
+        return
+    end
+    local function fid(plan)
+        if not plan or not plan.fid then return "none" end
+        if plan.fid == 0xFFFF then return "assigned in the response" end
+        return string.format("0x%04x", plan.fid)
+    end
+    local text = string.format("%s device: uplink FrameID %s, downlink FrameID %s", rec.system, fid(rec.up),
+        fid(rec.down))
+    systems.decoder(rec.system).show_connect(rec, tvb, tree, text)
+end
+
+-- EtherType 0x8892: Wireshark's PN-RT first, then our cyclic data. With
+-- the C front end PN-RT has run already; 0 tells it the frame is not ours;
+-- quiet: nobody looks at this frame's tree or columns (first pass only).
+local function cyclic(tvb, pinfo, tree, quiet)
+    local consumed = 0
+    if not C then
+        consumed = wrap.call(pn_rt, tvb, pinfo, tree)
+        -- a malformed PN-RT frame: Wireshark's report stands, nothing of ours
+        if consumed == nil then return tvb:len() end
+    end
+    local rec
+    if pinfo.visited then
+        rec = frames[pinfo.number]
+    elseif tvb:len() >= 2 then
+        local fid = tvb:range(0, 2):uint()
+        if by_fid[fid] or (fid >= 0x8000 and fid <= 0xFBFF and heuristic
+                           and ((tries[fid] or 0) < HEUR_TRIES or #pending_down > 0)) then
+            rec = first_pass(fid, tvb, pinfo)
+            frames[pinfo.number] = rec
+        end
+    end
+    if rec then
+        if not quiet then show(rec, tvb, pinfo, tree) end
+        if C then return tvb:len() end
+    end
+    return consumed
+end
+
+------------------------------------------------------------------------
+-- The Connect
+------------------------------------------------------------------------
+-- UDP 34964 (and the controllers' ports): the UDP heuristics (DCE/RPC)
+-- first, then the Connect blocks.
+-- With the C front end DCE/RPC has run already, and it learns the ports.
+local function connect(tvb, pinfo, tree)
+    if not C then
+        if not is_dcerpc_dg(tvb) then return 0 end
+        if not DissectorTable.try_heuristics("udp", tvb, pinfo, tree) then return 0 end
+    end
+    local rec
+    if pinfo.visited then
+        rec = frames[pinfo.number]
+    elseif learn then
+        local blocks, request = connect_blocks(tvb)
+        if blocks then
+            if not C and request and pinfo.src_port ~= UDP_PNIO_CM and pinfo.src_port ~= ETH_PNRT
+                    and not cm_ports[pinfo.src_port] and not udp_table:get_dissector(pinfo.src_port) then
+                -- The response comes from the device's own port to this one.
+                cm_ports[pinfo.src_port] = true
+                udp_table:add(pinfo.src_port, carrier)
+            end
+            rec = learn_connect(pinfo, blocks)
+            frames[pinfo.number] = rec
+        end
+    end
+    if rec then show(rec, tvb, pinfo, tree) end
+    return tvb:len()
+end
+
+function carrier.dissector(tvb, pinfo, tree)
+    -- The C front end calls the "connect" hook for PNIO-CM, the FrameID
+    -- table and the "candidate" hook for cyclic frames.
+    if C then
+        local how = pinfo.match_string
+        if how == "connect" then return connect(tvb, pinfo, tree) end
+        return cyclic(tvb, pinfo, tree, how == "frame_id.quiet")
+    end
+    -- No controller port is ever 0x8892 (see connect), so match_uint tells
+    -- the two tables apart.
+    if pinfo.match_uint == ETH_PNRT then return cyclic(tvb, pinfo, tree) end
+    return connect(tvb, pinfo, tree)
+end
+
+if C then
+    local prefs = systems.prefs()
+    heuristic, learn = prefs.heuristic, prefs.connect
+    set_hooks()
+else
+    ethertype_table:add(ETH_PNRT, carrier)
+    udp_table:add(UDP_PNIO_CM, carrier)
+end
