@@ -25,8 +25,16 @@ local iodata = require("vrshark.iodata")
 
 -- The BU origin: the packet's own for BU packets; controller packets carry
 -- origin 0, so theirs is the BU origin the EG-Link analysis learned.
-local f_origin = Field.new("eglink.origin")
-local f_bu_origin = Field.new("eglink.analysis.bu_origin")
+-- Without the EG-Link C plugin (a Lua-only install) there is neither the
+-- table nor these fields: the EG-Link hook is then left out.
+local have_eglink, eglink_table = pcall(DissectorTable.get, "eglink.data")
+have_eglink = have_eglink and eglink_table ~= nil
+local function field(name)
+    local ok, f = pcall(Field.new, name)
+    return ok and f or function() return nil end
+end
+local f_origin = have_eglink and field("eglink.origin") or function() return nil end
+local f_bu_origin = have_eglink and field("eglink.analysis.bu_origin") or function() return nil end
 -- The controller's packets are matched to their BU's origin by the group
 -- (or address) and input port, as the EG-Link analysis does: learned from
 -- the BU's VRCI, kept per frame once known. A first pass without a tree
@@ -58,7 +66,6 @@ local AREAS = {
     vrpo = { area = "periodic.to_ru" },
 }
 
-local eglink_table = DissectorTable.get("eglink.data")
 for key, a in pairs(AREAS) do
     local d = Proto("vrshark_io_eglink_" .. key, "Machine data from EG-Link " .. key:upper())
     function d.dissector(tvb, pinfo, tree)
@@ -69,7 +76,7 @@ for key, a in pairs(AREAS) do
         iodata.decode(a.area, o and { origin = o } or nil, tvb(), tree, pinfo)
         return tvb:len()
     end
-    if eglink_table then eglink_table:add(key, d) end
+    if have_eglink then eglink_table:add(key, d) end
 end
 
 function iodata.proto.init()
