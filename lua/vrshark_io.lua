@@ -79,7 +79,7 @@ for key, a in pairs(AREAS) do
     if have_eglink then eglink_table:add(key, d) end
 end
 
-function iodata.proto.init()
+iodata.on_init(function()
     bu_origin_of = {}
     frame_origin = {}
-end
+end)
