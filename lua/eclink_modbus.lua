@@ -49,6 +49,7 @@ local handshake = require("vrshark.eclink_handshake")
 local wrap = require("vrshark.wrap")
 local fe = require("vrshark.frontends")
 local detect = require("vrshark.modbus_detect")
+local iodata = require("vrshark.iodata") -- vrshark_io hook
 
 image.proto()  -- the single Proto("eclink"), shared with the other EC-Link plugins
 local proto = Proto("eclink_modbus", "EC-Link over Modbus/TCP")
@@ -684,6 +685,8 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb)
                 local info = image.dissect(src, pinfo, item, { kind = p.kind, offset = soff, first = p.first,
                     length = p.length, swap = p.swap, label = label,
                     image_len = (p.kind == "input") and 64 or 224 })
+                iodata.decode_eclink(info, -- vrshark_io hook
+                    { server = tostring(is_request and pinfo.dst or pinfo.src) }, pinfo) -- vrshark_io hook
                 infos[#infos + 1] = p.kind .. " " .. info.summary
                 if info.tags ~= "" then infos.tags = (infos.tags or "") .. info.tags end
             end
@@ -720,6 +723,8 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb)
         local ba = ByteArray.new(rec.periodic.data, true)
         local rtvb = ba:tvb("Reassembled periodic data")
         local pt = item:add(pf.periodic_data, rtvb())
+        iodata.decode("periodic.to_ru", -- vrshark_io hook
+            { server = tostring(is_request and pinfo.dst or pinfo.src) }, rtvb(), pt, pinfo) -- vrshark_io hook
         pt:set_generated()
         pt:add(pf.periodic_length, #rec.periodic.data):set_generated()
         for _, fr in ipairs(rec.periodic.frames) do

@@ -24,6 +24,7 @@ local eclink_handshake = require("vrshark.eclink_handshake")
 local image = require("vrshark.eclink_image")
 local record = require("vrshark.pnio_record")
 local systems = require("vrshark.pnio_systems")
+local iodata = require("vrshark.iodata") -- vrshark_io hook
 image.proto()  -- the single Proto("eclink"), shared with the other EC-Link plugins
 
 local add_finding, attach, nstime = record.add_finding, record.attach, record.nstime
@@ -101,6 +102,7 @@ local function show(rec, tvb, pinfo, tree)
     local o = plan.image
     local info = image.dissect(tvb, pinfo, root, { kind = up and "input" or "output", offset = base + o.off,
         length = o.len, image_len = o.len })
+    iodata.decode_eclink(info, { frame_id = tvb(0, 2):uint() }, pinfo) -- vrshark_io hook
     if rec.pci_age then root:add(epf.pci_age, nstime(rec.pci_age)):set_generated() end
     if rec.pco_age then root:add(epf.pco_age, nstime(rec.pco_age)):set_generated() end
     attach(rec, "image", info and info.item or root)

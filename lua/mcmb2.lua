@@ -31,6 +31,7 @@ set_plugin_info(require("vrshark.version").info("Cavotec MC-MB2-PN radio base un
 local handshake = require("vrshark.handshake")
 local record = require("vrshark.pnio_record")
 local systems = require("vrshark.pnio_systems")
+local iodata = require("vrshark.iodata") -- vrshark_io hook
 
 local add_finding, attach, nstime = record.add_finding, record.attach, record.nstime
 
@@ -426,18 +427,20 @@ local function add_watchdog(root, rec, field, range)
     attach(rec, "wd", wd)
 end
 
-local function show_duplex_up(rec, tvb, root, hr, wr)
+local function show_duplex_up(rec, tvb, root, hr, wr, pinfo) -- vrshark_io hook: pinfo
     local sb = hr:uint()
     local st = bit.band(sb, 0x0F)
     root:add(pf.terminal, hr)
     add_watchdog(root, rec, pf.uplink_watchdog, wr)
     local r = data_range(tvb, rec.base, rec.plan.modules, "MC-MB2 uplink data")
     if r then attach(rec, "data", root:add(pf.uplink_data, r)) end
+    if r then iodata.decode("mcmb2.up", -- vrshark_io hook
+        { terminal = bit.rshift(sb, 4), frame_id = tvb(0, 2):uint() }, r, root, pinfo) end -- vrshark_io hook
     return string.format("Uplink duplex: %s, terminal %d, watchdog %d", name_of(STATUS, DUPLEX_OK, st),
         bit.rshift(sb, 4), wr:uint())
 end
 
-local function show_polled_up(rec, tvb, root, h)
+local function show_polled_up(rec, tvb, root, h, pinfo) -- vrshark_io hook: pinfo
     local hr, wr = tvb:range(h, 1), tvb:range(h + 1, 1)
     root:add(pf.terminal, hr)
     add_watchdog(root, rec, pf.uplink_watchdog, wr)
@@ -459,6 +462,9 @@ local function show_polled_up(rec, tvb, root, h)
         if gi and rec.groups[gi] then
             local r = data_range(tvb, rec.base, rec.groups[gi], "MC-MB2 slot " .. k .. " uplink data")
             if r then st:add(pf.slot_uplink_data, r) end
+            if r then iodata.decode("mcmb2.up", -- vrshark_io hook
+                { terminal = bit.rshift(s, 4), slot = k, frame_id = tvb(0, 2):uint() }, -- vrshark_io hook
+                r, st, pinfo) end -- vrshark_io hook
         end
         attach(rec, SLOT_ANCHOR[k], st)
         if sst ~= 0xF then
@@ -471,7 +477,7 @@ local function show_polled_up(rec, tvb, root, h)
         (#parts > 0) and table.concat(parts, ", ") or "none")
 end
 
-local function show_down(rec, tvb, root, hr, wr)
+local function show_down(rec, tvb, root, hr, wr, pinfo) -- vrshark_io hook: pinfo
     local duplex = rec.plan.system == "duplex"
     if duplex then
         root:add(pf.base_unit, hr)
@@ -482,6 +488,7 @@ local function show_down(rec, tvb, root, hr, wr)
     if duplex then
         local r = data_range(tvb, rec.base, rec.plan.modules, "MC-MB2 downlink data")
         if r then root:add(pf.downlink_data, r) end
+        if r then iodata.decode("mcmb2.down", { frame_id = tvb(0, 2):uint() }, r, root, pinfo) end -- vrshark_io hook
         return string.format("Downlink duplex: base unit %d, watchdog %d", hr:uint(), wr:uint())
     end
     for i, g in ipairs(rec.groups or {}) do
@@ -491,6 +498,7 @@ local function show_down(rec, tvb, root, hr, wr)
             local st = root:add(r, string.format("Slot %d", k))
             st:add(pf.slot, k):set_generated()
             st:add(pf.slot_downlink_data, r)
+            iodata.decode("mcmb2.down", { slot = k, frame_id = tvb(0, 2):uint() }, r, st, pinfo) -- vrshark_io hook
         end
     end
     return string.format("Downlink polled: watchdog %d, %d slot(s)", wr:uint(), #(rec.groups or {}))
@@ -531,12 +539,12 @@ local function show(rec, tvb, pinfo, tree)
         end
         attach(rec, "status", item)
         if plan.system == "duplex" then
-            info = show_duplex_up(rec, tvb, root, hr, wr)
+            info = show_duplex_up(rec, tvb, root, hr, wr, pinfo) -- vrshark_io hook: pinfo
         else
-            info = show_polled_up(rec, tvb, root, h)
+            info = show_polled_up(rec, tvb, root, h, pinfo) -- vrshark_io hook: pinfo
         end
     else
-        info = show_down(rec, tvb, root, hr, wr)
+        info = show_down(rec, tvb, root, hr, wr, pinfo) -- vrshark_io hook: pinfo
     end
     record.add_ioxs(root, rec, tvb, pf.iops, pf.iocs)
     record.finish(rec, root)
