@@ -53,9 +53,13 @@ def test_pnio_every_field_exact(crane, two_pass):
 
 @pytest.mark.parametrize("two_pass", [False, True])
 def test_modbus_every_field_exact(crane, two_pass):
-    """Registers carry each byte pair swapped: the fields read the image order."""
-    expect_all(crane, CAPTURES / "crane_eclink_modbus.pcap", expected(MODBUS_FRAMES, 19), ALL,
-               two_pass=two_pass)
+    """Registers carry each byte pair swapped: the fields read the image order.
+    One pass shows the connection from the frame that recognises it (the
+    controller's first output write, frame 6); two passes also the image before."""
+    want = expected(MODBUS_FRAMES, 19)
+    if not two_pass:
+        want[5] = {}
+    expect_all(crane, CAPTURES / "crane_eclink_modbus.pcap", want, ALL, two_pass=two_pass)
 
 
 def test_shown_under_the_image_items(crane):
