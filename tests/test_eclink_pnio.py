@@ -76,3 +76,16 @@ def test_two_pass_agrees(tshark, capture_file):
     one = tshark.frames(capture_file(CAP), fields)
     assert one == tshark.frames(capture_file(CAP), fields, two_pass=True)
     assert any(r["_ws.expert.message"] for r in one.values())
+
+
+def test_profile_colours_every_stalled_frame(tshark, capture_file):
+    """The vrshark profile's "watchdog stalled" rule marks every frame whose PCI/PCO is past its
+    limit (the frames tagged [PCI stalled ...] / [PCO stalled ...]), not only the first."""
+    from pathlib import Path
+    rules = (Path(__file__).resolve().parents[1] / "profile" / "vrshark" / "colorfilters").read_text()
+    rule = next(ln.split("@")[2] for ln in rules.splitlines() if "@vrshark: watchdog stalled@" in ln)
+    cap = capture_file(CAP)
+    coloured = tshark.frames(cap, [], display_filter="(%s) && eclink_pnio" % rule)
+    tagged = [n for n, r in tshark.frames(cap, ["_ws.col.Info"], display_filter="eclink_pnio").items()
+              if "stalled" in r["_ws.col.Info"]]
+    assert list(coloured) == tagged == [31, 33, 72, 74, 76, 78]
