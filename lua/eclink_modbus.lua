@@ -19,11 +19,18 @@ as it is) and then adds the EC-Link view of every register and bit access:
   address from its request (paired by connection + transaction + unit +
   function code).
 
-Detection (preference): "heuristic" accepts a connection from the first
-response or request that carries a full input image passing every value
-check (image.validate_input); that and all later transactions of the
-connection are decoded, earlier ones are left as plain Modbus. "always"
-decodes every connection on the port; "off" leaves Modbus alone.
+Detection (preference): "heuristic" accepts a connection on evidence only
+a BU gives (vrshark/modbus_detect.luam: input images whose PCI moves at the
+BU's 125 ms cadence, or an input image and a written output image). From
+the first image it looks at, the connection is analysed as if accepted;
+its frames are shown once it is accepted: the accepting frame and later
+ones in one pass, the earlier ones too on a second pass (tshark -2, GUI).
+A connection not accepted within CANDIDATE_TRIES ADUs is left to Modbus.
+"always" decodes every connection on the port; "off" leaves Modbus alone.
+
+Port: the BU's port is presented to Wireshark's Modbus/TCP dissector as
+its default port 502 while it runs, so that it tells queries from
+responses without its own port preference.
 
 Per connection, on the first pass, the latest value of every image byte is
 kept (so each frame can show the assembled images as of that frame), the
@@ -41,6 +48,7 @@ local image = require("vrshark.eclink_image")
 local handshake = require("vrshark.eclink_handshake")
 local wrap = require("vrshark.wrap")
 local fe = require("vrshark.frontends")
+local detect = require("vrshark.modbus_detect")
 
 image.proto()  -- the single Proto("eclink"), shared with the other EC-Link plugins
 local proto = Proto("eclink_modbus", "EC-Link over Modbus/TCP")
@@ -81,6 +89,8 @@ local pf = {
     periodic_block_in = ProtoField.framenum("eclink_modbus.periodic.block_in", "Periodic data block in"),
     periodic_length = ProtoField.uint32("eclink_modbus.periodic.length", "Reassembled periodic data length"),
     periodic_data = ProtoField.bytes("eclink_modbus.periodic.data", "Reassembled periodic data"),
+    poll_gap_time = ProtoField.relative_time("eclink_modbus.poll_gap_time", "Time since the previous input image read"),
+    poll_gap_from = ProtoField.framenum("eclink_modbus.poll_gap_from", "Previous input image read in"),
 }
 -- frame links of the handshake findings (PCI/PCO unchanged since, command in)
 local hs_fields, hs_new_fields = handshake.fields("eclink_modbus", pf)
@@ -96,8 +106,12 @@ ef.periodic_reassembled = ProtoExpert.new("eclink_modbus.periodic.reassembled", 
     expert.group.REASSEMBLE, expert.severity.CHAT)
 ef.no_request = ProtoExpert.new("eclink_modbus.no_request", "Response without a request in the capture",
     expert.group.SEQUENCE, expert.severity.NOTE)
+-- a controller that does not read the input image cannot watch PCI
+ef.poll_gap = ProtoExpert.new("eclink_modbus.poll_gap", "Input image not read for longer than the PCI timeout",
+    expert.group.SEQUENCE, expert.severity.WARN)
 hs_experts[#hs_experts + 1] = ef.periodic_reassembled
 hs_experts[#hs_experts + 1] = ef.no_request
+hs_experts[#hs_experts + 1] = ef.poll_gap
 proto.experts = hs_experts
 
 ------------------------------------------------------------------------
@@ -126,13 +140,22 @@ local IS_BITS = { coils = true, discrete_inputs = true }
 -- Preferences
 ------------------------------------------------------------------------
 local DETECT_HEURISTIC, DETECT_ALWAYS, DETECT_OFF = 0, 1, 2
+-- ADUs of a connection the heuristic looks at before it gives up (the C front
+-- end's VRSHARK_MB_CANDIDATE_TRIES counts frames: the same bound)
+local CANDIDATE_TRIES = 1024
+-- Wireshark's Modbus/TCP dissector tells queries from responses by its own
+-- port preference (default 502)
+local MBTCP_PORT = 502
 proto.prefs.port = Pref.uint("Modbus/TCP port", 502, "TCP port of the BU's Modbus/TCP server")
 proto.prefs.detection = Pref.enum("Detection", DETECT_HEURISTIC,
-    "heuristic: decode a connection once a valid input image is seen; always: every connection on the "
-    .. "port; off: leave Modbus alone",
+    "heuristic: decode a connection once its traffic shows a BU (input images whose PCI moves every 125 ms, "
+    .. "or an input image and a written output image); always: every connection on the port; off: leave "
+    .. "Modbus alone",
     { { 1, "heuristic", DETECT_HEURISTIC }, { 2, "always", DETECT_ALWAYS }, { 3, "off", DETECT_OFF } }, false)
 proto.prefs.swap = Pref.bool("Swap register bytes", true,
     "A register carries image byte 2n in its low 8 bits (as the BU does); off: in its high 8 bits")
+proto.prefs.pci_timeout = Pref.uint("PCI timeout (ms)", 500,
+    "A controller that does not read the input image for longer than this gets a poll gap warning")
 proto.prefs.assembled = Pref.bool("Show assembled images", false,
     "Show on every EC-Link frame the input and output images as assembled from all accesses so far")
 
@@ -143,6 +166,7 @@ local opt = {}
 
 local function read_prefs()
     opt.detection, opt.swap, opt.assembled = proto.prefs.detection, proto.prefs.swap, proto.prefs.assembled
+    opt.pci_timeout = proto.prefs.pci_timeout / 1000
 end
 
 local function prefs_changed()
@@ -216,6 +240,9 @@ local function get_conn(key)
             input = new_image(64),
             output = new_image(224),
             accepted = nil,
+            det = detect.new(),
+            tries = 0,
+            pre = {},          -- records analysed before acceptance (shown once accepted)
             periodic = nil,
             hs = handshake.new(),
         }
@@ -283,8 +310,7 @@ local function map_access(tname, start, count, tvb, data_off, coil_value)
     return pieces
 end
 
--- Does an access cover a whole input image (the only kind of access the
--- heuristic looks at)?
+-- Does an access cover a whole input image (the heuristic looks at those)?
 local function full_input(tname, start, count)
     for _, r in ipairs(REGIONS[tname]) do
         if r[1] == "input" and start <= r[2] and start + count - 1 >= r[3] then return true end
@@ -292,17 +318,38 @@ local function full_input(tname, start, count)
     return false
 end
 
--- A quick look at the input image s (a 64-byte string) for values that
--- image.validate_input always rejects (a subset of its checks, so the
--- result is the same; it saves the full check on most images of a device
--- that is not a BU).
-local function surely_invalid(s)
-    local bu, vlaps, eg, ec, cl = s:byte(21, 25)
-    if ec == 0 or vlaps > 3 or eg > 6 or ec > 6 or cl > 6 or not image.vs.bu_state[bu] then return true end
-    local ru, battery, rssi, cable, docked, disabled = s:byte(29, 34)
-    if ru > 4 or battery > 100 or rssi > 100 or cable > 1 or docked > 1 or disabled > 3 then return true end
-    local enc, s0, s1, s2, s3 = s:byte(60, 64)
-    return enc > 1 or s0 ~= 0 or s1 ~= 0 or s2 ~= 0 or s3 ~= 0
+-- Is a write the whole output image (10 or 112 holding registers from 0)?
+local function full_output_write(a)
+    return a.write and a.tname == "holding_registers" and a.start == 0 and (a.count == 10 or a.count == 112)
+end
+
+-- Does a read request (function 2, 3, 4 or 23) cover PCI, input image byte 0?
+local READS = { [2] = true, [3] = true, [4] = true, [23] = true }
+local function reads_pci(fc, r)
+    if not (READS[fc] and r.count) then return false end
+    local bits = IS_BITS[FC_TABLE[fc]] and 7 or 0
+    for _, reg in ipairs(REGIONS[FC_TABLE[fc]]) do
+        if reg[1] == "input" and r.start <= reg[2] and r.start + r.count - 1 >= reg[2] + bits then return true end
+    end
+    return false
+end
+
+-- The heuristic's look at an ADU of a connection not accepted yet.
+local function look(c, accesses, tvb, off, t)
+    local yes = false
+    for _, a in ipairs(accesses) do
+        local inp, outp = full_input(a.tname, a.start, a.count), full_output_write(a)
+        if inp or outp then
+            for _, p in ipairs(map_access(a.tname, a.start, a.count, tvb, off + a.data, a.coil)) do
+                if inp and p.kind == "input" and p.length == 64 then
+                    yes = detect.input(c.det, p.data, t) or yes
+                elseif outp and p.kind == "output" then
+                    yes = detect.output(c.det, p.data) or yes
+                end
+            end
+        end
+    end
+    return yes
 end
 
 -- Apply a piece to the connection's stored image.
@@ -518,28 +565,35 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb)
         end
     end
     local accesses = adu_accesses(tvb, off, adu_len, fcb, is_request, r)
-    -- detection
+    -- detection: from the first evidence on, a candidate's ADUs are analysed
+    -- like an accepted connection's, and shown once it is accepted
     local det = opt.detection
+    if det == DETECT_OFF then return NOT_DECODED end
     if det == DETECT_HEURISTIC and not c.accepted then
-        for _, a in ipairs(accesses) do
-            if full_input(a.tname, a.start, a.count) then
-                for _, p in ipairs(map_access(a.tname, a.start, a.count, tvb, off + a.data, a.coil)) do
-                    if p.kind == "input" and p.length == 64 and p.data ~= c.rejected
-                        and not surely_invalid(p.data) then
-                        if image.validate_input(p.data) then
-                            c.accepted = pinfo.number
-                        else
-                            c.rejected = p.data  -- the same image again is rejected without a check
-                        end
-                    end
-                end
-            end
+        if c.tries >= CANDIDATE_TRIES then return NOT_DECODED end
+        c.tries = c.tries + 1
+        if look(c, accesses, tvb, off, t) then
+            c.accepted = pinfo.number
+            for _, pr in ipairs(c.pre) do pr[R_ACCEPTED] = pinfo.number end
+            c.pre = nil
+        elseif detect.candidate(c.det) then
+            rec.pending = true
+            c.pre[#c.pre + 1] = rec
+        else
+            return NOT_DECODED
         end
     end
-    if not (det == DETECT_ALWAYS or (det == DETECT_HEURISTIC and c.accepted ~= nil)) then
-        return NOT_DECODED
+    rec[R_ACCEPTED] = c.accepted or false
+    -- poll gap: the first read of the input image after more than the PCI timeout
+    if is_request and r and reads_pci(fc, r) then
+        if c.last_read and t - c.last_read > opt.pci_timeout then
+            local gap = t - c.last_read
+            rec.poll_gap, rec.poll_gap_from = gap, c.last_read_frame
+            add_finding(rec, { ef.poll_gap, string.format("Input image not read for %.3f s (PCI timeout %.3f s)",
+                gap, opt.pci_timeout) })
+        end
+        c.last_read, c.last_read_frame = t, pinfo.number
     end
-    rec[R_ACCEPTED] = c.accepted
     local touched = {}
     for _, a in ipairs(accesses) do
         for _, p in ipairs(map_access(a.tname, a.start, a.count, tvb, off + a.data, a.coil)) do
@@ -596,9 +650,19 @@ end
 
 local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb)
     local item = tree:add(proto, tvb(off, adu_len))
-    local tname = FC_TABLE[bit.band(fcb, 0x7F)]
+    local fc = bit.band(fcb, 0x7F)
+    local tname = FC_TABLE[fc]
     local desc = TABLE_NAMES[tname]
-    if rec[R_START] then
+    local r
+    if is_request then
+        r = parse_request_pdu(tvb, off + 7, adu_len - 7, fc)
+    elseif rec[R_REQUEST] then
+        r = { start = rec[R_START], count = rec[R_COUNT] }
+    end
+    if fc == 23 and is_request and r and r.wstart then
+        -- the request decodes the image it writes: name that range
+        desc = string.format("%s %d-%d (written)", desc, r.wstart, r.wstart + math.max(r.wcount, 1) - 1)
+    elseif rec[R_START] then
         desc = string.format("%s %d-%d", desc, rec[R_START], rec[R_START] + math.max(rec[R_COUNT], 1) - 1)
     end
     item:append_text(": " .. desc)
@@ -611,13 +675,11 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb)
     end
     if rec[R_RESPONSE] then item:add(pf.response_in, rec[R_RESPONSE]):set_generated() end
     if rec.no_request then item:add_proto_expert_info(ef.no_request) end
-    local infos = {}
-    local r
-    if is_request then
-        r = parse_request_pdu(tvb, off + 7, adu_len - 7, bit.band(fcb, 0x7F))
-    elseif rec[R_REQUEST] then
-        r = { start = rec[R_START], count = rec[R_COUNT] }
+    if rec.poll_gap then
+        item:add(pf.poll_gap_time, nstime(rec.poll_gap)):set_generated()
+        item:add(pf.poll_gap_from, rec.poll_gap_from):set_generated()
     end
+    local infos = {}
     for _, a in ipairs(adu_accesses(tvb, off, adu_len, fcb, is_request, r)) do
         for _, p in ipairs(map_access(a.tname, a.start, a.count, tvb, off + a.data, a.coil)) do
             if p.length > 0 then
@@ -684,7 +746,7 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb)
         show_assembled(item, pinfo, rec.snap_in, "input")
         show_assembled(item, pinfo, rec.snap_out, "output")
     end
-    return infos
+    return infos, rec.poll_gap
 end
 
 ------------------------------------------------------------------------
@@ -703,16 +765,26 @@ function proto.dissector(tvb, pinfo, tree)
     local how = C and pinfo.match_string
     local via_front = VIA_FRONT[how]
     local quiet = QUIET[how]
+    local is_request = (pinfo.dst_port == pinfo.match_uint) and (pinfo.src_port ~= pinfo.match_uint)
     if not via_front then
         -- let mbtcp use TCP desegmentation as if TCP had called it directly
         if pinfo.can_desegment > 0 then pinfo.can_desegment = pinfo.can_desegment + 1 end
+        -- mbtcp tells queries from responses by its port: show it the BU's as 502
+        local sp, dp = pinfo.src_port, pinfo.dst_port
+        local moved = pinfo.match_uint ~= MBTCP_PORT and (sp == pinfo.match_uint) ~= (dp == pinfo.match_uint)
+            and sp ~= MBTCP_PORT and dp ~= MBTCP_PORT
+        if moved then
+            if is_request then pinfo.dst_port = MBTCP_PORT else pinfo.src_port = MBTCP_PORT end
+        end
         consumed = wrap.call(mbtcp, tvb, pinfo, tree)
+        if moved then pinfo.src_port, pinfo.dst_port = sp, dp end
         -- a malformed Modbus/TCP PDU: Wireshark's report stands, no EC-Link view
         if consumed == nil then return tvb:len() end
     end
     if opt.detection == DETECT_OFF then return consumed end
     local decoded = false
-    local is_request = (pinfo.dst_port == pinfo.match_uint) and (pinfo.src_port ~= pinfo.match_uint)
+    local gaps = {}
+    local found = {}
     local n = tvb:len()
     local off = 0
     local infos = {}
@@ -736,21 +808,31 @@ function proto.dissector(tvb, pinfo, tree)
             rec = first_pass(tvb, pinfo, off, adu_len, is_request, t1 * 256 + t2, unit, fcb)
             adus[key] = rec
         end
-        if rec ~= NOT_DECODED and quiet then
+        found[#found + 1] = { off, adu_len, rec, fcb }
+        off = off + adu_len
+    end
+    -- shown after all ADUs of the buffer are worked out: one that recognizes the
+    -- connection shows the earlier ones of its frame too, in one pass as in two
+    for _, f in ipairs(found) do
+        local rec = f[3]
+        -- a candidate's ADU is shown once the connection is accepted
+        local shown = rec ~= NOT_DECODED and (rec[R_ACCEPTED] or not rec.pending)
+        if shown and quiet then
             decoded = true
-        elseif rec ~= NOT_DECODED then
+        elseif shown then
             decoded = true
-            local adu_infos = show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb)
+            local adu_infos, gap = show_adu(tvb, pinfo, tree, f[1], f[2], rec, is_request, f[4])
             for _, s in ipairs(adu_infos) do infos[#infos + 1] = s end
             if adu_infos.tags then infos.tags = (infos.tags or "") .. adu_infos.tags end
+            if gap then gaps[#gaps + 1] = string.format(" [poll gap %.3f s]", gap) end
         end
-        off = off + adu_len
     end
     if #infos > 0 then
         pinfo.cols.info:append(" [EC-Link " .. table.concat(infos, "; ") .. "]" .. (infos.tags or ""))
     elseif infos.tags then
         pinfo.cols.info:append(infos.tags)
     end
+    if #gaps > 0 then pinfo.cols.info:append(table.concat(gaps)) end
     if via_front and decoded then return tvb:len() end
     return consumed
 end

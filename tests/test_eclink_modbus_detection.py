@@ -1,5 +1,6 @@
-"""EC-Link over Modbus/TCP detection: the heuristic, the detection
-preference, and no false positives on ordinary Modbus traffic."""
+"""EC-Link over Modbus/TCP detection: the heuristic (evidence only a BU
+gives), the detection preference, the port preference, the poll gap, and no
+false positives on ordinary Modbus traffic."""
 import os
 import re
 import subprocess
@@ -8,38 +9,192 @@ from pathlib import Path
 import pytest
 
 from conftest import CAPTURES
+from modbus_testlib import Traffic, bu_connection, read_input
+from tools.capgen import eclink_modbus as mbgen
+
+ALWAYS = {"eclink_modbus.detection": "always"}
 
 
 def test_late_accept(tshark, capture_file):
-    """Transactions before the first valid input image stay plain Modbus, in one pass and in two."""
+    """An output write (4) before the first input image (7): recognized in 7
+    (an input image and an output image). One pass shows 7 on; the second
+    pass shows the earlier frames of the connection too."""
     cap = capture_file("eclink_modbus_late_accept.pcap")
-    for two in (False, True):
-        r = tshark.fields(cap, ["frame.number", "eclink.image", "eclink_modbus.accepted_in"],
-                          display_filter="eclink_modbus", two_pass=two)
-        assert r == [["7", "input", "7"], ["8", "output", "7"], ["9", "", "7"]]
+    names = ["eclink.image", "eclink.pco", "eclink.pci", "eclink_modbus.accepted_in"]
+    one = tshark.frames(cap, names, display_filter="eclink_modbus")
+    assert sorted(one) == [7, 8, 9]
+    tshark.expect(cap, 7, {"eclink.image": "input", "eclink.pci": 1, "eclink_modbus.accepted_in": 7})
+    tshark.expect(cap, 8, {"eclink.image": "output", "eclink.pco": 2, "eclink_modbus.accepted_in": 7})
+    tshark.expect(cap, 4, {"eclink.image": None, "eclink_modbus.accepted_in": None})
+    two = tshark.frames(cap, names, display_filter="eclink_modbus", two_pass=True)
+    assert sorted(two) == [4, 5, 6, 7, 8, 9]
+    tshark.expect(cap, 4, {"eclink.image": "output", "eclink.pco": 1, "eclink_modbus.accepted_in": 7},
+                  two_pass=True)
+    for frame in (7, 8, 9):
+        assert two[frame] == one[frame]
 
 
 def test_detection_always(tshark, capture_file):
     cap = capture_file("eclink_modbus_late_accept.pcap")
-    r = tshark.fields(cap, ["frame.number", "eclink.image", "eclink.pco"], display_filter="eclink_modbus",
-                      prefs={"eclink_modbus.detection": "always"})
-    assert r[:2] == [["4", "output", "1"], ["5", "", ""]]
-    assert len(r) == 6
+    got = tshark.frames(cap, ["eclink.image", "eclink.pco", "eclink_modbus.accepted_in"],
+                        display_filter="eclink_modbus", prefs=ALWAYS)
+    assert sorted(got) == [4, 5, 6, 7, 8, 9]
+    tshark.expect(cap, 4, {"eclink.image": "output", "eclink.pco": 1, "eclink_modbus.accepted_in": None},
+                  prefs=ALWAYS)
+    tshark.expect(cap, 5, {"eclink.image": None, "eclink.pco": None}, prefs=ALWAYS)
 
 
 def test_detection_off(tshark, capture_file):
     cap = capture_file("eclink_modbus_basic.pcap")
-    assert tshark.field(cap, "frame.number", display_filter="eclink || eclink_modbus",
-                        prefs={"eclink_modbus.detection": "off"}) == []
+    off = {"eclink_modbus.detection": "off"}
+    assert tshark.frames(cap, ["eclink.image"], display_filter="eclink || eclink_modbus", prefs=off) == {}
+    assert tshark.frames(cap, ["eclink.image"], display_filter="eclink || eclink_modbus", prefs=off,
+                         two_pass=True) == {}
     # Modbus itself is still decoded
-    assert len(tshark.field(cap, "modbus.func_code", display_filter="modbus",
-                            prefs={"eclink_modbus.detection": "off"})) == 48
+    assert len(tshark.frames(cap, ["modbus.func_code"], display_filter="modbus", prefs=off)) == 48
 
 
 def test_plain_devices_not_decoded(tshark, capture_file):
     cap = capture_file("modbus_plain_devices.pcap")
-    assert tshark.field(cap, "frame.number", display_filter="eclink || eclink_modbus") == []
-    assert len(tshark.field(cap, "frame.number", display_filter="modbus")) == 2 * (6 * 5 + 6 * 3 + 4)
+    for two in (False, True):
+        assert tshark.frames(cap, ["eclink.image"], display_filter="eclink || eclink_modbus", two_pass=two) == {}
+    assert len(tshark.frames(cap, ["modbus.func_code"], display_filter="modbus")) == 2 * (6 * 5 + 6 * 3 + 4)
+
+
+def _write(traffic, work_dir, name):
+    return traffic.write(work_dir, name)
+
+
+def test_eg_link_unused_is_recognized(tshark, work_dir):
+    """An EC-Link-only BU (EG-Link status 0 Unused, EC-Link 1): recognized by
+    its third input image (PCI 0, 1, 2 at the 125 ms cadence), read only."""
+    traffic = Traffic()
+    _, reads = bu_connection(traffic, dict(eg=0, ec=1, cl=1), polls=8, poll=0.125)
+    cap = _write(traffic, work_dir, "eg_unused.pcap")
+    frames = [r[0] for r in reads]
+    assert frames == [5, 7, 9, 11, 13, 15, 17, 19]
+    names = ["eclink.image", "eclink.pci", "eclink.eg_link_status", "eclink.ec_link_status",
+             "eclink_modbus.accepted_in"]
+    one = tshark.frames(cap, names, display_filter="eclink.image")
+    assert sorted(one) == frames[2:]
+    tshark.expect(cap, 9, {"eclink.image": "input", "eclink.pci": 2, "eclink.eg_link_status": 0,
+                           "eclink.ec_link_status": 1, "eclink_modbus.accepted_in": 9})
+    two = tshark.frames(cap, names, display_filter="eclink.image", two_pass=True)
+    assert sorted(two) == frames
+    tshark.expect(cap, 5, {"eclink.pci": 0, "eclink.eg_link_status": 0, "eclink_modbus.accepted_in": 9},
+                  two_pass=True)
+
+
+def test_eg_link_unused_with_output_write(tshark, work_dir):
+    """The same BU with a controller that writes the output image: recognized in the first write."""
+    traffic = Traffic()
+    bu_connection(traffic, dict(eg=0, ec=1, cl=6, armed_ru=0, ru_state=0, battery=0, rssi=0, bu_state=0x10),
+                  polls=3, poll=0.125, write=True)
+    cap = _write(traffic, work_dir, "eg_unused_write.pcap")
+    tshark.expect(cap, 6, {"eclink.image": "output", "eclink_modbus.accepted_in": 6})
+    tshark.expect(cap, 5, {"eclink.image": None})
+    tshark.expect(cap, 5, {"eclink.image": "input", "eclink.bu_state": 0x10, "eclink_modbus.accepted_in": 6},
+                  two_pass=True)
+
+
+def test_one_valid_image_is_not_enough(tshark, work_dir):
+    """Servers whose registers pass the checks of one image but show no BU behaviour."""
+    traffic = Traffic()
+    # 0/1 flags (the device of the issue): every register 0 or 1, read 40 times at 0..31
+    mb, _ = traffic.client()
+    for i in range(40):
+        flags = bytes(b for k in range(32) for b in (((k * 7 + i) % 3 == 0) * 1, 0))
+        read_input(mb, traffic.t + 0.05 * i, 4, mbgen.regs(flags))
+    traffic.done(traffic.t + 2.1)
+    # a valid image that never changes (PCI does not move)
+    bu_connection(traffic, {}, polls=20, poll=0.125, phase=0.0)
+    stream_static, _ = traffic.n - 1, None
+    mb, _ = traffic.client()
+    for i in range(20):
+        read_input(mb, traffic.t + 0.125 * i, 4, mbgen.input_image(pci=7))
+    traffic.done(traffic.t + 2.6)
+    # PCI counting once per read at 20 ms: too fast for the BU's 125 ms
+    mb, _ = traffic.client()
+    for i in range(40):
+        read_input(mb, traffic.t + 0.02 * i, 4, mbgen.input_image(pci=i))
+    traffic.done(traffic.t + 0.9)
+    # PCI moving in step but the BU state changing with every image
+    mb, _ = traffic.client()
+    states = [0x00, 0x01, 0x02, 0x03, 0x04, 0x10, 0x11]
+    for i in range(20):
+        read_input(mb, traffic.t + 0.125 * i, 4, mbgen.input_image(pci=i, bu_state=states[i % 7]))
+    traffic.done(traffic.t + 2.6)
+    cap = _write(traffic, work_dir, "not_enough.pcap")
+    got = tshark.frames(cap, ["tcp.stream"], display_filter="eclink_modbus", two_pass=True)
+    streams = sorted({int(v["tcp.stream"]) for v in got.values()})
+    assert streams == [1]  # only the real BU (stream 1) among them
+    assert stream_static == 1
+
+
+def test_bounded_tries_leave_room(tshark, work_dir):
+    """A controller polling every 1 ms, read only: some 500 frames before PCI
+    has moved twice; still recognized (the C front end tries 1024 frames)."""
+    traffic = Traffic()
+    _, reads = bu_connection(traffic, {}, polls=400, poll=0.001, phase=0.0)
+    cap = _write(traffic, work_dir, "fast_poll.pcap")
+    accepted = tshark.frames(cap, ["eclink_modbus.accepted_in"], display_filter="eclink_modbus.accepted_in")
+    first = min(accepted)
+    assert first > 256 * 2 - 20
+    pci_at = {frame: pci for frame, _, pci in reads}
+    assert pci_at[first] == 2 and pci_at[first - 2] == 1
+    assert {f for f, _, _ in reads if f >= first} <= set(accepted)
+
+
+def test_port_preference_one_setting(tshark, capture_file):
+    """eclink_modbus.port alone: Wireshark's Modbus dissector classifies
+    queries and responses (pairs them) and never says it cannot."""
+    cap = capture_file("eclink_modbus_port5020.pcap")
+    prefs = {"eclink_modbus.port": "5020"}
+    tshark.expect(cap, 5, {"modbus.request_frame": 4, "eclink.pci": 1, "eclink_modbus.request_in": 4},
+                  prefs=prefs, two_pass=True)
+    tshark.expect(cap, 7, {"modbus.request_frame": 6, "eclink_modbus.request_in": 6}, prefs=prefs)
+    for env in ({}, {"VRSHARK_NO_C_PLUGIN": "1"}):
+        for extra in (["-V"], []):
+            out = subprocess.run([tshark.cmd, "-n", "-r", str(cap), "-o", "eclink_modbus.port:5020"] + extra,
+                                 env=dict(tshark.env, **env), capture_output=True, text=True, timeout=600).stdout
+            assert "classify" not in out.lower()
+        assert out.count("Query: Trans:") == 2 and out.count("Response: Trans:") == 2
+    # without the setting, port 5020 is none of ours
+    assert tshark.frames(cap, ["eclink.image"], display_filter="eclink") == {}
+
+
+def _poll_gap_capture(work_dir):
+    """A BU read every 125 ms; the controller stops reading for 1.090 s once."""
+    traffic = Traffic()
+    mb, _ = traffic.client()
+    t0 = traffic.t + 0.01
+    times = [t0 + 0.125 * i for i in range(6)]
+    times += [times[-1] + 1.090 + 0.125 * i for i in range(4)]
+    frames = []
+    for t in times:
+        pci = int((t - t0) / 0.125) & 0xFF
+        req, _ = read_input(mb, t, 4, mbgen.input_image(pci=pci))
+        mb.write_regs(t + 0.004, 0, mbgen.regs(mbgen.output_image(pco=pci)))
+        frames.append(req)
+    traffic.done(times[-1])
+    return _write(traffic, work_dir, "poll_gap.pcap"), frames
+
+
+def test_poll_gap(tshark, work_dir):
+    cap, reads = _poll_gap_capture(work_dir)
+    late = reads[6]
+    exp = tshark.experts(cap)
+    assert exp[late] == ["Input image not read for 1.090 s (PCI timeout 0.500 s)"]
+    assert [f for f, msgs in exp.items() if any("not read" in m for m in msgs)] == [late]
+    tshark.expect(cap, late, {"eclink_modbus.poll_gap": 1, "eclink_modbus.poll_gap_time": 1.09,
+                              "eclink_modbus.poll_gap_from": reads[5],
+                              "_ws.expert.severity": 0x00600000, "_ws.expert.group": 0x02000000})  # warning, sequence
+    info = tshark.frames(cap, ["_ws.col.Info"], display_filter="frame.number == %d" % late)[late]["_ws.col.Info"]
+    assert info.endswith("[poll gap 1.090 s]")
+    # the same in two passes; a longer timeout: no warning
+    assert tshark.experts(cap, two_pass=True) == exp
+    assert tshark.frames(cap, ["frame.number"], display_filter="eclink_modbus.poll_gap",
+                         prefs={"eclink_modbus.pci_timeout": "1200"}) == {}
 
 
 def test_public_modbus_not_decoded(tshark, public_capture):

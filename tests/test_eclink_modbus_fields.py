@@ -1,6 +1,10 @@
 """EC-Link over Modbus/TCP: register and bit mapping, byte swap, partial
 access, every function code, segments, Decode As. Fields are asserted by
-name (tshark.expect / tshark.frames + assert_fields); None means absent."""
+name (tshark.expect / tshark.frames + assert_fields); None means absent.
+
+These short captures are recognized in their first output write (input
+image + output image), after their first input image: frames before it are
+decoded on the second pass, so the tests that look at them use -2."""
 from conftest import assert_fields
 
 
@@ -16,7 +20,7 @@ def test_basic_cycle_values(tshark, capture_file):
     names = ["eclink.image", "eclink.pci", "eclink.cci", "eclink.cai", "eclink.bu_state", "eclink.armed_ru",
              "eclink.ru_state", "eclink.joystick1", "eclink.joystick2", "eclink.joystick4", "eclink.switch1",
              "eclink.switch3", "eclink.switch8", "eclink.encoder", "eclink.cmd_from_ru"]
-    got = tshark.frames(cap, names, display_filter="eclink.image == \"input\"")
+    got = tshark.frames(cap, names, display_filter="eclink.image == \"input\"", two_pass=True)
     assert sorted(got) == list(range(5, 50, 4))
     by_frame(got, {
         5: {"eclink.image": "input", "eclink.pci": 11, "eclink.cci": 3, "eclink.cai": 7, "eclink.bu_state": "0x11",
@@ -42,7 +46,10 @@ def test_output_image_written(tshark, capture_file):
 def test_request_response_pairing(tshark, capture_file):
     cap = capture_file("eclink_modbus_basic.pcap")
     got = tshark.frames(cap, ["eclink_modbus.request_in", "eclink_modbus.time"], display_filter="frame.number <= 9")
-    # the read request 4 precedes the recognition of the connection (in 5)
+    # the connection is recognized in 6 (the first output write): 5 is decoded on the second pass
+    assert [n for n, r in got.items() if r["eclink_modbus.request_in"]] == [7, 9]
+    got = tshark.frames(cap, ["eclink_modbus.request_in", "eclink_modbus.time"], display_filter="frame.number <= 9",
+                        two_pass=True)
     assert [n for n, r in got.items() if r["eclink_modbus.request_in"]] == [5, 7, 9]
     by_frame(got, {n: {"eclink_modbus.request_in": n - 1, "eclink_modbus.time": "0.003000000"} for n in (5, 7, 9)},
              cap)
@@ -56,7 +63,7 @@ def test_function_codes(tshark, capture_file):
     cap = capture_file("eclink_modbus_functions.pcap")
     names = ["eclink_modbus.table", "eclink.image", "eclink.covered", "eclink.pci", "eclink.pco", "eclink.cco",
              "eclink.cao", "eclink.periodic_size"]
-    got = tshark.frames(cap, names)
+    got = tshark.frames(cap, names, two_pass=True)
     T, I, C = "eclink_modbus.table", "eclink.image", "eclink.covered"
 
     def out(table, covered, pco, cco, cao, size):
@@ -74,7 +81,8 @@ def test_function_codes(tshark, capture_file):
         20: out("Holding registers 1-1", "2-3 of 224", None, None, 2, None),
         22: out("Coils 0-15", "0-1 of 224", 1, 5, None, None),
         24: out("Holding registers 0-111", None, 1, 5, 2, 0),
-        26: out("Holding registers 0-3", "0-19 of 224", 1, 5, 2, None),
+        # the request decodes the image it writes (holding registers 0-9), the response the one it reads
+        26: out("Holding registers 0-9 (written)", "0-19 of 224", 1, 5, 2, None),
         27: out("Holding registers 0-3", "0-7 of 224", 1, 5, 2, None),
         29: {T: "Holding registers 200-209", I: None},
         31: {T: "Holding registers 2100-2103", I: None},
@@ -84,7 +92,7 @@ def test_function_codes(tshark, capture_file):
 def test_partial_access_names_cut_fields(tshark, capture_file):
     cap = capture_file("eclink_modbus_functions.pcap")
     got = tshark.frames(cap, ["eclink.cut", "eclink_modbus.bits", "eclink.vlaps", "eclink.unarmed_rus",
-                              "eclink.eg_link_status"])
+                              "eclink.eg_link_status"], two_pass=True)
     by_frame(got, {
         9: {"eclink.cut": "cmd_from_ru (image bytes 4-19; 4-11 present)"},
         15: {"eclink.cut": None, "eclink_modbus.bits": "input image byte 20 bits 3-7 (bu_state),"
@@ -93,7 +101,7 @@ def test_partial_access_names_cut_fields(tshark, capture_file):
         18: {"eclink_modbus.bits": "output image byte 1 bits 4-4 (cco)"},
         27: {"eclink.cut": "cmd_to_ru (image bytes 4-19; 4-7 present)"},
     }, cap)
-    exp = tshark.experts(cap)
+    exp = tshark.experts(cap, two_pass=True)
     assert exp[9] == ["Image bytes 4-11 of 64 present; cut: cmd_from_ru"]
 
 
@@ -105,7 +113,7 @@ def test_exception_response(tshark, capture_file):
 def test_segments(tshark, capture_file):
     cap = capture_file("eclink_modbus_segments.pcap")
     names = ["eclink.image", "eclink.pci", "eclink.ru_state", "eclink_modbus.request_in", "eclink_modbus.table"]
-    got = tshark.frames(cap, names, display_filter="eclink_modbus")
+    got = tshark.frames(cap, names, display_filter="eclink_modbus", two_pass=True)
     assert sorted(got) == [5, 6, 7, 8, 10]
     by_frame(got, {
         5: {"eclink.image": "input", "eclink.pci": 1, "eclink.ru_state": 3, "eclink_modbus.request_in": 4,
@@ -124,7 +132,7 @@ def test_segments(tshark, capture_file):
 def test_segments_without_tcp_reassembly(tshark, capture_file):
     cap = capture_file("eclink_modbus_segments.pcap")
     got = tshark.frames(cap, ["eclink.pci"], display_filter="eclink.image",
-                        prefs={"tcp.desegment_tcp_streams": "FALSE"})
+                        prefs={"tcp.desegment_tcp_streams": "FALSE"}, two_pass=True)
     assert sorted(got) == [5, 6, 7]
     by_frame(got, {5: {"eclink.pci": 1}, 6: {"eclink.pci": None}, 7: {"eclink.pci": 2}}, cap)
 
@@ -133,7 +141,8 @@ def test_swap_off(tshark, capture_file):
     cap = capture_file("eclink_modbus_noswap.pcap")
     names = ["eclink.pci", "eclink.armed_ru", "eclink.joystick1", "eclink.joystick2", "eclink.pco",
              "eclink.periodic_size", "eclink.periodic_block"]
-    got = tshark.frames(cap, names, display_filter="eclink.image", prefs={"eclink_modbus.swap": "FALSE"})
+    got = tshark.frames(cap, names, display_filter="eclink.image", prefs={"eclink_modbus.swap": "FALSE"},
+                        two_pass=True)
     assert sorted(got) == [5, 6]
     by_frame(got, {
         5: {"eclink.pci": 9, "eclink.armed_ru": "0x0102", "eclink.joystick1": -1000, "eclink.joystick2": 1,
@@ -148,7 +157,7 @@ def test_decode_as_other_port(tshark, capture_file):
     cap = capture_file("eclink_modbus_port5020.pcap")
     assert tshark.frames(cap, ["eclink.image"], display_filter="eclink") == {}
     got = tshark.frames(cap, ["eclink.pci", "eclink.pco", "modbus.func_code"], display_filter="eclink.image",
-                        decode_as=["tcp.port==5020,eclink_modbus"])
+                        decode_as=["tcp.port==5020,eclink_modbus"], two_pass=True)
     assert sorted(got) == [5, 6]
     by_frame(got, {5: {"eclink.pci": 1, "eclink.pco": None, "modbus.func_code": 4},
                    6: {"eclink.pci": None, "eclink.pco": 1, "modbus.func_code": 16}}, cap)
@@ -156,6 +165,7 @@ def test_decode_as_other_port(tshark, capture_file):
 
 def test_port_preference(tshark, capture_file):
     cap = capture_file("eclink_modbus_port5020.pcap")
-    got = tshark.frames(cap, ["eclink.pci"], display_filter="eclink.image", prefs={"eclink_modbus.port": "5020"})
+    got = tshark.frames(cap, ["eclink.pci"], display_filter="eclink.image", prefs={"eclink_modbus.port": "5020"},
+                        two_pass=True)
     assert sorted(got) == [5, 6]
     by_frame(got, {5: {"eclink.pci": 1}, 6: {"eclink.pci": None}}, cap)

@@ -23,7 +23,7 @@ from conftest import CAPTURES
 needs_c = pytest.mark.skipif(bool(os.environ.get("VRSHARK_NO_C_PLUGIN")), reason="runs without the C plugin")
 
 PN_TRIES = 64       # VRSHARK_PN_CANDIDATE_TRIES
-MB_TRIES = 256      # VRSHARK_MB_CANDIDATE_TRIES
+MB_TRIES = 1024     # VRSHARK_MB_CANDIDATE_TRIES
 
 PROBE = r"""
 local out = assert(io.open(os.getenv("VRSHARK_PROBE_OUT"), "w"))
@@ -154,7 +154,7 @@ def _modbus_plain(work_dir, transactions):
 @needs_c
 @pytest.mark.parametrize("two_pass", [False, True])
 def test_modbus_connections_are_tried_a_bounded_number_of_frames(tshark, work_dir, two_pass):
-    cap, adus = _modbus_plain(work_dir, 150)
+    cap, adus = _modbus_plain(work_dir, 600)
     calls = _probe(tshark, work_dir, cap, two_pass=two_pass)
     assert all(hook == "heuristic" and not visited for hook, _, visited in calls)
     assert [frame for _, frame, _ in calls] == adus[:MB_TRIES]

@@ -113,7 +113,7 @@ TIMELINES = {
         (20, 'warning', 1, 'command to RU not echoed by CAI in time'),
         (21, 'warning', 1, 'no input image for 2.050 s (after frame 17, limit 500 ms)'),
         (22, 'error', 1, 'PCO stalled at 4 for 2.175 s (unchanged since frame 18, limit 2000 ms), moving again in frame 26'),
-        (29, 'note', 1, 'RU 0x1234 state Enabled -> undefined 0x05 (after 3.250 s or more)'),
+        (29, 'note', 1, 'RU 0x1234 state Enabled -> undefined 0x05 (after 3.125 s or more)'),
         (29, 'error', 1, 'VLAPs out of range'),
         (29, 'error', 1, 'undefined link status'),
         (29, 'error', 1, 'undefined RU state'),
@@ -122,7 +122,7 @@ TIMELINES = {
         (29, 'error', 1, 'undefined RU disabled reason'),
         (29, 'error', 1, 'joystick out of range'),
         (29, 'warning', 1, 'spare not 0 (2x, frames 29-32 over 0.097 s)'),
-        (31, 'note', 1, 'BU state Armed -> undefined 0x42 (after 3.300 s or more)'),
+        (31, 'note', 1, 'BU state Armed -> undefined 0x42 (after 3.175 s or more)'),
         (31, 'note', 1, 'RU state undefined 0x05 (RU 0x1234) -> Initial (no RU armed) (after 0.050 s)'),
         (31, 'error', 1, 'undefined BU state'),
         (31, 'error', 1, 'RU fields not 0 while no RU is armed'),
@@ -227,7 +227,7 @@ def test_devices_mcmb2_terminals(report):
 
 @pytest.mark.parametrize("name, kind, device, layout", [
     ("eclink_modbus_faults.pcap", "eclink_modbus", "EC-Link BU, Modbus/TCP server 192.168.2.41:502",
-     "heuristic, recognised in frame 5"),
+     "heuristic, recognised in frame 6"),
     ("eclink_pnio_connect.pcap", "eclink_pnio", "EC-Link BU, PROFINET device 00:30:11:00:00:02",
      "Connect in frame 1"),
     ("mcmb2_duplex_watchdog.pcap", "mcmb2", "MC-MB2-PN duplex base 00:30:11:00:00:02",

@@ -23,7 +23,10 @@
  *                      the decoder accepts one of its frames (returns
  *                      non-zero); from then on every frame goes to it. After
  *                      VRSHARK_MB_CANDIDATE_TRIES refusals, first pass only,
- *                      the connection is left to mbtcp.
+ *                      the connection is left to mbtcp. On a port other
+ *                      than 502 mbtcp is shown the server's port as 502
+ *                      while it runs: it tells queries from responses by
+ *                      its own port preference (default 502).
  *
  * The Lua side detects these tables (DissectorTable.get under pcall),
  * registers its decoders and the FrameIDs it learns into them, and stops
@@ -50,6 +53,7 @@
 #include <epan/packet.h>
 #include <epan/conversation.h>
 #include <epan/tap.h>
+#include <epan/exceptions.h>
 
 #include "vrshark-frontends.h"
 
@@ -214,6 +218,7 @@ dissect_pn_cm(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
 /* ---- Modbus/TCP ----------------------------------------------------------- */
 
 #define MB_ACCEPTED 0x80000000u
+#define MBTCP_DEFAULT_PORT 502
 
 /* Removes the front end's own entry from the layer list: Modbus/TCP looks as
  * without it (tcp:mbtcp:modbus), and mbtcp gets the layer number it would
@@ -248,6 +253,35 @@ call_mb_decoder(const char *mode, gboolean quiet, tvbuff_t *tvb, packet_info *pi
     return ret;
 }
 
+/* mbtcp classifies an ADU as query or response by its own TCP port
+ * preference (default 502). On another port it is shown the server's port
+ * as 502 while it runs, so that one setting (eclink_modbus.port) is enough. */
+static int
+call_mbtcp(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
+{
+    guint32 bu_port = pinfo->match_uint;
+    guint32 srcport = pinfo->srcport, destport = pinfo->destport;
+    gboolean moved = bu_port != MBTCP_DEFAULT_PORT && (srcport == bu_port) != (destport == bu_port) &&
+                     srcport != MBTCP_DEFAULT_PORT && destport != MBTCP_DEFAULT_PORT;
+    volatile int consumed = 0;
+
+    if (!moved)
+        return call_dissector_only(mbtcp_handle, tvb, pinfo, tree, data);
+    if (destport == bu_port)
+        pinfo->destport = MBTCP_DEFAULT_PORT;
+    else
+        pinfo->srcport = MBTCP_DEFAULT_PORT;
+    TRY {
+        consumed = call_dissector_only(mbtcp_handle, tvb, pinfo, tree, data);
+    }
+    FINALLY {
+        pinfo->srcport = srcport;
+        pinfo->destport = destport;
+    }
+    ENDTRY;
+    return consumed;
+}
+
 static int
 dissect_mbtcp_front(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
 {
@@ -262,7 +296,7 @@ dissect_mbtcp_front(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *d
     /* mbtcp may use TCP desegmentation as if TCP had called it directly */
     if (pinfo->can_desegment > 0)
         pinfo->can_desegment++;
-    consumed = call_dissector_only(mbtcp_handle, tvb, pinfo, tree, data);
+    consumed = call_mbtcp(tvb, pinfo, tree, data);
     if (consumed <= 0)
         return consumed;
     quiet = !lua_output_wanted(pinfo, tree, mb_lua_protos, mb_lua_ids);

@@ -25,9 +25,12 @@
 /* The Modbus/TCP front end: the Lua side puts it on its TCP port. */
 #define VRSHARK_MB_FRONT_NAME       "vrshark.mbtcp"
 
-/* Heuristic tries: cyclic frames per FrameID, frames per TCP connection. */
+/* Heuristic tries: cyclic frames per FrameID, frames per TCP connection.
+ * A Modbus/TCP connection may need up to a second of BU traffic before the
+ * Lua heuristic accepts it (PCI moving at the 125 ms cadence): 1024 frames
+ * cover that second at a 2 ms poll (request and response). */
 #define VRSHARK_PN_CANDIDATE_TRIES  64
-#define VRSHARK_MB_CANDIDATE_TRIES  256
+#define VRSHARK_MB_CANDIDATE_TRIES  1024
 
 void proto_register_vrshark_frontends(void);
 void proto_reg_handoff_vrshark_frontends(void);

@@ -12,6 +12,8 @@ Roles:
   state     a state change the model derives from the state fields itself
   stall     a counter that stopped moving: the model measures the stall
   gap       EG-Link VRPI/VRPO missing or late: the model measures the gap
+  poll_gap  a controller that stopped reading: the model measures the gap
+            between the frames itself (not read from the expert)
 Chat-level experts (acknowledged commands, layouts learned, partial access)
 are not asked for: they are no findings.
 """
@@ -100,6 +102,7 @@ EXPERTS = {
     "eclink_modbus.cmd_to_ru.late": (WARNING, "finding", "command to RU not echoed by CAI in time"),
     "eclink_modbus.bu_state_change": (NOTE, "state", "BU state changed"),
     "eclink_modbus.no_request": (NOTE, "finding", "response without its request"),
+    "eclink_modbus.poll_gap": (WARNING, "poll_gap", "input image not read"),
     # EC-Link over PROFINET
     "eclink_pnio.pci_stalled": (ERROR, "stall", "PCI"),
     "eclink_pnio.pco_stalled": (ERROR, "stall", "PCO"),

@@ -1,0 +1,246 @@
+"""EC-Link over Modbus/TCP against a real Modbus/TCP stack (pymodbus, pinned
+in requirements.txt), captured on the loopback interface with dumpcap.
+
+A pymodbus server on 127.0.0.1 plays a BU: its input registers 0..31 hold an
+input image whose PCI moves every 125 ms (EG-Link Unused, EC-Link only). A
+pymodbus client plays the PLC: it reads the input image, echoes CCI in CAO
+and writes the output image (holding registers 0..111), logging what it read
+and wrote. Three ordinary servers on 127.0.0.2..4 (0/1 flags, counters,
+random registers) are polled at registers 0..31 beside it. All servers use
+one free port above 1024 (not 502), named in the one setting
+eclink_modbus.port.
+
+Skipped (with the reason) only where capturing on lo is impossible.
+"""
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import pytest
+
+
+
+def _free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+PORT = _free_port()
+BU = "127.0.0.1"
+ORDINARY = {"127.0.0.2": "flags", "127.0.0.3": "counters", "127.0.0.4": "random"}
+RUN_S = 2.0
+
+SERVERS = r'''
+import asyncio, random, sys, time
+from pymodbus.datastore import ModbusDeviceContext, ModbusSequentialDataBlock, ModbusServerContext
+from pymodbus.server import ModbusTcpServer
+
+PORT = int(sys.argv[1])
+T0 = time.monotonic()
+rnd = random.Random(1)
+
+
+def bu_image():
+    """The BU's input image now: PCI every 125 ms, joystick 1 following it."""
+    pci = int((time.monotonic() - T0) / 0.125) & 0xFF
+    joy = (pci * 37) % 1000
+    img = bytes([pci, 5, 0, 9]) + b"FROM-RU-COMMAND!"
+    img += bytes([0x11, 1, 0, 0, 1, 1]) + (0x4242).to_bytes(2, "big")     # Armed; EG-Link Unused, EC, C-Link 1
+    img += bytes([3, 77, 88, 0, 0, 0]) + joy.to_bytes(2, "big", signed=True) + bytes(6)
+    img += bytes(16) + bytes([42, 0]) + bytes(4)
+    return img
+
+
+class Registers(ModbusSequentialDataBlock):
+    """Input registers computed on every read (pymodbus passes address + 1)."""
+
+    def __init__(self, kind):
+        super().__init__(0, [0] * 2200)
+        self.kind, self.reads = kind, 0
+
+    def getValues(self, address, count=1):
+        self.reads += 1
+        if self.kind == "bu":
+            img = bu_image()
+            regs = [img[2 * k] | img[2 * k + 1] << 8 for k in range(32)]   # image byte 2n in the low byte
+        elif self.kind == "flags":
+            regs = [rnd.randrange(2) for _ in range(32)]
+        elif self.kind == "counters":
+            regs = [(self.reads * (k + 1)) & 0xFFFF for k in range(32)]
+        else:
+            regs = [rnd.randrange(65536) for _ in range(32)]
+        return [regs[a - 1] if 1 <= a <= 32 else 0 for a in range(address, address + count)]
+
+
+def context(kind):
+    dev = ModbusDeviceContext(ir=Registers(kind), hr=ModbusSequentialDataBlock(0, [0] * 2200))
+    return ModbusServerContext(devices=dev, single=True)
+
+
+async def main():
+    servers = [ModbusTcpServer(context(kind), address=(ip, PORT)) for ip, kind in
+               [("127.0.0.1", "bu"), ("127.0.0.2", "flags"), ("127.0.0.3", "counters"), ("127.0.0.4", "random")]]
+    await asyncio.gather(*(s.serve_forever() for s in servers))
+
+asyncio.run(main())
+'''
+
+
+def _start_capture(path):
+    dumpcap = shutil.which("dumpcap")
+    if not dumpcap:
+        pytest.skip("dumpcap is not installed: cannot capture on lo")
+    proc = subprocess.Popen([dumpcap, "-q", "-i", "lo", "-f", "tcp port %d" % PORT, "-w", str(path)],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline:
+        if proc.poll() is not None:
+            pytest.skip("cannot capture on lo: %s" % proc.stderr.read().strip()[-300:])
+        if path.exists() and path.stat().st_size > 0:
+            return proc
+        time.sleep(0.05)
+    proc.kill()
+    pytest.skip("cannot capture on lo: dumpcap did not start")
+
+
+def _stop(proc):
+    proc.send_signal(signal.SIGTERM)
+    try:
+        proc.wait(timeout=10)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
+
+
+def _client(host):
+    from pymodbus.client import ModbusTcpClient
+    client = ModbusTcpClient(host, port=PORT, timeout=2)
+    deadline = time.monotonic() + 10
+    while not client.connect():
+        assert time.monotonic() < deadline, "pymodbus server on %s:%d did not come up" % (host, PORT)
+        time.sleep(0.1)
+    return client
+
+
+def _output_registers(pco, cao):
+    img = bytes([pco, 3, 0, cao]) + b"TO-RU-COMMAND-16" + bytes([0, 0, 0, 0]) + bytes(200)
+    return [img[2 * k] | img[2 * k + 1] << 8 for k in range(112)]
+
+
+def _plc(log):
+    """The PLC: every 50 ms read the input image, echo CCI in CAO, write the output image."""
+    bu = _client(BU)
+    others = {ip: _client(ip) for ip in ORDINARY}
+    pco = 1
+    end = time.monotonic() + RUN_S
+    while time.monotonic() < end:
+        rr = bu.read_input_registers(0, count=32, device_id=1)
+        assert not rr.isError(), rr
+        regs = list(rr.registers)
+        log["read"].append(regs)
+        cci = regs[0] >> 8
+        wr = bu.write_registers(0, _output_registers(pco, cci), device_id=1)
+        assert not wr.isError(), wr
+        log["written"].append((pco, cci))
+        pco = (pco + 1) & 0xFF
+        for client in others.values():
+            assert not client.read_input_registers(0, count=32, device_id=1).isError()
+        time.sleep(0.05)
+    for client in [bu] + list(others.values()):
+        client.close()
+
+
+@pytest.fixture(scope="module")
+def real_capture():
+    """(capture path, what the PLC read and wrote)."""
+    # readable by tshark when tools/tshark drops root
+    folder = Path(tempfile.mkdtemp(prefix="vrshark-realstack-"))
+    folder.chmod(0o777)
+    try:
+        yield _capture(folder)
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+def _capture(folder):
+    cap = folder / "realstack.pcapng"
+    script = folder / "servers.py"
+    script.write_text(SERVERS)
+    servers = subprocess.Popen([sys.executable, str(script), str(PORT)], stdout=subprocess.DEVNULL,
+                               stderr=subprocess.PIPE, text=True)
+    log = {"read": [], "written": []}
+    try:
+        dumpcap = _start_capture(cap)
+        try:
+            _plc(log)
+            time.sleep(0.2)
+        finally:
+            _stop(dumpcap)
+    finally:
+        servers.terminate()
+        try:
+            servers.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            servers.kill()
+    cap.chmod(0o644)
+    return cap, log
+
+
+PREFS = {"eclink_modbus.port": str(PORT)}
+NAMES = ["ip.src", "ip.dst", "modbus.func_code", "eclink.image", "eclink.pci", "eclink.cci", "eclink.bu_state",
+         "eclink.eg_link_status", "eclink.ec_link_status", "eclink.armed_ru", "eclink.ru_battery",
+         "eclink.joystick1", "eclink.encoder", "eclink.pco", "eclink.cao", "eclink_modbus.accepted_in",
+         "frame.time_relative"]
+
+
+def test_bu_values_match_what_the_plc_read(tshark, real_capture):
+    cap, log = real_capture
+    assert len(log["read"]) >= 10
+    got = tshark.frames(cap, NAMES, prefs=PREFS, two_pass=True)
+    inputs = [v for _, v in sorted(got.items()) if v["ip.src"] == BU and v["eclink.image"] == "input"]
+    assert len(inputs) == len(log["read"])
+    for v, regs in zip(inputs, log["read"]):
+        img = b"".join(bytes([r & 0xFF, r >> 8]) for r in regs)
+        assert (int(v["eclink.pci"]), int(v["eclink.cci"])) == (img[0], img[1])
+        assert int(v["eclink.joystick1"]) == int.from_bytes(img[34:36], "big", signed=True)
+        assert (int(v["eclink.bu_state"], 0), int(v["eclink.eg_link_status"]), int(v["eclink.ec_link_status"]),
+                int(v["eclink.armed_ru"], 0), int(v["eclink.ru_battery"]), int(v["eclink.encoder"])) == \
+            (0x11, 0, 1, 0x4242, 77, 42)
+    outputs = [v for _, v in sorted(got.items()) if v["ip.dst"] == BU and v["eclink.image"] == "output"]
+    assert [(int(v["eclink.pco"]), int(v["eclink.cao"])) for v in outputs] == log["written"]
+    # PCI really moved while the PLC watched
+    assert len({r[0] & 0xFF for r in log["read"]}) >= 8
+
+
+def test_recognized_within_the_first_second(tshark, real_capture):
+    cap, _ = real_capture
+    got = tshark.frames(cap, NAMES, prefs=PREFS)
+    bu_frames = {f: v for f, v in got.items() if BU in (v["ip.src"], v["ip.dst"]) and v["modbus.func_code"]}
+    first = min(bu_frames)
+    accepted = {v["eclink_modbus.accepted_in"] for v in bu_frames.values() if v["eclink_modbus.accepted_in"]}
+    assert len(accepted) == 1
+    acc = int(accepted.pop())
+    assert float(got[acc]["frame.time_relative"]) - float(got[first]["frame.time_relative"]) <= 1.0
+
+
+def test_ordinary_servers_never_decoded(tshark, real_capture):
+    cap, _ = real_capture
+    for two in (False, True):
+        got = tshark.frames(cap, NAMES, prefs=PREFS, two_pass=two)
+        polled = [v for v in got.values() if v["ip.src"] in ORDINARY and v["modbus.func_code"]]
+        assert len({v["ip.src"] for v in polled}) == 3
+        assert [v for v in got.values() if (v["ip.src"] in ORDINARY or v["ip.dst"] in ORDINARY)
+                and (v["eclink.image"] or v["eclink_modbus.accepted_in"])] == []
+
+
+def test_no_modbus_classification_warning(tshark, real_capture):
+    cap, _ = real_capture
+    out = tshark.run(["-n", "-r", str(cap), "-o", "eclink_modbus.port:%d" % PORT]).stdout
+    assert "classify" not in out.lower()
+    assert "Query: Trans:" in out and "Response: Trans:" in out
