@@ -93,7 +93,13 @@ local pf = {
     poll_gap_time = ProtoField.relative_time("eclink_modbus.poll_gap_time", "Time since the previous input image read"),
     poll_gap_from = ProtoField.framenum("eclink_modbus.poll_gap_from", "Previous input image read in"),
 }
-proto.fields = pf
+-- frame links of the handshake findings (PCI/PCO unchanged since, command in)
+local hs_fields, hs_new_fields = handshake.fields("eclink_modbus", pf)
+local pf_list = {}
+for _, f in pairs(pf) do pf_list[#pf_list + 1] = f end
+for _, f in ipairs(hs_new_fields) do pf_list[#pf_list + 1] = f end
+pf.pci_since, pf.pco_since = hs_fields.pci_since, hs_fields.pco_since
+proto.fields = pf_list
 
 -- the handshake experts (same wording as over PROFINET) come from vrshark.eclink_handshake
 local ef, hs_experts = handshake.experts("eclink_modbus")
@@ -421,7 +427,10 @@ local function analyse(c, rec, t, frame, touched)
         ov = { pco = val(out, 0), cco = val(out, 1), cao = val(out, 3) }
     end
     local r = handshake.update(c.hs, iv, ov, t, frame, rec)
-    for _, fd in ipairs(r.findings) do add_finding(rec, { ef[fd[1]], fd[2] }) end
+    for _, fd in ipairs(r.findings) do
+        add_finding(rec, { ef[fd[1]], fd[2] })
+        if fd[3] then set_link(rec, fd[3], fd[4]) end
+    end
     for k, v in pairs(r.links) do set_link(rec, k, v) end
     for _, b in ipairs(r.back) do set_link(b[1], b[2], b[3]) end
     rec[R_PCI_AGE], rec[R_PCO_AGE], rec.bu_state_prev = r.pci_age or false, r.pco_age or false, r.bu_state_prev
@@ -705,9 +714,14 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb)
         item:add(pf.pco_age, nstime(rec[R_PCO_AGE]))
             :set_generated()
     end
+    -- every frame past a counter's limit says so in Info, not only the one with the finding
+    local unacked
+    local stalled = handshake.tags(rec[R_PCI_AGE], rec[R_PCO_AGE])
+    if stalled ~= "" then infos.tags = (infos.tags or "") .. stalled end
     if rec.bu_state_prev then item:add(pf.bu_state_prev, rec.bu_state_prev):set_generated() end
     local l = rec.links or NONE
-    for _, name in ipairs({ "cmd_from_ru_in", "cao_in", "cmd_to_ru_in", "cai_in", "periodic_reassembled_in" }) do
+    for _, name in ipairs({ "pci_since", "pco_since", "cmd_from_ru_in", "cao_in", "cmd_to_ru_in", "cai_in",
+                          "periodic_reassembled_in" }) do
         if l[name] then item:add(pf[name], l[name]):set_generated() end
     end
     for _, name in ipairs({ "cmd_from_ru_latency", "cmd_to_ru_latency" }) do
@@ -718,7 +732,9 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb)
     end
     for _, fd in ipairs(rec.findings or NONE) do
         item:add_proto_expert_info(fd[1], fd[2])
+        if fd[1] == ef.cmd_from_ru_late or fd[1] == ef.cmd_to_ru_late then unacked = " [unacked]" end
     end
+    if unacked then infos.tags = (infos.tags or "") .. unacked end
     if rec.periodic then
         local ba = ByteArray.new(rec.periodic.data, true)
         local rtvb = ba:tvb("Reassembled periodic data")
@@ -818,6 +834,8 @@ function proto.dissector(tvb, pinfo, tree)
     end
     if #infos > 0 then
         pinfo.cols.info:append(" [EC-Link " .. table.concat(infos, "; ") .. "]" .. (infos.tags or ""))
+    elseif infos.tags then
+        pinfo.cols.info:append(infos.tags)
     end
     if #gaps > 0 then pinfo.cols.info:append(table.concat(gaps)) end
     if via_front and decoded then return tvb:len() end

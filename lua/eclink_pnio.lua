@@ -41,7 +41,10 @@ local epf = {
     iops = ProtoField.uint8("eclink_pnio.iops", "IOPS", base.HEX, record.IOXS),
     iocs = ProtoField.uint8("eclink_pnio.iocs", "IOCS", base.HEX, record.IOXS),
 }
-eclp.fields = epf
+-- frame links of the handshake findings and acknowledgements
+local hs_fields, hs_field_list = eclink_handshake.fields("eclink_pnio")
+for _, f in pairs(epf) do hs_field_list[#hs_field_list + 1] = f end
+eclp.fields = hs_field_list
 -- the handshake experts (same wording as over Modbus/TCP) come from vrshark.eclink_handshake
 local eef, eclp_experts = eclink_handshake.experts("eclink_pnio")
 eef.iops_bad = ProtoExpert.new("eclink_pnio.iops.bad", "IOPS is not GOOD (0x80)", expert.group.PROTOCOL,
@@ -81,8 +84,24 @@ local function analyse(rec, ba, t, frame)
         out = { pco = ba:get_index(o), cco = ba:get_index(o + 1), cao = ba:get_index(o + 3) }
     end
     local r = eclink_handshake.update(hs, inp, out, t, frame)
-    for _, f in ipairs(r.findings) do add_finding(rec, "image", eef[f[1]], f[2]) end
-    rec.pci_age, rec.pco_age = r.pci_age, r.pco_age
+    local links
+    for _, f in ipairs(r.findings) do
+        add_finding(rec, "image", eef[f[1]], f[2])
+        if f[1]:find("_late$") then rec.unacked = true end
+        if f[3] then
+            links = links or {}
+            links[#links + 1] = { f[3], f[4] }
+        end
+    end
+    for _, name in ipairs({ "cmd_from_ru_in", "cmd_to_ru_in" }) do
+        if r.links[name] then
+            links = links or {}
+            links[#links + 1] = { name, r.links[name] }
+        end
+    end
+    rec.links = links
+    rec.pci_age = r.pci_age and eclink_handshake.ms(r.pci_age)
+    rec.pco_age = r.pco_age and eclink_handshake.ms(r.pco_age)
 end
 
 ------------------------------------------------------------------------
@@ -105,11 +124,13 @@ local function show(rec, tvb, pinfo, tree)
     iodata.decode_eclink(info, { frame_id = tvb(0, 2):uint() }, pinfo) -- vrshark_io hook
     if rec.pci_age then root:add(epf.pci_age, nstime(rec.pci_age)):set_generated() end
     if rec.pco_age then root:add(epf.pco_age, nstime(rec.pco_age)):set_generated() end
+    for _, l in ipairs(rec.links or {}) do root:add(hs_fields[l[1]], l[2]):set_generated() end
     attach(rec, "image", info and info.item or root)
     record.add_ioxs(root, rec, tvb, epf.iops, epf.iocs)
     record.finish(rec, nil)
     pinfo.cols.info = (up and "Input image " or "Output image ") .. ((info and info.summary) or "")
-        .. ((info and info.tags) or "")
+        .. ((info and info.tags) or "") .. eclink_handshake.tags(rec.pci_age, rec.pco_age)
+        .. (rec.unacked and " [unacked]" or "")
 end
 
 local function show_connect(rec, tvb, tree, text)

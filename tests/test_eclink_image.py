@@ -84,14 +84,17 @@ def test_input_tree_reads_like_eglink(tshark, raw_capture):
 
 def test_output_images(tshark, raw_capture):
     cap = raw_capture(output_image(), output_image(std=False))
-    rows = tshark.fields(cap, ["eclink.image", "eclink.pco", "eclink.cco", "eclink.pao", "eclink.cao",
-                               "eclink.cmd_to_ru", "eclink.periodic_size", "eclink.periodic_block",
-                               "eclink.spare"], extra=["-o", USER_DLT])
-    assert rows[0] == ["output", "7", "8", "0", "3", "48454c4c4f2d52550000000000000000", "300", "1", "00"]
-    assert rows[1] == ["output", "7", "8", "0", "3", "48454c4c4f2d52550000000000000000", "", "", ""]
-    data = tshark.field(cap, "eclink.periodic_data", extra=["-o", USER_DLT])
-    assert data[0] == bytes(range(200)).hex()
-    assert data[1] == ""
+    names = ["eclink.image", "eclink.pco", "eclink.cco", "eclink.pao", "eclink.cao", "eclink.cmd_to_ru",
+             "eclink.periodic_size", "eclink.periodic_block", "eclink.spare", "eclink.periodic_data"]
+    got = tshark.frames(cap, names, extra=["-o", USER_DLT])
+    common = {"eclink.image": "output", "eclink.pco": 7, "eclink.cco": 8, "eclink.pao": 0, "eclink.cao": 3,
+              "eclink.cmd_to_ru": "48454c4c4f2d52550000000000000000"}
+    assert_fields(got[1], dict(common, **{"eclink.periodic_size": 300, "eclink.periodic_block": 1,
+                                          "eclink.spare": "00", "eclink.periodic_data": bytes(range(200)).hex()}),
+                  "frame 1 (224 bytes)")
+    assert_fields(got[2], dict(common, **{"eclink.periodic_size": None, "eclink.periodic_block": None,
+                                          "eclink.spare": None, "eclink.periodic_data": None}),
+                  "frame 2 (20 bytes)")
 
 
 def test_input_checks(tshark, raw_capture):
@@ -115,9 +118,20 @@ def test_input_checks(tshark, raw_capture):
         "Spare bytes 60..63 are not 0",
     ]
     # severity and group as in every vrshark protocol (README "How findings read")
-    sev = tshark.frames(cap, ["_ws.expert.severity", "_ws.expert.group"], extra=["-o", USER_DLT])
-    assert sev[1]["_ws.expert.severity"].split(",")[:3] == ["6291456", "8388608", "8388608"]  # warn, error
-    assert sev[1]["_ws.expert.group"].split(",")[:2] == ["50331648", "150994944"]  # response code, protocol
+    # relays open / RU stopped: warning, Response code; undefined or out of range: error, Protocol;
+    # spare not 0: warning, Protocol
+    kinds = {"eclink.relays_open": ("6291456", "50331648"), "eclink.ru_stopped": ("6291456", "50331648"),
+             "eclink.vlaps.range": ("8388608", "150994944"), "eclink.ru_state.range": ("8388608", "150994944"),
+             "eclink.percent.range": ("8388608", "150994944"), "eclink.bool.range": ("8388608", "150994944"),
+             "eclink.unarmed_not_zero": ("8388608", "150994944"), "eclink.spare.not_zero": ("6291456", "150994944")}
+    for name, (severity, group) in kinds.items():
+        frames = tshark.frames(cap, ["_ws.expert.severity", "_ws.expert.group", "_ws.expert.message"],
+                               display_filter=name, extra=["-o", USER_DLT])
+        assert frames, name
+        for n, r in frames.items():
+            # the finding of that expert field among the frame's findings
+            pairs = list(zip(r["_ws.expert.severity"].split(","), r["_ws.expert.group"].split(",")))
+            assert (severity, group) in pairs, (name, n, pairs)
     assert exp[2] == ["RU stopped: ES-Link relays open"]
     assert exp[3][0] == "Armed RU is 0 but RU state is not 0"
     assert "Armed RU is 0 but Joystick 1 is not 0" in exp[3]

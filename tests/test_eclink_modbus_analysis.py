@@ -9,16 +9,23 @@ def test_command_handshake(tshark, capture_file):
     cap = capture_file("eclink_modbus_basic.pcap")
     exp = tshark.experts(cap)
     assert exp[17] == ["New command from RU: CCI 3 -> 4"]
-    assert exp[26] == ["CAO 4 acknowledges the command from RU of frame 17 after 257 ms"]
+    # the command's frame is a link beside the acknowledgement, never a number in its text
+    assert exp[26] == ["CAO 4 acknowledges the command from RU after 0.257 s"]
     assert exp[30] == ["New command to RU: CCO 7 -> 8"]
-    assert exp[37] == ["CAI 8 acknowledges the command to RU of frame 30 after 243 ms"]
-    r = tshark.fields(cap, ["frame.number", "eclink_modbus.cmd_from_ru_in", "eclink_modbus.cmd_from_ru_latency",
-                            "eclink_modbus.cmd_to_ru_in", "eclink_modbus.cmd_to_ru_latency"],
-                      display_filter="eclink_modbus.cmd_from_ru_in || eclink_modbus.cmd_to_ru_in")
-    assert r == [["26", "17", "0.257000000", "", ""], ["37", "", "", "30", "0.243000000"]]
-    back = tshark.fields(cap, ["frame.number", "eclink_modbus.cao_in", "eclink_modbus.cai_in"],
+    assert exp[37] == ["CAI 8 acknowledges the command to RU after 0.243 s"]
+    names = ["eclink_modbus.cmd_from_ru_in", "eclink_modbus.cmd_from_ru_latency",
+             "eclink_modbus.cmd_to_ru_in", "eclink_modbus.cmd_to_ru_latency"]
+    got = tshark.frames(cap, names, display_filter="eclink_modbus.cmd_from_ru_in || eclink_modbus.cmd_to_ru_in")
+    assert list(got) == [26, 37]
+    assert_fields(got[26], {"eclink_modbus.cmd_from_ru_in": 17, "eclink_modbus.cmd_from_ru_latency": "0.257000000",
+                            "eclink_modbus.cmd_to_ru_in": None}, "frame 26")
+    assert_fields(got[37], {"eclink_modbus.cmd_to_ru_in": 30, "eclink_modbus.cmd_to_ru_latency": "0.243000000",
+                            "eclink_modbus.cmd_from_ru_in": None}, "frame 37")
+    back = tshark.frames(cap, ["eclink_modbus.cao_in", "eclink_modbus.cai_in"],
                          display_filter="eclink_modbus.cao_in || eclink_modbus.cai_in", two_pass=True)
-    assert back == [["17", "26", ""], ["30", "", "37"]]
+    assert list(back) == [17, 30]
+    assert_fields(back[17], {"eclink_modbus.cao_in": 26, "eclink_modbus.cai_in": None}, "frame 17")
+    assert_fields(back[30], {"eclink_modbus.cai_in": 37, "eclink_modbus.cao_in": None}, "frame 30")
 
 
 def test_bu_state_change(tshark, capture_file):
@@ -38,18 +45,48 @@ def test_stalls_and_late_echoes(tshark, capture_file):
     exp = tshark.experts(cap)
     assert exp[9] == ["New command from RU: CCI 1 -> 2"]
     assert exp[10] == ["New command to RU: CCO 1 -> 2"]
-    assert exp[13] == ["PCI 2 has not changed for 700 ms (since frame 9, limit 500 ms)"]
+    # times to the millisecond; the frame the counter last moved in is a link field
+    assert exp[13] == ["PCI 2 has not changed for 0.700 s (limit 0.500 s)"]
+    tshark.expect(cap, 13, {"eclink_modbus.pci_since": 9, "eclink_modbus.pci_age": "0.700000000",
+                            "eclink_modbus.pco_since": None})
     # a missing echo shows on the first frame after the deadline (a read request here) ...
     assert exp[20] == ["Input image not read for 2.050 s (PCI timeout 0.500 s)",
-                       "Command from RU (CCI 2, frame 9) not acknowledged by CAO within 2000 ms",
-                       "Command to RU (CCO 2, frame 10) not acknowledged by CAI within 2000 ms"]
+                       "Command from RU (CCI 2) not acknowledged by CAO within 2.000 s",
+                       "Command to RU (CCO 2) not acknowledged by CAI within 2.000 s"]
+    tshark.expect(cap, 20, {"eclink_modbus.cmd_from_ru_in": 9, "eclink_modbus.cmd_to_ru_in": 10})
     # ... a stall on the first frame after the limit that carries the unchanged counter
-    assert exp[22] == ["PCO 4 has not changed for 2050 ms (since frame 18, limit 2000 ms)"]
-    assert exp[26] == ["CAO echoed CCI 2 after 3007 ms (limit 2000 ms)"]
-    r = tshark.fields(cap, ["frame.number", "eclink_modbus.pci_age"], display_filter="frame.number == 13")
-    assert r == [["13", "0.700000000"]]
-    warn = tshark.field(cap, "frame.number", display_filter="_ws.expert.severity == warning && eclink_modbus")
-    assert "13" in warn and "20" in warn and "22" in warn and "26" in warn
+    assert exp[22] == ["PCO 4 has not changed for 2.050 s (limit 2.000 s)"]
+    tshark.expect(cap, 22, {"eclink_modbus.pco_since": 18, "eclink_modbus.pci_since": None})
+    assert exp[26] == ["CAO echoed CCI 2 after 3.007 s (limit 2.000 s)"]
+
+
+def test_severities_one_voice(tshark, capture_file):
+    """README "How findings read": a PCI/PCO stall is an error in Sequence, a late or
+    unacknowledged command a warning in Sequence, a new command or ack chat."""
+    cap = capture_file("eclink_modbus_faults.pcap")
+    names = ["_ws.expert.severity", "_ws.expert.group"]
+    got = tshark.frames(cap, names, display_filter="eclink_modbus.pci_stalled || eclink_modbus.pco_stalled")
+    assert list(got) == [13, 22]
+    for n in (13, 22):
+        assert_fields(got[n], {"_ws.expert.severity": "8388608", "_ws.expert.group": "33554432"}, "frame %d" % n)
+    late = tshark.frames(cap, names, display_filter="eclink_modbus.cmd_from_ru.late")
+    assert list(late) == [20, 26]
+    for n in (20, 26):
+        assert set(late[n]["_ws.expert.severity"].split(",")) == {"6291456"}, n
+        assert set(late[n]["_ws.expert.group"].split(",")) == {"33554432"}, n
+    chat = tshark.frames(cap, names, display_filter="eclink_modbus.cmd_from_ru")
+    assert_fields(chat[9], {"_ws.expert.severity": "2097152", "_ws.expert.group": "33554432"}, "frame 9")
+
+
+def test_info_tags_for_stalls_and_unacked_commands(tshark, capture_file):
+    info = {n: r["_ws.col.Info"] for n, r in tshark.frames(capture_file("eclink_modbus_faults.pcap"),
+                                                              ["_ws.col.Info"]).items()}
+    assert info[13].endswith("BU=Armed RU 0x1234=Enabled] [PCI stalled 0.700 s]")
+    assert info[22].endswith("size=0 block=0] [PCO stalled 2.050 s]")
+    assert info[20].endswith("Read Input Registers [unacked] [poll gap 2.050 s]")
+    assert info[26].endswith("[unacked]")
+    assert "stalled" not in info[17] and "stalled" not in info[9]
+    assert not any("?" in i for i in info.values())
 
 
 def test_value_checks_over_modbus(tshark, capture_file):

@@ -1,4 +1,6 @@
 """EC-Link images over PROFINET IO and the handshake analysis."""
+from conftest import assert_fields
+
 CAP = "eclink_pnio_connect.pcap"
 
 
@@ -21,15 +23,48 @@ def test_handshake_experts(tshark, capture_file):
     ex = tshark.experts(capture_file(CAP))
     assert "BU state Disarmed -> Armed" in ex[7]
     assert "New command from RU: CCI 0 -> 1" in ex[9]
-    assert "CAO 1 acknowledges the command from RU of frame 9 after 251 ms" in ex[14]
+    assert "CAO 1 acknowledges the command from RU after 0.251 s" in ex[14]
     assert "New command to RU: CCO 0 -> 1" in ex[20]
-    assert "CAI 1 acknowledges the command to RU of frame 20 after 124 ms" in ex[21]
-    assert "PCI 10 has not changed for 625 ms (since frame 21, limit 500 ms)" in ex[31]
+    assert "CAI 1 acknowledges the command to RU after 0.124 s" in ex[21]
+    assert "PCI 10 has not changed for 0.625 s (limit 0.500 s)" in ex[31]
     assert "New command from RU: CCI 1 -> 2" in ex[43]
-    assert "PCO 18 has not changed for 2125 ms (since frame 38, limit 2000 ms)" in ex[72]
-    assert "Command from RU (CCI 2, frame 43) not acknowledged by CAO within 2000 ms" in ex[76]
+    assert "PCO 18 has not changed for 2.125 s (limit 2.000 s)" in ex[72]
+    assert "Command from RU (CCI 2) not acknowledged by CAO within 2.000 s" in ex[76]
     stalls = [n for n, m in ex.items() if any("has not changed" in x for x in m)]
     assert stalls == [31, 72]
+
+
+def test_handshake_frame_links(tshark, capture_file):
+    """Frames are named by link fields beside the expert, never by numbers in its text."""
+    cap = capture_file(CAP)
+    links = ["eclink_pnio.pci_since", "eclink_pnio.pco_since", "eclink_pnio.cmd_from_ru_in",
+             "eclink_pnio.cmd_to_ru_in"]
+    got = tshark.frames(cap, links, display_filter=" || ".join(links))
+    assert list(got) == [14, 21, 31, 72, 76]
+    want = {14: {"eclink_pnio.cmd_from_ru_in": 9}, 21: {"eclink_pnio.cmd_to_ru_in": 20},
+            31: {"eclink_pnio.pci_since": 21}, 72: {"eclink_pnio.pco_since": 38},
+            76: {"eclink_pnio.cmd_from_ru_in": 43}}
+    for n, fields in want.items():
+        expected = {name: None for name in links}
+        expected.update(fields)
+        assert_fields(got[n], expected, "frame %d" % n)
+    assert not any("frame" in m for ms in tshark.experts(cap).values() for m in ms if "layout" not in m)
+
+
+def test_handshake_severities_and_info_tags(tshark, capture_file):
+    cap = capture_file(CAP)
+    got = tshark.frames(cap, ["_ws.expert.severity", "_ws.expert.group", "_ws.col.Info"],
+                        display_filter="eclink_pnio.pci_stalled || eclink_pnio.pco_stalled")
+    assert list(got) == [31, 72]
+    for n in (31, 72):
+        # PI_ERROR in PI_SEQUENCE (README "How findings read")
+        assert_fields(got[n], {"_ws.expert.severity": "8388608", "_ws.expert.group": "33554432"}, "frame %d" % n)
+    assert got[31]["_ws.col.Info"].endswith("BU=Armed RU 0x1234=Enabled [PCI stalled 0.625 s]")
+    assert got[72]["_ws.col.Info"].endswith("block=0 [PCO stalled 2.125 s]")
+    tshark.expect(cap, 76, {"_ws.col.Info": "Output image PCO=18 CCO=1 CAO=1 size=10 block=0 "
+                                            "[PCO stalled 2.375 s] [unacked]"})
+    # ages to the millisecond
+    tshark.expect(cap, 31, {"eclink_pnio.pci_age": "0.625000000"})
 
 
 def test_filters_by_expert_field(tshark, capture_file):
@@ -41,3 +76,16 @@ def test_two_pass_agrees(tshark, capture_file):
     one = tshark.frames(capture_file(CAP), fields)
     assert one == tshark.frames(capture_file(CAP), fields, two_pass=True)
     assert any(r["_ws.expert.message"] for r in one.values())
+
+
+def test_profile_colours_every_stalled_frame(tshark, capture_file):
+    """The vrshark profile's "watchdog stalled" rule marks every frame whose PCI/PCO is past its
+    limit (the frames tagged [PCI stalled ...] / [PCO stalled ...]), not only the first."""
+    from pathlib import Path
+    rules = (Path(__file__).resolve().parents[1] / "profile" / "vrshark" / "colorfilters").read_text()
+    rule = next(ln.split("@")[2] for ln in rules.splitlines() if "@vrshark: watchdog stalled@" in ln)
+    cap = capture_file(CAP)
+    coloured = tshark.frames(cap, [], display_filter="(%s) && eclink_pnio" % rule)
+    tagged = [n for n, r in tshark.frames(cap, ["_ws.col.Info"], display_filter="eclink_pnio").items()
+              if "stalled" in r["_ws.col.Info"]]
+    assert list(coloured) == tagged == [31, 33, 72, 74, 76, 78]

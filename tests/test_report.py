@@ -108,11 +108,11 @@ TIMELINES = {
     ],
     "eclink_modbus_faults.pcap": [
         (13, 'warning', 1, 'no input image for 0.700 s (after frame 9, limit 500 ms)'),
-        (13, 'warning', 1, 'PCI stalled at 2 for 0.825 s (unchanged since frame 9, limit 500 ms), moving again in frame 17'),
+        (13, 'error', 1, 'PCI stalled at 2 for 0.825 s (unchanged since frame 9, limit 500 ms), moving again in frame 17'),
         (20, 'warning', 1, 'command from RU not echoed by CAO in time (2x, frames 20-26 over 0.135 s)'),
         (20, 'warning', 1, 'command to RU not echoed by CAI in time'),
         (21, 'warning', 1, 'no input image for 2.050 s (after frame 17, limit 500 ms)'),
-        (22, 'warning', 1, 'PCO stalled at 4 for 2.175 s (unchanged since frame 18, limit 2000 ms), moving again in frame 26'),
+        (22, 'error', 1, 'PCO stalled at 4 for 2.175 s (unchanged since frame 18, limit 2000 ms), moving again in frame 26'),
         (29, 'note', 1, 'RU 0x1234 state Enabled -> undefined 0x05 (after 3.125 s or more)'),
         (29, 'error', 1, 'VLAPs out of range'),
         (29, 'error', 1, 'undefined link status'),
@@ -130,8 +130,8 @@ TIMELINES = {
     ],
     "eclink_pnio_connect.pcap": [
         (7, 'note', 1, 'BU state Disarmed -> Armed (after 0.250 s or more)'),
-        (31, 'warning', 1, 'PCI stalled at 10 for 0.875 s (unchanged since frame 21, limit 500 ms), moving again in frame 35'),
-        (72, 'warning', 1, 'PCO stalled at 18 for 2.625 s (unchanged since frame 38, limit 2000 ms), moving again in frame 80'),
+        (31, 'error', 1, 'PCI stalled at 10 for 0.875 s (unchanged since frame 21, limit 500 ms), moving again in frame 35'),
+        (72, 'error', 1, 'PCO stalled at 18 for 2.625 s (unchanged since frame 38, limit 2000 ms), moving again in frame 80'),
         (76, 'warning', 1, 'command from RU not echoed by CAO in time'),
     ],
     "mcmb2_polled_connect.pcap": [
@@ -286,7 +286,7 @@ def test_faults_gate_warn(report):
     assert proc.returncode == 1
     assert [ln for ln in proc.stdout.splitlines() if ln.startswith("== ")] == \
         ["== " + c for c in captures]
-    assert "     0.928      13  warning   [1]  PCI stalled at 2 for 0.825 s (unchanged since " \
+    assert "     0.928      13  error     [1]  PCI stalled at 2 for 0.825 s (unchanged since " \
         "frame 9, limit 500 ms), moving again in frame 17" in proc.stdout.splitlines()
     assert proc.stderr.splitlines() == [
         "vrshark-report: FAIL (--fail-on warn): 17 finding(s) at warning or above; first: "
