@@ -1,4 +1,8 @@
 """EC-Link images over PROFINET IO and the handshake analysis."""
+import os
+
+import pytest
+
 from conftest import assert_fields
 
 CAP = "eclink_pnio_connect.pcap"
@@ -78,6 +82,8 @@ def test_two_pass_agrees(tshark, capture_file):
     assert any(r["_ws.expert.message"] for r in one.values())
 
 
+@pytest.mark.skipif(bool(os.environ.get("VRSHARK_NO_C_PLUGIN")),
+                    reason="the profile's rule names EG-Link fields, which need the C plugin")
 def test_profile_colours_every_stalled_frame(tshark, capture_file):
     """The vrshark profile's "watchdog stalled" rule marks every frame whose PCI/PCO is past its
     limit (the frames tagged [PCI stalled ...] / [PCO stalled ...]), not only the first."""
