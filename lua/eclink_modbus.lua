@@ -760,16 +760,17 @@ end
 -- Called by the C front end (its hook names are in match_string), mbtcp
 -- has run already and the result tells it whether the connection is
 -- accepted (0: not yet); ".quiet": nobody looks at this frame's tree or
--- columns, only the state is kept. Called by TCP (no C plugin, or Decode
+-- columns, only the state is kept (vrshark/frontends.luam view(); a sparse
+-- view gets the whole EC-Link view). Called by TCP (no C plugin, or Decode
 -- As), this plugin calls mbtcp itself.
-local VIA_FRONT = { heuristic = true, always = true, ["heuristic.quiet"] = true, ["always.quiet"] = true }
-local QUIET = { ["heuristic.quiet"] = true, ["always.quiet"] = true }
+local HOOKS = { heuristic = true, always = true }
 
 function proto.dissector(tvb, pinfo, tree)
     local consumed = 0
     local how = C and pinfo.match_string
-    local via_front = VIA_FRONT[how]
-    local quiet = QUIET[how]
+    local via_front = how and HOOKS[how:match("^[%w_]+")] or false
+    local view = via_front and fe.view(how)
+    local quiet = view and view.quiet
     local is_request = (pinfo.dst_port == pinfo.match_uint) and (pinfo.src_port ~= pinfo.match_uint)
     if not via_front then
         -- let mbtcp use TCP desegmentation as if TCP had called it directly

@@ -32,6 +32,7 @@ local handshake = require("vrshark.handshake")
 local record = require("vrshark.pnio_record")
 local systems = require("vrshark.pnio_systems")
 local iodata = require("vrshark.iodata") -- vrshark_io hook
+local frontends = require("vrshark.frontends")
 
 local add_finding, attach, nstime = record.add_finding, record.attach, record.nstime
 
@@ -101,43 +102,50 @@ local pf = {
 }
 mcmb2.fields = pf
 
+-- ProtoExpert.new that remembers the filter names (sparse display)
+local expert_names = {}
+local function expert_new(name, ...)
+    expert_names[name] = true
+    return ProtoExpert.new(name, ...)
+end
+
 local ef = {
-    status_undefined = ProtoExpert.new("mcmb2.status.undefined",
+    status_undefined = expert_new("mcmb2.status.undefined",
         "Undefined MC-MB2-PN status: bring the system to a safe state", expert.group.PROTOCOL,
         expert.severity.ERROR),
-    slot_status_undefined = ProtoExpert.new("mcmb2.slot.status.undefined",
+    slot_status_undefined = expert_new("mcmb2.slot.status.undefined",
         "Undefined terminal status: bring the system to a safe state", expert.group.PROTOCOL,
         expert.severity.ERROR),
-    terminal_not_zero = ProtoExpert.new("mcmb2.terminal.not_zero",
+    terminal_not_zero = expert_new("mcmb2.terminal.not_zero",
         "Terminal number bits of a polled status byte are not 0", expert.group.PROTOCOL, expert.severity.WARN),
-    not_valid = ProtoExpert.new("mcmb2.no_valid_data",
+    not_valid = expert_new("mcmb2.no_valid_data",
         "No valid terminal data: the IO controller must keep the system in a safe state",
         expert.group.RESPONSE_CODE, expert.severity.WARN),
-    e010 = ProtoExpert.new("mcmb2.status.e010",
+    e010 = expert_new("mcmb2.status.e010",
         "Fieldbus update failure (E010) reported by the base: no valid terminal data", expert.group.SEQUENCE,
         expert.severity.ERROR),
-    data_not_zero = ProtoExpert.new("mcmb2.data_not_zero",
+    data_not_zero = expert_new("mcmb2.data_not_zero",
         "Status is not 'present' but the uplink data is not all 0", expert.group.PROTOCOL, expert.severity.WARN),
-    uplink_stalled = ProtoExpert.new("mcmb2.uplink_watchdog.stalled",
+    uplink_stalled = expert_new("mcmb2.uplink_watchdog.stalled",
         "Uplink watchdog unchanged for over 1 s: bring the system to a safe state", expert.group.SEQUENCE,
         expert.severity.ERROR),
-    downlink_stalled = ProtoExpert.new("mcmb2.downlink_watchdog.stalled",
+    downlink_stalled = expert_new("mcmb2.downlink_watchdog.stalled",
         "Downlink watchdog unchanged for over 2000 ms: the base shows E010", expert.group.SEQUENCE,
         expert.severity.ERROR),
-    terminal_changed = ProtoExpert.new("mcmb2.slot.terminal_changed",
+    terminal_changed = expert_new("mcmb2.slot.terminal_changed",
         "Slot changed terminal (dynamic polling)", expert.group.SEQUENCE, expert.severity.NOTE),
-    layout_mismatch = ProtoExpert.new("mcmb2.layout_mismatch",
+    layout_mismatch = expert_new("mcmb2.layout_mismatch",
         "Polled layout (Y/Z/slots) differs from the configured layout: bring the system to a safe state",
         expert.group.PROTOCOL, expert.severity.ERROR),
-    iops_bad = ProtoExpert.new("mcmb2.iops.bad", "IOPS is not GOOD (0x80)", expert.group.PROTOCOL,
+    iops_bad = expert_new("mcmb2.iops.bad", "IOPS is not GOOD (0x80)", expert.group.PROTOCOL,
         expert.severity.WARN),
-    iocs_bad = ProtoExpert.new("mcmb2.iocs.bad", "IOCS is not GOOD (0x80)", expert.group.PROTOCOL,
+    iocs_bad = expert_new("mcmb2.iocs.bad", "IOCS is not GOOD (0x80)", expert.group.PROTOCOL,
         expert.severity.WARN),
-    reserved_not_zero = ProtoExpert.new("mcmb2.reserved.not_zero", "Reserved byte is not 0",
+    reserved_not_zero = expert_new("mcmb2.reserved.not_zero", "Reserved byte is not 0",
         expert.group.PROTOCOL, expert.severity.WARN),
-    short = ProtoExpert.new("mcmb2.short", "C-SDU shorter than the layout", expert.group.MALFORMED,
+    short = expert_new("mcmb2.short", "C-SDU shorter than the layout", expert.group.MALFORMED,
         expert.severity.ERROR),
-    learned = ProtoExpert.new("mcmb2.layout.learned", "Cyclic data layout learned from this Connect",
+    learned = expert_new("mcmb2.layout.learned", "Cyclic data layout learned from this Connect",
         expert.group.SEQUENCE, expert.severity.CHAT),
 }
 mcmb2.experts = { ef.status_undefined, ef.slot_status_undefined, ef.terminal_not_zero, ef.not_valid, ef.e010,
@@ -427,17 +435,40 @@ local function add_watchdog(root, rec, field, range)
     attach(rec, "wd", wd)
 end
 
+-- The Info column text (without the tags) from the header bytes hb (a list,
+-- hb[1] the first header byte).
+local function info_text(rec, hb)
+    local plan = rec.plan
+    if plan.dir == "up" and plan.system == "duplex" then
+        return string.format("Uplink duplex: %s, terminal %d, watchdog %d",
+            name_of(STATUS, DUPLEX_OK, bit.band(hb[1], 0x0F)), bit.rshift(hb[1], 4), hb[2])
+    elseif plan.dir == "up" then
+        local parts = {}
+        for k = 1, 4 do
+            local s = hb[4 + k]
+            local sst = bit.band(s, 0x0F)
+            if sst ~= 0xF then
+                parts[#parts + 1] = string.format("%d:T%d %s", k, bit.rshift(s, 4),
+                    SLOT_SHORT[sst] or name_of(SLOT_STATUS, SLOT_OK, sst))
+            end
+        end
+        return string.format("Uplink polled: %s, watchdog %d, Y=%d Z=%d, slots %s",
+            name_of(STATUS, POLLED_OK, bit.band(hb[1], 0x0F)), hb[2], hb[3], hb[4],
+            (#parts > 0) and table.concat(parts, ", ") or "none")
+    elseif plan.system == "duplex" then
+        return string.format("Downlink duplex: base unit %d, watchdog %d", hb[1], hb[2])
+    end
+    return string.format("Downlink polled: watchdog %d, %d slot(s)", hb[2], #(rec.groups or {}))
+end
+
 local function show_duplex_up(rec, tvb, root, hr, wr, pinfo) -- vrshark_io hook: pinfo
     local sb = hr:uint()
-    local st = bit.band(sb, 0x0F)
     root:add(pf.terminal, hr)
     add_watchdog(root, rec, pf.uplink_watchdog, wr)
     local r = data_range(tvb, rec.base, rec.plan.modules, "MC-MB2 uplink data")
     if r then attach(rec, "data", root:add(pf.uplink_data, r)) end
     if r then iodata.decode("mcmb2.up", -- vrshark_io hook
         { terminal = bit.rshift(sb, 4), frame_id = tvb(0, 2):uint() }, r, root, pinfo) end -- vrshark_io hook
-    return string.format("Uplink duplex: %s, terminal %d, watchdog %d", name_of(STATUS, DUPLEX_OK, st),
-        bit.rshift(sb, 4), wr:uint())
 end
 
 local function show_polled_up(rec, tvb, root, h, pinfo) -- vrshark_io hook: pinfo
@@ -447,7 +478,6 @@ local function show_polled_up(rec, tvb, root, h, pinfo) -- vrshark_io hook: pinf
     local yr, zr = tvb:range(h + 2, 1), tvb:range(h + 3, 1)
     attach(rec, "size", root:add(pf.uplink_size, yr))
     root:add(pf.downlink_size, zr)
-    local parts = {}
     for k = 1, 4 do
         local sr = tvb:range(h + 3 + k, 1)
         local s = sr:uint()
@@ -467,14 +497,7 @@ local function show_polled_up(rec, tvb, root, h, pinfo) -- vrshark_io hook: pinf
                 r, st, pinfo) end -- vrshark_io hook
         end
         attach(rec, SLOT_ANCHOR[k], st)
-        if sst ~= 0xF then
-            parts[#parts + 1] = string.format("%d:T%d %s", k, bit.rshift(s, 4),
-                SLOT_SHORT[sst] or name_of(SLOT_STATUS, SLOT_OK, sst))
-        end
     end
-    return string.format("Uplink polled: %s, watchdog %d, Y=%d Z=%d, slots %s",
-        name_of(STATUS, POLLED_OK, bit.band(hr:uint(), 0x0F)), wr:uint(), yr:uint(), zr:uint(),
-        (#parts > 0) and table.concat(parts, ", ") or "none")
 end
 
 local function show_down(rec, tvb, root, hr, wr, pinfo) -- vrshark_io hook: pinfo
@@ -489,7 +512,7 @@ local function show_down(rec, tvb, root, hr, wr, pinfo) -- vrshark_io hook: pinf
         local r = data_range(tvb, rec.base, rec.plan.modules, "MC-MB2 downlink data")
         if r then root:add(pf.downlink_data, r) end
         if r then iodata.decode("mcmb2.down", { frame_id = tvb(0, 2):uint() }, r, root, pinfo) end -- vrshark_io hook
-        return string.format("Downlink duplex: base unit %d, watchdog %d", hr:uint(), wr:uint())
+        return
     end
     for i, g in ipairs(rec.groups or {}) do
         local k = rec.slots and rec.slots[i] or i
@@ -501,7 +524,6 @@ local function show_down(rec, tvb, root, hr, wr, pinfo) -- vrshark_io hook: pinf
             iodata.decode("mcmb2.down", { slot = k, frame_id = tvb(0, 2):uint() }, r, st, pinfo) -- vrshark_io hook
         end
     end
-    return string.format("Downlink polled: watchdog %d, %d slot(s)", wr:uint(), #(rec.groups or {}))
 end
 
 -- The Info column tags of the findings that matter in the packet list
@@ -530,7 +552,6 @@ local function show(rec, tvb, pinfo, tree)
     end
     local h = base + plan.header.off
     local hr, wr = tvb:range(h, 1), tvb:range(h + 1, 1)
-    local info
     if up then
         local item = root:add(pf.status, hr)
         local known = (plan.system == "duplex") and DUPLEX_OK or POLLED_OK
@@ -539,16 +560,128 @@ local function show(rec, tvb, pinfo, tree)
         end
         attach(rec, "status", item)
         if plan.system == "duplex" then
-            info = show_duplex_up(rec, tvb, root, hr, wr, pinfo) -- vrshark_io hook: pinfo
+            show_duplex_up(rec, tvb, root, hr, wr, pinfo) -- vrshark_io hook: pinfo
         else
-            info = show_polled_up(rec, tvb, root, h, pinfo) -- vrshark_io hook: pinfo
+            show_polled_up(rec, tvb, root, h, pinfo) -- vrshark_io hook: pinfo
         end
     else
-        info = show_down(rec, tvb, root, hr, wr, pinfo) -- vrshark_io hook: pinfo
+        show_down(rec, tvb, root, hr, wr, pinfo) -- vrshark_io hook: pinfo
     end
     record.add_ioxs(root, rec, tvb, pf.iops, pf.iocs)
     record.finish(rec, root)
-    pinfo.cols.info = info .. info_tags(rec)
+    pinfo.cols.info = info_text(rec, { tvb:raw(h, plan.header.len):byte(1, -1) }) .. info_tags(rec)
+end
+
+------------------------------------------------------------------------
+-- Sparse display: an invisible tree (the packet list, -T fields, -Y)
+------------------------------------------------------------------------
+-- Wireshark throws away every item of an invisible tree that nobody
+-- references, so only the referenced fields are added, each in the
+-- occurrences show() gives it (tests/test_sparse_view.py compares both on
+-- every capture), flat under the caller's tree; then the findings and the
+-- columns when they are wanted. A field without an adder here means show().
+-- c: { rec, tvb, tree, plan, up, h = tvb offset of the header }
+local function add_at(c, field, off, len) c.tree:add(field, c.tvb:range(off, len)) end
+
+-- The used slots of a polled uplink and their module groups: k -> group.
+local function slot_group(rec, k)
+    for i, u in ipairs(rec.slots or {}) do
+        if u == k then return rec.groups[i] end
+    end
+    return nil
+end
+
+local function polled_up(c) return c.up and c.plan.system ~= "duplex" end
+local function polled_down(c) return not c.up and c.plan.system ~= "duplex" end
+local function duplex(c) return c.plan.system == "duplex" end
+
+local ADDERS = {
+    ["mcmb2.system"] = function(c) c.tree:add(pf.system, c.plan.system) end,
+    ["mcmb2.direction"] = function(c) c.tree:add(pf.direction, c.up and "uplink" or "downlink") end,
+    ["mcmb2.layout"] = function(c) c.tree:add(pf.layout, c.plan.source) end,
+    ["mcmb2.status"] = function(c) if c.up then add_at(c, pf.status, c.h, 1) end end,
+    ["mcmb2.terminal"] = function(c) if c.up then add_at(c, pf.terminal, c.h, 1) end end,
+    ["mcmb2.uplink_watchdog"] = function(c) if c.up then add_at(c, pf.uplink_watchdog, c.h + 1, 1) end end,
+    ["mcmb2.downlink_watchdog"] = function(c) if not c.up then add_at(c, pf.downlink_watchdog, c.h + 1, 1) end end,
+    ["mcmb2.watchdog_age"] = function(c)
+        if c.rec.wd_age then c.tree:add(pf.watchdog_age, nstime(c.rec.wd_age)) end
+    end,
+    ["mcmb2.watchdog_since"] = function(c)
+        if c.rec.wd_since then c.tree:add(pf.watchdog_since, c.rec.wd_since) end
+    end,
+    ["mcmb2.uplink_data"] = function(c)
+        if c.up and duplex(c) then
+            local r = data_range(c.tvb, c.rec.base, c.plan.modules, "MC-MB2 uplink data")
+            if r then c.tree:add(pf.uplink_data, r) end
+        end
+    end,
+    ["mcmb2.downlink_data"] = function(c)
+        if not c.up and duplex(c) then
+            local r = data_range(c.tvb, c.rec.base, c.plan.modules, "MC-MB2 downlink data")
+            if r then c.tree:add(pf.downlink_data, r) end
+        end
+    end,
+    ["mcmb2.uplink_size"] = function(c) if polled_up(c) then add_at(c, pf.uplink_size, c.h + 2, 1) end end,
+    ["mcmb2.downlink_size"] = function(c) if polled_up(c) then add_at(c, pf.downlink_size, c.h + 3, 1) end end,
+    ["mcmb2.base_unit"] = function(c) if not c.up and duplex(c) then add_at(c, pf.base_unit, c.h, 1) end end,
+    ["mcmb2.reserved"] = function(c) if polled_down(c) then add_at(c, pf.reserved, c.h, 1) end end,
+    ["mcmb2.slot"] = function(c)
+        if polled_up(c) then
+            for k = 1, 4 do c.tree:add(pf.slot, k) end
+        elseif polled_down(c) then
+            for i, g in ipairs(c.rec.groups or {}) do
+                if #g > 0 then c.tree:add(pf.slot, c.rec.slots and c.rec.slots[i] or i) end
+            end
+        end
+    end,
+    ["mcmb2.slot.status"] = function(c)
+        if polled_up(c) then for k = 1, 4 do add_at(c, pf.slot_status, c.h + 3 + k, 1) end end
+    end,
+    ["mcmb2.slot.terminal"] = function(c)
+        if polled_up(c) then for k = 1, 4 do add_at(c, pf.slot_terminal, c.h + 3 + k, 1) end end
+    end,
+    ["mcmb2.slot.uplink_data"] = function(c)
+        if not polled_up(c) then return end
+        for k = 1, 4 do
+            local g = slot_group(c.rec, k)
+            if g then
+                local r = data_range(c.tvb, c.rec.base, g, "MC-MB2 slot " .. k .. " uplink data")
+                if r then c.tree:add(pf.slot_uplink_data, r) end
+            end
+        end
+    end,
+    ["mcmb2.slot.downlink_data"] = function(c)
+        if not polled_down(c) then return end
+        for i, g in ipairs(c.rec.groups or {}) do
+            local k = c.rec.slots and c.rec.slots[i] or i
+            local r = data_range(c.tvb, c.rec.base, g, "MC-MB2 slot " .. k .. " downlink data")
+            if r then c.tree:add(pf.slot_downlink_data, r) end
+        end
+    end,
+    ["mcmb2.iops"] = function(c) record.add_ioxs_sparse(c.tree, c.rec, c.tvb, pf.iops, false) end,
+    ["mcmb2.iocs"] = function(c) record.add_ioxs_sparse(c.tree, c.rec, c.tvb, pf.iocs, true) end,
+    ["mcmb2.frame_id"] = function() end,  -- a Connect's only
+}
+local SPARSE = { adders = ADDERS, experts = expert_names, prefixes = { "mcmb2", "vrshark_io", "vrshark.io" } }
+
+-- false: show() is needed instead.
+local function sparse(rec, tvb, pinfo, tree, view)
+    local plan = rec.plan
+    local p = frontends.plan(view, SPARSE)
+    if not p or rec.size < plan.need then return false end
+    -- machine data can add findings and Info tags of its own
+    if (p.cols or p.experts) and (iodata.areas["mcmb2.up"] or iodata.areas["mcmb2.down"]) then return false end
+    local h = rec.base + plan.header.off
+    if #p.adders > 0 then
+        local c = { rec = rec, tvb = tvb, tree = tree, plan = plan, up = plan.dir == "up", h = h }
+        for _, add in ipairs(p.adders) do add(c) end
+    end
+    if p.experts then record.finish(rec, tree) end
+    if p.cols then
+        pinfo.cols.protocol = "MC-MB2"
+        pinfo.cols.info = info_text(rec, { tvb:raw(h, plan.header.len):byte(1, -1) }) .. info_tags(rec)
+    end
+    return true
 end
 
 local function show_connect(rec, tvb, tree, text)
@@ -562,4 +695,4 @@ local function show_connect(rec, tvb, tree, text)
 end
 
 systems.register({ "duplex", "polled" }, { proto = mcmb2, short = ef.short, analyse = analyse, show = show,
-                                          show_connect = show_connect })
+                                          sparse = sparse, show_connect = show_connect })

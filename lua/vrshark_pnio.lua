@@ -364,8 +364,10 @@ end
 
 -- EtherType 0x8892: Wireshark's PN-RT first, then our cyclic data. With
 -- the C front end PN-RT has run already; 0 tells it the frame is not ours;
--- quiet: nobody looks at this frame's tree or columns (first pass only).
-local function cyclic(tvb, pinfo, tree, quiet)
+-- view: what the front end says is looked at (vrshark/frontends.luam view():
+-- nil everything, quiet nothing, or sparse: the decoder's sparse() adds
+-- only that, or says it needs show()).
+local function cyclic(tvb, pinfo, tree, view)
     local consumed = 0
     if not C then
         consumed = wrap.call(pn_rt, tvb, pinfo, tree)
@@ -384,7 +386,14 @@ local function cyclic(tvb, pinfo, tree, quiet)
         end
     end
     if rec then
-        if not quiet then show(rec, tvb, pinfo, tree) end
+        if not view then
+            show(rec, tvb, pinfo, tree)
+        elseif not view.quiet then
+            local dec = rec.plan and systems.decoder(rec.plan.system)
+            if not (dec and dec.sparse and dec.sparse(rec, tvb, pinfo, tree, view)) then
+                show(rec, tvb, pinfo, tree)
+            end
+        end
         if C then return tvb:len() end
     end
     return consumed
@@ -427,7 +436,7 @@ function carrier.dissector(tvb, pinfo, tree)
     if C then
         local how = pinfo.match_string
         if how == "connect" then return connect(tvb, pinfo, tree) end
-        return cyclic(tvb, pinfo, tree, how == "frame_id.quiet")
+        return cyclic(tvb, pinfo, tree, fe.view(how))
     end
     -- No controller port is ever 0x8892 (see connect), so match_uint tells
     -- the two tables apart.

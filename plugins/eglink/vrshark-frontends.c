@@ -40,11 +40,13 @@
  * first pass), so both passes agree.
  *
  * Known FrameIDs and accepted connections reach the decoder with
- * pinfo->match_string "frame_id" / "heuristic" / "always", or the same with
- * ".quiet" appended when nothing it would add can be seen: no column
- * information, an invisible tree, none of the Lua protocols' fields
- * referenced (display filter, -e, colouring rule, Lua Field), no expert info
- * wanted. The decoder then keeps its state (first pass) and adds nothing.
+ * pinfo->match_string "frame_id" / "heuristic" / "always" when the tree is
+ * visible, or the same with ".quiet" appended when nothing it would add can
+ * be seen (it then keeps its state and adds nothing), or with ".sparse:..."
+ * naming what is looked at in an invisible tree: columns, expert info, the
+ * referenced fields (lua_view below). Every item of an invisible tree that
+ * nobody references is thrown away by Wireshark: the decoder need not build
+ * it. VRSHARK_FULL_TREE in the environment turns this off (everything).
  *
  * Exceptions of the wrapped dissectors propagate as they would without the
  * front end.
@@ -98,35 +100,154 @@ static wmem_map_t *mb_state;   /* conversation index -> refusals | MB_ACCEPTED *
 /* UDP ports added for Connect responses; removed when the next file starts. */
 static GArray *pn_learned_ports;
 
-/* ---- Does anybody look at what the Lua decoder adds? ------------------- */
+/* ---- What does anybody see of what the Lua decoder adds? ----------------- */
 
 /* Filter names of the protocols whose fields the Lua decoders add, each list
  * ending with NULL; their ids are looked up on first use (the Lua plugins
  * register after this one). */
-static const char *pn_lua_protos[] = { "mcmb2", "eclink_pnio", "eclink", "_ws.expert", NULL };
-static const char *mb_lua_protos[] = { "eclink_modbus", "eclink", "_ws.expert", NULL };
-static int pn_lua_ids[G_N_ELEMENTS(pn_lua_protos)];
-static int mb_lua_ids[G_N_ELEMENTS(mb_lua_protos)];
-static int expert_tap;         /* 0 until found (find_tap_id's "not registered") */
+static const char *pn_lua_protos[] = { "mcmb2", "eclink_pnio", "eclink", "vrshark_io", NULL };
+static const char *mb_lua_protos[] = { "eclink_modbus", "eclink", "vrshark_io", NULL };
+#define VIEW_MAX_PROTOS 4
 
+/* What the Lua decoder is told, per hook name (see the file comment). */
+typedef struct {
+    const char *hook;               /* "frame_id", "heuristic", "always" */
+    const char **protos;            /* pn_lua_protos or mb_lua_protos */
+    int ids[VIEW_MAX_PROTOS];       /* protocol id + 1; 0: not looked up yet */
+    char *quiet;                    /* hook ".quiet" */
+    GArray *refs;                   /* header_field_info * of the last sparse view */
+    gboolean cols, experts;         /* ... and its flags */
+    char *sparse;                   /* hook ".sparse:FLAGS:LIST" of that view */
+} lua_view_t;
+
+static lua_view_t view_pn = { "frame_id", pn_lua_protos, { 0 }, NULL, NULL, FALSE, FALSE, NULL };
+static lua_view_t view_mb_always = { "always", mb_lua_protos, { 0 }, NULL, NULL, FALSE, FALSE, NULL };
+static lua_view_t view_mb_heuristic = { "heuristic", mb_lua_protos, { 0 }, NULL, NULL, FALSE, FALSE, NULL };
+
+static GArray *view_scratch;   /* lua_view()'s list of this frame */
+static int expert_tap;         /* 0 until found (find_tap_id's "not registered") */
+static int proto_ws_expert;    /* id + 1; 0: not looked up yet */
+static gboolean full_tree_always;   /* VRSHARK_FULL_TREE set: every view is "everything" */
+
+static int
+lookup_proto(int *slot, const char *name)
+{
+    if (*slot == 0)
+        *slot = proto_get_id_by_filter_name(name) + 1;
+    return *slot - 1;
+}
+
+/* Referenced, in the sense proto_tree_add_*() use to decide whether an item
+ * of an invisible tree is real: DIRECT (or PRINT, from 4.2 on), not the
+ * INDIRECT a protocol gets from its children. */
 static gboolean
-lua_output_wanted(packet_info *pinfo, proto_tree *tree, const char **names, int *ids)
+hf_referenced(const header_field_info *hfinfo)
+{
+    return hfinfo->ref_type != HF_REF_TYPE_NONE && hfinfo->ref_type != HF_REF_TYPE_INDIRECT;
+}
+
+/* The referenced fields of the view's protocols (the protocols themselves
+ * included) into refs. */
+static void
+collect_refs(lua_view_t *v, GArray *refs)
 {
     int i;
 
+    for (i = 0; v->protos[i]; i++) {
+        int id = lookup_proto(&v->ids[i], v->protos[i]);
+        header_field_info *hfinfo;
+        void *cookie = NULL;
+
+        if (id < 0)
+            continue;
+        hfinfo = proto_registrar_get_nth(id);
+        if (hfinfo && hf_referenced(hfinfo))
+            g_array_append_val(refs, hfinfo);
+        for (hfinfo = proto_get_first_protocol_field(id, &cookie); hfinfo;
+             hfinfo = proto_get_next_protocol_field(id, &cookie)) {
+            if (hf_referenced(hfinfo))
+                g_array_append_val(refs, hfinfo);
+        }
+    }
+}
+
+/* pinfo->match_string for the Lua decoder behind hook v->hook:
+ *   v->hook                   everything: the tree is visible (a packet's
+ *                             details, -V, -T pdml/json), or VRSHARK_FULL_TREE
+ *   v->hook ".quiet"          nothing can be seen: no column information, no
+ *                             expert info wanted, none of the Lua protocols'
+ *                             fields referenced; the decoder keeps its state
+ *   v->hook ".sparse:FLAGS:LIST"  an invisible tree (the packet list, -T
+ *                             fields, -Y): only what is asked for. FLAGS: "c"
+ *                             column information wanted, "e" expert info
+ *                             wanted (an expert tap, a _ws.expert field
+ *                             referenced); LIST: the filter names of the
+ *                             referenced fields of the Lua protocols (display
+ *                             filter, -e, colouring rule, Lua Field), comma
+ *                             separated, in registration order.
+ * The sparse text is rebuilt only when the flags or the list change. */
+static const char *
+lua_view(lua_view_t *v, packet_info *pinfo, proto_tree *tree)
+{
+    GArray *refs;
+    gboolean cols, experts;
+    guint i;
+
+    if (full_tree_always || (tree && PTREE_DATA(tree)->visible))
+        return v->hook;
     /* Looked up here, not at hand-off: the expert tap is registered after
      * the plugins' hand-off, and find_tap_id() says 0 until then. */
     if (expert_tap <= 0)
         expert_tap = find_tap_id("expert");
-    if (pinfo->cinfo || !tree || have_tap_listener(expert_tap))
-        return pinfo->cinfo || have_tap_listener(expert_tap);
-    for (i = 0; names[i]; i++) {
-        if (ids[i] == 0)
-            ids[i] = proto_get_id_by_filter_name(names[i]) + 1;  /* 0: not looked up yet */
-        if (ids[i] > 0 && proto_field_is_referenced(tree, ids[i] - 1))
-            return TRUE;
+    cols = pinfo->cinfo != NULL;
+    experts = have_tap_listener(expert_tap);
+    if (!view_scratch)
+        view_scratch = g_array_new(FALSE, FALSE, sizeof(header_field_info *));
+    refs = view_scratch;
+    g_array_set_size(refs, 0);
+    if (tree) {
+        int ws_expert = lookup_proto(&proto_ws_expert, "_ws.expert");
+
+        if (ws_expert >= 0 && proto_field_is_referenced(tree, ws_expert))
+            experts = TRUE;
+        collect_refs(v, refs);
     }
-    return FALSE;
+    if (!cols && !experts && refs->len == 0) {
+        if (!v->quiet)
+            v->quiet = g_strconcat(v->hook, ".quiet", NULL);
+        return v->quiet;
+    }
+    if (v->sparse && v->cols == cols && v->experts == experts && v->refs->len == refs->len &&
+        memcmp(v->refs->data, refs->data, refs->len * sizeof(header_field_info *)) == 0)
+        return v->sparse;
+    {
+        GString *text = g_string_new(v->hook);
+
+        g_string_append_printf(text, ".sparse:%s%s:", cols ? "c" : "", experts ? "e" : "");
+        for (i = 0; i < refs->len; i++)
+            g_string_append_printf(text, "%s%s", i ? "," : "",
+                                   g_array_index(refs, header_field_info *, i)->abbrev);
+        g_free(v->sparse);
+        v->sparse = g_string_free(text, FALSE);
+    }
+    if (!v->refs)
+        v->refs = g_array_new(FALSE, FALSE, sizeof(header_field_info *));
+    g_array_set_size(v->refs, 0);
+    g_array_append_vals(v->refs, refs->data, refs->len);
+    v->cols = cols;
+    v->experts = experts;
+    return v->sparse;
+}
+
+static void
+lua_view_free(lua_view_t *v)
+{
+    g_free(v->quiet);
+    g_free(v->sparse);
+    if (v->refs)
+        g_array_free(v->refs, TRUE);
+    v->quiet = v->sparse = NULL;
+    v->refs = NULL;
 }
 
 /* ---- PROFINET cyclic frames (EtherType 0x8892) ------------------------- */
@@ -144,8 +265,7 @@ dissect_pn_cyclic(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *dat
     if (dissector_get_uint_handle(pn_frame_id_table, fid)) {
         const char *saved = pinfo->match_string;
 
-        pinfo->match_string = lua_output_wanted(pinfo, tree, pn_lua_protos, pn_lua_ids) ?
-            "frame_id" : "frame_id.quiet";
+        pinfo->match_string = lua_view(&view_pn, pinfo, tree);
         dissector_try_uint_with_data(pn_frame_id_table, fid, tvb, pinfo, tree, FALSE, NULL);
         pinfo->match_string = saved;
         return consumed;
@@ -291,21 +411,18 @@ leave_layer_list(packet_info *pinfo)
     }
 }
 
-/* The Lua decoder registered as `mode` ("always" or "heuristic"), with
- * pinfo->match_string `mode` or, when nothing it adds would be seen,
- * `mode`.quiet. Its protocol joins the layer list, as when it wraps mbtcp
- * itself. */
+/* The Lua decoder registered as v->hook ("always" or "heuristic"), with
+ * pinfo->match_string what it is to add (lua_view; everything while the
+ * connection is still a candidate: `full`). Its protocol joins the layer
+ * list, as when it wraps mbtcp itself. */
 static int
-call_mb_decoder(const char *mode, gboolean quiet, tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree)
+call_mb_decoder(lua_view_t *v, gboolean full, tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree)
 {
     const char *saved = pinfo->match_string;
     int ret;
 
-    if (quiet)
-        pinfo->match_string = (strcmp(mode, "always") == 0) ? "always.quiet" : "heuristic.quiet";
-    else
-        pinfo->match_string = mode;
-    ret = call_dissector_only(dissector_get_string_handle(mb_hook_table, mode), tvb, pinfo, tree, NULL);
+    pinfo->match_string = full ? v->hook : lua_view(v, pinfo, tree);
+    ret = call_dissector_only(dissector_get_string_handle(mb_hook_table, v->hook), tvb, pinfo, tree, NULL);
     pinfo->match_string = saved;
     return ret;
 }
@@ -346,8 +463,6 @@ dissect_mbtcp_front(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *d
     gpointer key;
     guint32 state;
     int consumed;
-    const char *mode;
-    gboolean quiet;
     guint32 server_port = pinfo->match_uint;
 
     leave_layer_list(pinfo);
@@ -357,18 +472,17 @@ dissect_mbtcp_front(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *d
     consumed = call_mbtcp(tvb, pinfo, tree, data);
     if (consumed <= 0)
         return consumed;
-    quiet = !lua_output_wanted(pinfo, tree, mb_lua_protos, mb_lua_ids);
-    if (dissector_get_string_handle(mb_hook_table, "always")) {
-        call_mb_decoder("always", quiet, tvb, pinfo, tree);
+    if (dissector_get_string_handle(mb_hook_table, view_mb_always.hook)) {
+        call_mb_decoder(&view_mb_always, FALSE, tvb, pinfo, tree);
         return consumed;
     }
-    mode = "heuristic";
-    if (!dissector_get_string_handle(mb_hook_table, mode) || !(conv = find_conversation_pinfo(pinfo, 0)))
+    if (!dissector_get_string_handle(mb_hook_table, view_mb_heuristic.hook) ||
+        !(conv = find_conversation_pinfo(pinfo, 0)))
         return consumed;
     key = GUINT_TO_POINTER(conv->conv_index);
     state = GPOINTER_TO_UINT(wmem_map_lookup(mb_state, key));
     if (state & MB_ACCEPTED) {
-        call_mb_decoder(mode, quiet, tvb, pinfo, tree);
+        call_mb_decoder(&view_mb_heuristic, FALSE, tvb, pinfo, tree);
         return consumed;
     }
     /* a candidate: later passes keep the first pass's refusals */
@@ -379,7 +493,7 @@ dissect_mbtcp_front(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *d
             return consumed;
         state |= MB_LIVE;
     }
-    if (call_mb_decoder(mode, FALSE, tvb, pinfo, tree))
+    if (call_mb_decoder(&view_mb_heuristic, TRUE, tvb, pinfo, tree))
         state = MB_ACCEPTED;
     else
         state++;
@@ -405,6 +519,12 @@ static void
 frontends_shutdown(void)
 {
     g_array_free(pn_learned_ports, TRUE);
+    lua_view_free(&view_pn);
+    lua_view_free(&view_mb_always);
+    lua_view_free(&view_mb_heuristic);
+    if (view_scratch)
+        g_array_free(view_scratch, TRUE);
+    view_scratch = NULL;
 }
 
 void
@@ -427,6 +547,7 @@ proto_register_vrshark_frontends(void)
         "vrshark: Modbus/TCP connections for Lua", proto_vrshark_mbtcp, FT_STRING, FALSE /* case-sensitive */);
 
     pn_learned_ports = g_array_new(FALSE, FALSE, sizeof(guint32));
+    full_tree_always = g_getenv("VRSHARK_FULL_TREE") != NULL;
     register_init_routine(frontends_init);
     register_shutdown_routine(frontends_shutdown);
 }

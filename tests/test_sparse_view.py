@@ -1,0 +1,214 @@
+"""The sparse view: in an invisible tree (the packet list, -Y, -z taps) the C
+front end tells the Lua decoders what is looked at (columns, expert info, the
+referenced fields; plugins/eglink/vrshark-frontends.c lua_view), and the
+MC-MB2-PN decoder adds only that (lua/mcmb2.lua sparse()).
+
+What a user sees must not change: every MC-MB2-PN field as a custom column
+(all occurrences), Protocol and Info, and the expert statistics are compared
+with the full tree (VRSHARK_FULL_TREE=1) on every capture that carries
+MC-MB2-PN frames, ours and the public ones. Probes check what the front end
+sends and that the sparse display really serves the frames.
+"""
+import os
+import subprocess
+
+import pytest
+
+from conftest import CAPTURES, PUBLIC_CAPTURES
+
+needs_c = pytest.mark.skipif(bool(os.environ.get("VRSHARK_NO_C_PLUGIN")), reason="runs without the C plugin")
+
+MCMB2_CAPTURES = sorted(p.name for p in CAPTURES.glob("*.pcap") if "mcmb2" in p.name)
+PUBLIC = ["pnio_connect_and_cyclic.pcap", "pnio_connect_many.pcapng"]
+# Prefs that make the no-Connect captures decode (layouts from the table).
+PREFS = {
+    "mcmb2_duplex_noconnect.pcap": {"mcmb2.layouts": "0xC010/0xC011=duplex:8/4"},
+}
+
+# Writes "served FRAME" for every frame the MC-MB2-PN sparse display served,
+# and "hook MATCH_STRING" for every frame the front end hands the carrier.
+PROBE = r"""
+local out = assert(io.open(os.getenv("VRSHARK_PROBE_OUT"), "w"))
+local systems = package.loaded["vrshark.pnio_systems"]
+for _, name in ipairs({ "duplex", "polled" }) do
+    local dec = systems.decoder(name)
+    local sparse = dec.sparse
+    if sparse and not dec.probed then
+        dec.probed = true
+        dec.sparse = function(rec, tvb, pinfo, tree, view)
+            local ok = sparse(rec, tvb, pinfo, tree, view)
+            if ok then out:write("served ", pinfo.number, "\n") out:flush() end
+            return ok
+        end
+    end
+end
+local carrier = Dissector.get("mcmb2")
+local spy = Proto("vrshark_view_probe", "sparse view probe")
+-- The carrier registers FrameID 0x8001 when it learns it from the Connect:
+-- the spy takes it back after every frame (as a postdissector).
+function spy.dissector(tvb, pinfo, tree)
+    if pinfo.match_string == nil then
+        DissectorTable.get("vrshark.pn.frame_id"):add(0x8001, spy)
+        return 0
+    end
+    out:write("hook ", tostring(pinfo.match_string), "\n") out:flush()
+    return carrier:call(tvb, pinfo, tree)
+end
+register_postdissector(spy)
+"""
+
+
+def _fields(tshark):
+    """The MC-MB2-PN fields (not the experts), from tshark -G fields."""
+    out = tshark.run(["-G", "fields"], allow_errors=True).stdout   # lists the field "Lua Error"
+    names = []
+    for line in out.splitlines():
+        cols = line.split("\t")
+        if len(cols) > 4 and cols[0] == "F" and cols[4] == "mcmb2" and cols[3] != "FT_NONE":
+            names.append(cols[2])
+    assert "mcmb2.status" in names and "mcmb2.slot.uplink_data" in names
+    return sorted(names)
+
+
+def _columns(names):
+    cols = ['"No."', '"%m"', '"Protocol"', '"%p"', '"Info"', '"%i"']
+    for n in names:
+        cols += ['"%s"' % n, '"%%Cus:%s:0:R"' % n]
+    return ",".join(cols)
+
+
+def _run(tshark, args, full=False, extra_env=None):
+    env = dict(tshark.env)
+    env.pop("VRSHARK_FULL_TREE", None)
+    if full:
+        env["VRSHARK_FULL_TREE"] = "1"
+    env.update(extra_env or {})
+    proc = subprocess.run([tshark.cmd] + args, env=env, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "Lua Error" not in proc.stdout + proc.stderr
+    return proc.stdout
+
+
+def _capture(name):
+    if name in PUBLIC:
+        path = PUBLIC_CAPTURES / name
+        if not path.exists():
+            pytest.skip("../shared is absent")
+        return path
+    return CAPTURES / name
+
+
+def _prefs(name):
+    args = []
+    for k, v in PREFS.get(name, {}).items():
+        args += ["-o", "%s:%s" % (k, v)]
+    return args
+
+
+@needs_c
+@pytest.mark.parametrize("name", MCMB2_CAPTURES + PUBLIC)
+@pytest.mark.parametrize("two_pass", [False, True])
+def test_columns_are_those_of_the_full_tree(tshark, name, two_pass):
+    """Every MC-MB2-PN field as a column (all occurrences), Protocol and Info:
+    the sparse display gives what the full tree gives, frame by frame."""
+    args = ["-n", "-r", str(_capture(name)), "-o", "gui.column.format:" + _columns(_fields(tshark))]
+    args += _prefs(name) + (["-2"] if two_pass else [])
+    sparse = _run(tshark, args)
+    full = _run(tshark, args, full=True)
+    assert sparse.splitlines() == full.splitlines()
+    if "mcmb2" in name:
+        assert "MC-MB2" in sparse
+
+
+@needs_c
+@pytest.mark.parametrize("name", MCMB2_CAPTURES + PUBLIC)
+def test_expert_statistics_are_those_of_the_full_tree(tshark, name):
+    args = ["-n", "-q", "-r", str(_capture(name)), "-z", "expert"] + _prefs(name)
+    assert _run(tshark, args) == _run(tshark, args, full=True)
+
+
+@needs_c
+@pytest.mark.parametrize("flt", ["mcmb2.status == 1", "mcmb2.slot.status == 1", "mcmb2.watchdog_age > 0.5",
+                                 "mcmb2.status.e010", "mcmb2.iops", "mcmb2.slot.uplink_data[0] == 0"])
+def test_filters_select_the_frames_of_the_full_tree(tshark, flt):
+    matched = 0
+    for name in MCMB2_CAPTURES:
+        args = ["-n", "-r", str(CAPTURES / name), "-Y", flt] + _prefs(name)
+        sparse = _run(tshark, args)
+        assert sparse == _run(tshark, args, full=True), (name, flt)
+        matched += len(sparse.splitlines())
+    assert matched > 0, flt
+
+
+def _probe(tshark, work_dir, capture, args, full=False, extra_env=None):
+    script = work_dir / "view_probe.lua"
+    script.write_text(PROBE)
+    script.chmod(0o644)
+    out = work_dir / "view_probe.txt"
+    out.write_text("")
+    out.chmod(0o666)
+    env = {"VRSHARK_PROBE_OUT": str(out)}
+    env.update(extra_env or {})
+    _run(tshark, ["-n", "-r", str(capture), "-X", "lua_script:%s" % script] + args, full=full, extra_env=env)
+    hooks, served = [], []
+    for line in out.read_text().splitlines():
+        kind, value = line.split(" ", 1)
+        (hooks if kind == "hook" else served).append(value)
+    return hooks, served
+
+
+DUPLEX = CAPTURES / "mcmb2_duplex_connect.pcap"
+
+
+@needs_c
+def test_what_the_front_end_sends(tshark, work_dir):
+    """The view strings of FrameID 0x8001 (the duplex uplink) in each way of
+    running tshark."""
+    def view(args, **kw):
+        hooks, _ = _probe(tshark, work_dir, DUPLEX, args, **kw)
+        assert hooks, "the probe saw no frame"
+        assert len(set(hooks)) == 1, hooks
+        return hooks[0]
+
+    assert view(["-V"]) == "frame_id"
+    assert view(["-T", "fields", "-e", "mcmb2.status"]) == "frame_id"       # -T fields: a visible tree
+    assert view(["-Y", "mcmb2.status == 1"]) == "frame_id.sparse:c:mcmb2.status"
+    assert view(["-q", "-z", "expert"]) == "frame_id.sparse:e:"
+    assert view(["-q"]) == "frame_id.quiet"
+    assert view(["-Y", "mcmb2.status == 1"], full=True) == "frame_id"
+    both = view(["-Y", "mcmb2.status == 1 || mcmb2.uplink_watchdog > 3"])
+    assert both.startswith("frame_id.sparse:c:")
+    assert sorted(both.split(":")[2].split(",")) == ["mcmb2.status", "mcmb2.uplink_watchdog"]
+
+
+@needs_c
+def test_the_sparse_display_serves_the_frames(tshark, work_dir):
+    cyclic = tshark.field(DUPLEX, "frame.number", display_filter="mcmb2 && pn_rt")
+    assert len(cyclic) > 10
+    _, served = _probe(tshark, work_dir, DUPLEX, ["-Y", "mcmb2.status == 1"])
+    assert served == cyclic
+    _, served = _probe(tshark, work_dir, DUPLEX, ["-Y", "mcmb2.status == 1"], full=True)
+    assert served == []
+
+
+@needs_c
+@pytest.mark.parametrize("flt", ["mcmb2", "vrshark_io", "mcmb2.status && mcmb2"])
+def test_the_full_tree_when_the_protocol_itself_is_asked_for(tshark, work_dir, flt):
+    """A filter on the protocol (or on machine data) needs items the sparse
+    display does not make: the decoder shows the full tree."""
+    _, served = _probe(tshark, work_dir, DUPLEX, ["-Y", flt])
+    assert served == []
+
+
+@needs_c
+def test_the_full_tree_when_machine_data_is_described(tshark, work_dir):
+    """Machine data adds Info tags and findings of its own: with a description
+    for MC-MB2-PN and the columns wanted, the full tree is shown."""
+    desc = work_dir / "io"
+    desc.mkdir(exist_ok=True)
+    desc.chmod(0o755)
+    (desc / "m.csv").write_text("area,byte,bit,type,name,label\nmcmb2.up,0,,u8,first_byte,First byte\n")
+    (desc / "m.csv").chmod(0o644)
+    _, served = _probe(tshark, work_dir, DUPLEX, ["-Y", "mcmb2.status == 1"],
+                       extra_env={"VRSHARK_IO_DIR": str(desc)})
+    assert served == []
