@@ -649,17 +649,118 @@ local function show_assembled(tree, pinfo, snap, kind)
     image.dissect(tvb, pinfo, ti, { kind = kind, image_len = len, generated = true, quiet = true })
 end
 
-local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb)
-    local item = tree:add(proto, tvb(off, adu_len))
+------------------------------------------------------------------------
+-- Sparse display: an invisible tree (the packet list, -Y, -z taps)
+------------------------------------------------------------------------
+-- Wireshark throws away every item of an invisible tree that nobody
+-- references: show_adu() given a sparse plan adds only the referenced EC-Link
+-- image fields (vrshark/eclink_image.luam, opts.only) and these facts of the
+-- ADU, flat under the caller's tree, in the occurrences of the full tree
+-- (tests/test_sparse_view.py), and works out the Info text. Anything else
+-- referenced (an expert, machine data, the protocol itself, ...) means the
+-- full tree. c: { rec, tree }
+local function rec_value(field, key, as_time)
+    return function(c)
+        local v = c.rec[key]
+        if v then c.tree:add(field, as_time and nstime(v) or v) end
+    end
+end
+
+local function link_value(field, name, as_time)
+    return function(c)
+        local v = (c.rec.links or NONE)[name]
+        if v then c.tree:add(field, as_time and nstime(v) or v) end
+    end
+end
+
+local SPARSE_ADDERS = {
+    ["eclink_modbus.accepted_in"] = rec_value(pf.accepted_in, R_ACCEPTED),
+    ["eclink_modbus.request_in"] = rec_value(pf.request_in, R_REQUEST),
+    ["eclink_modbus.time"] = function(c)
+        if c.rec[R_REQUEST] then c.tree:add(pf.time, nstime(c.rec[R_TIME])) end
+    end,
+    ["eclink_modbus.response_in"] = rec_value(pf.response_in, R_RESPONSE),
+    ["eclink_modbus.pci_age"] = rec_value(pf.pci_age, R_PCI_AGE, true),
+    ["eclink_modbus.pco_age"] = rec_value(pf.pco_age, R_PCO_AGE, true),
+    ["eclink_modbus.poll_gap_time"] = rec_value(pf.poll_gap_time, "poll_gap", true),
+    ["eclink_modbus.poll_gap_from"] = function(c)
+        if c.rec.poll_gap then c.tree:add(pf.poll_gap_from, c.rec.poll_gap_from) end
+    end,
+    ["eclink_modbus.bu_state_prev"] = rec_value(pf.bu_state_prev, "bu_state_prev"),
+}
+for _, name in ipairs({ "pci_since", "pco_since", "cmd_from_ru_in", "cao_in", "cmd_to_ru_in", "cai_in" }) do
+    SPARSE_ADDERS["eclink_modbus." .. name] = link_value(pf[name], name)
+end
+for _, name in ipairs({ "cmd_from_ru_latency", "cmd_to_ru_latency" }) do
+    SPARSE_ADDERS["eclink_modbus." .. name] = link_value(pf[name], name, true)
+end
+-- the image adds its own fields (opts.only)
+local function image_field() end
+for _, name in ipairs({ "image", "covered", "cut", "not_covered", "es_relays_open" }) do
+    SPARSE_ADDERS["eclink." .. name] = image_field
+end
+for _, kind in ipairs({ "input", "output" }) do
+    for _, e in ipairs(image.layout[kind]) do SPARSE_ADDERS[e.abbr] = image_field end
+end
+-- no expert names: any referenced expert means the full tree
+local SPARSE = { adders = SPARSE_ADDERS, experts = {}, prefixes = { "eclink_modbus", "eclink", "vrshark_io",
+                                                                   "vrshark.io" } }
+
+-- The sparse plan for this view, or nil: the full tree.
+local function sparse_plan(view)
+    if not view or view.quiet or view.experts or opt.assembled then return nil end
+    local p = fe.plan(view, SPARSE)
+    -- machine data can add findings and Info tags of its own
+    if not p or (p.cols and next(iodata.areas)) then return nil end
+    p.only = view.fields
+    return p
+end
+
+-- Where the image bytes of a piece (map_access()) are: the frame, or the
+-- bytes of a bit access as a data source of their own.
+local function piece_source(tvb, p)
+    if p.tvb_off then return tvb, p.tvb_off end
+    return ByteArray.new(p.data, true):tvb("EC-Link image bytes from bits"), 0
+end
+
+-- sp: a sparse plan (sparse_plan()) or nil: the full tree.
+local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp)
     local fc = bit.band(fcb, 0x7F)
-    local tname = FC_TABLE[fc]
-    local desc = TABLE_NAMES[tname]
     local r
     if is_request then
         r = parse_request_pdu(tvb, off + 7, adu_len - 7, fc)
     elseif rec[R_REQUEST] then
         r = { start = rec[R_START], count = rec[R_COUNT] }
     end
+    if sp then
+        local c = { rec = rec, tree = tree }
+        for _, add in ipairs(sp.adders) do add(c) end
+        local infos = {}
+        for _, a in ipairs(adu_accesses(tvb, off, adu_len, fcb, is_request, r)) do
+            for _, p in ipairs(map_access(a.tname, a.start, a.count, tvb, off + a.data, a.coil)) do
+                if p.length > 0 then
+                    local src, soff = piece_source(tvb, p)
+                    local info = image.dissect(src, pinfo, tree, { kind = p.kind, offset = soff, first = p.first,
+                        length = p.length, swap = p.swap, only = sp.only,
+                        image_len = (p.kind == "input") and 64 or 224 })
+                    infos[#infos + 1] = p.kind .. " " .. info.summary
+                    if info.tags ~= "" then infos.tags = (infos.tags or "") .. info.tags end
+                end
+            end
+        end
+        local stalled = handshake.tags(rec[R_PCI_AGE], rec[R_PCO_AGE])
+        if stalled ~= "" then infos.tags = (infos.tags or "") .. stalled end
+        for _, fd in ipairs(rec.findings or NONE) do
+            if fd[1] == ef.cmd_from_ru_late or fd[1] == ef.cmd_to_ru_late then
+                infos.tags = (infos.tags or "") .. " [unacked]"
+                break
+            end
+        end
+        return infos, rec.poll_gap
+    end
+    local item = tree:add(proto, tvb(off, adu_len))
+    local tname = FC_TABLE[fc]
+    local desc = TABLE_NAMES[tname]
     if fc == 23 and is_request and r and r.wstart then
         -- the request decodes the image it writes: name that range
         desc = string.format("%s %d-%d (written)", desc, r.wstart, r.wstart + math.max(r.wcount, 1) - 1)
@@ -684,11 +785,7 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb)
     for _, a in ipairs(adu_accesses(tvb, off, adu_len, fcb, is_request, r)) do
         for _, p in ipairs(map_access(a.tname, a.start, a.count, tvb, off + a.data, a.coil)) do
             if p.length > 0 then
-                local src, soff = tvb, off + (p.tvb_off and (p.tvb_off - off) or 0)
-                if not p.tvb_off then
-                    src = ByteArray.new(p.data, true):tvb("EC-Link image bytes from bits")
-                    soff = 0
-                end
+                local src, soff = piece_source(tvb, p)
                 local label = string.format("(%s %d-%d%s)", TABLE_NAMES[a.tname]:lower(), p.addr_lo, p.addr_hi,
                     a.write and ", written" or "")
                 local info = image.dissect(src, pinfo, item, { kind = p.kind, offset = soff, first = p.first,
@@ -760,8 +857,8 @@ end
 -- Called by the C front end (its hook names are in match_string), mbtcp
 -- has run already and the result tells it whether the connection is
 -- accepted (0: not yet); ".quiet": nobody looks at this frame's tree or
--- columns, only the state is kept (vrshark/frontends.luam view(); a sparse
--- view gets the whole EC-Link view). Called by TCP (no C plugin, or Decode
+-- columns, only the state is kept; ".sparse:..." an invisible tree
+-- (vrshark/frontends.luam view(); sparse_plan()). Called by TCP (no C plugin, or Decode
 -- As), this plugin calls mbtcp itself.
 local HOOKS = { heuristic = true, always = true }
 
@@ -791,6 +888,7 @@ function proto.dissector(tvb, pinfo, tree)
     local decoded = false
     local gaps = {}
     local found = {}
+    local sp = sparse_plan(view)
     local n = tvb:len()
     local off = 0
     local infos = {}
@@ -827,7 +925,7 @@ function proto.dissector(tvb, pinfo, tree)
             decoded = true
         elseif shown then
             decoded = true
-            local adu_infos, gap = show_adu(tvb, pinfo, tree, f[1], f[2], rec, is_request, f[4])
+            local adu_infos, gap = show_adu(tvb, pinfo, tree, f[1], f[2], rec, is_request, f[4], sp)
             for _, s in ipairs(adu_infos) do infos[#infos + 1] = s end
             if adu_infos.tags then infos.tags = (infos.tags or "") .. adu_infos.tags end
             if gap then gaps[#gaps + 1] = string.format(" [poll gap %.3f s]", gap) end

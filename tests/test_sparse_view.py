@@ -1,13 +1,14 @@
 """The sparse view: in an invisible tree (the packet list, -Y, -z taps) the C
 front end tells the Lua decoders what is looked at (columns, expert info, the
 referenced fields; plugins/eglink/vrshark-frontends.c lua_view), and the
-MC-MB2-PN decoder adds only that (lua/mcmb2.lua sparse()).
+MC-MB2-PN and EC-Link over Modbus/TCP decoders add only that (lua/mcmb2.lua
+sparse(), lua/eclink_modbus.lua sparse_plan()).
 
-What a user sees must not change: every MC-MB2-PN field as a custom column
-(all occurrences), Protocol and Info, and the expert statistics are compared
-with the full tree (VRSHARK_FULL_TREE=1) on every capture that carries
-MC-MB2-PN frames, ours and the public ones. Probes check what the front end
-sends and that the sparse display really serves the frames.
+What a user sees must not change: every field as a custom column (all
+occurrences), Protocol and Info, and the expert statistics are compared with
+the full tree (VRSHARK_FULL_TREE=1) on every capture that carries these
+frames, ours and the public ones. Probes check what the front end sends and
+that the sparse display really serves the frames.
 """
 import os
 import subprocess
@@ -19,11 +20,22 @@ from conftest import CAPTURES, PUBLIC_CAPTURES
 needs_c = pytest.mark.skipif(bool(os.environ.get("VRSHARK_NO_C_PLUGIN")), reason="runs without the C plugin")
 
 MCMB2_CAPTURES = sorted(p.name for p in CAPTURES.glob("*.pcap") if "mcmb2" in p.name)
+MODBUS_CAPTURES = sorted(p.name for p in CAPTURES.glob("*.pcap") if "modbus" in p.name)
 PUBLIC = ["pnio_connect_and_cyclic.pcap", "pnio_connect_many.pcapng"]
 # Prefs that make the no-Connect captures decode (layouts from the table).
 PREFS = {
     "mcmb2_duplex_noconnect.pcap": {"mcmb2.layouts": "0xC010/0xC011=duplex:8/4"},
+    "eclink_modbus_port5020.pcap": {"eclink_modbus.port": "5020"},
+    "eclink_modbus_noswap.pcap": {"eclink_modbus.swap": "FALSE"},
 }
+# The EC-Link over Modbus/TCP fields the sparse display adds itself (the
+# others, and every expert, mean the full tree).
+MODBUS_SPARSE = ["eclink_modbus.accepted_in", "eclink_modbus.request_in", "eclink_modbus.time",
+                 "eclink_modbus.response_in", "eclink_modbus.pci_age", "eclink_modbus.pco_age",
+                 "eclink_modbus.poll_gap_time", "eclink_modbus.poll_gap_from", "eclink_modbus.bu_state_prev",
+                 "eclink_modbus.pci_since", "eclink_modbus.pco_since", "eclink_modbus.cmd_from_ru_in",
+                 "eclink_modbus.cao_in", "eclink_modbus.cmd_to_ru_in", "eclink_modbus.cai_in",
+                 "eclink_modbus.cmd_from_ru_latency", "eclink_modbus.cmd_to_ru_latency"]
 
 # Writes "served FRAME" for every frame the MC-MB2-PN sparse display served,
 # and "hook MATCH_STRING" for every frame the front end hands the carrier.
@@ -58,15 +70,15 @@ register_postdissector(spy)
 """
 
 
-def _fields(tshark):
-    """The MC-MB2-PN fields (not the experts), from tshark -G fields."""
+def _fields(tshark, proto="mcmb2"):
+    """The fields (not the experts) of a protocol, from tshark -G fields."""
     out = tshark.run(["-G", "fields"], allow_errors=True).stdout   # lists the field "Lua Error"
     names = []
     for line in out.splitlines():
         cols = line.split("\t")
-        if len(cols) > 4 and cols[0] == "F" and cols[4] == "mcmb2" and cols[3] != "FT_NONE":
+        if len(cols) > 4 and cols[0] == "F" and cols[4] == proto and cols[3] != "FT_NONE":
             names.append(cols[2])
-    assert "mcmb2.status" in names and "mcmb2.slot.uplink_data" in names
+    assert names, proto
     return sorted(names)
 
 
@@ -140,18 +152,24 @@ def test_filters_select_the_frames_of_the_full_tree(tshark, flt):
     assert matched > 0, flt
 
 
-def _probe(tshark, work_dir, capture, args, full=False, extra_env=None):
-    script = work_dir / "view_probe.lua"
-    script.write_text(PROBE)
+def _script_lines(tshark, work_dir, script_text, capture, args, full=False, extra_env=None):
+    """Runs tshark with a probe script (-X lua_script); the lines it wrote."""
+    script = work_dir / "probe.lua"
+    script.write_text(script_text)
     script.chmod(0o644)
-    out = work_dir / "view_probe.txt"
+    out = work_dir / "probe.txt"
     out.write_text("")
     out.chmod(0o666)
     env = {"VRSHARK_PROBE_OUT": str(out)}
     env.update(extra_env or {})
     _run(tshark, ["-n", "-r", str(capture), "-X", "lua_script:%s" % script] + args, full=full, extra_env=env)
+    return out.read_text().splitlines()
+
+
+def _probe(tshark, work_dir, capture, args, full=False, extra_env=None):
+    lines = _script_lines(tshark, work_dir, PROBE, capture, args, full=full, extra_env=extra_env)
     hooks, served = [], []
-    for line in out.read_text().splitlines():
+    for line in lines:
         kind, value = line.split(" ", 1)
         (hooks if kind == "hook" else served).append(value)
     return hooks, served
@@ -212,3 +230,66 @@ def test_the_full_tree_when_machine_data_is_described(tshark, work_dir):
     _, served = _probe(tshark, work_dir, DUPLEX, ["-Y", "mcmb2.status == 1"],
                        extra_env={"VRSHARK_IO_DIR": str(desc)})
     assert served == []
+
+
+# Writes "only FRAME" for every image the EC-Link decoder shows sparsely.
+IMAGE_PROBE = r"""
+local out = assert(io.open(os.getenv("VRSHARK_PROBE_OUT"), "w"))
+local image = package.loaded["vrshark.eclink_image"]
+local dissect = image.dissect
+image.dissect = function(tvb, pinfo, tree, opts)
+    if opts.only then out:write("only ", pinfo.number, "\n") out:flush() end
+    return dissect(tvb, pinfo, tree, opts)
+end
+"""
+
+
+def _image_probe(tshark, work_dir, capture, args, full=False):
+    """The frames whose EC-Link images were shown sparsely."""
+    lines = _script_lines(tshark, work_dir, IMAGE_PROBE, capture, args, full=full)
+    return sorted({int(line.split()[1]) for line in lines})
+
+
+@needs_c
+@pytest.mark.parametrize("name", MODBUS_CAPTURES)
+@pytest.mark.parametrize("fieldset", ["sparse", "all"])
+@pytest.mark.parametrize("two_pass", [False, True])
+def test_modbus_columns_are_those_of_the_full_tree(tshark, name, fieldset, two_pass):
+    """The EC-Link image fields and the ADU facts the sparse display adds
+    (fieldset "sparse"), or every EC-Link field (most of them mean the full
+    tree): the same columns as the full tree, frame by frame."""
+    names = _fields(tshark, "eclink") + MODBUS_SPARSE
+    if fieldset == "all":
+        names += _fields(tshark, "eclink_modbus")
+    args = ["-n", "-r", str(CAPTURES / name), "-o", "gui.column.format:" + _columns(sorted(set(names)))]
+    args += _prefs(name) + (["-2"] if two_pass else [])
+    sparse = _run(tshark, args)
+    assert sparse.splitlines() == _run(tshark, args, full=True).splitlines()
+    if name != "modbus_plain_devices.pcap" and two_pass:
+        assert "EC-Link" in sparse
+
+
+@needs_c
+@pytest.mark.parametrize("name", MODBUS_CAPTURES)
+def test_modbus_expert_statistics_are_those_of_the_full_tree(tshark, name):
+    args = ["-n", "-q", "-r", str(CAPTURES / name), "-z", "expert"] + _prefs(name)
+    assert _run(tshark, args) == _run(tshark, args, full=True)
+
+
+MODBUS_BASIC = CAPTURES / "eclink_modbus_basic.pcap"
+
+
+@needs_c
+def test_the_sparse_display_serves_the_modbus_frames(tshark, work_dir):
+    decoded = [int(n) for n in tshark.field(MODBUS_BASIC, "frame.number", display_filter="eclink.image", two_pass=True)]
+    assert len(decoded) > 10
+    shown = _image_probe(tshark, work_dir, MODBUS_BASIC, ["-2", "-Y", "eclink.bu_state == 0x11"])
+    assert shown == decoded
+    assert _image_probe(tshark, work_dir, MODBUS_BASIC, ["-2", "-Y", "eclink.bu_state == 0x11"], full=True) == []
+
+
+@needs_c
+@pytest.mark.parametrize("flt", ["eclink_modbus", "eclink_modbus.table", "eclink.relays_open",
+                                 "eclink_modbus.bits"])
+def test_modbus_full_tree_for_what_the_sparse_display_does_not_add(tshark, work_dir, flt):
+    assert _image_probe(tshark, work_dir, MODBUS_BASIC, ["-2", "-Y", flt]) == []
