@@ -217,8 +217,9 @@ lua_view(lua_view_t *v, packet_info *pinfo, proto_tree *tree)
             v->quiet = g_strconcat(v->hook, ".quiet", NULL);
         return v->quiet;
     }
+    /* (an empty GArray may have no data: memcmp() must not see it) */
     if (v->sparse && v->cols == cols && v->experts == experts && v->refs->len == refs->len &&
-        memcmp(v->refs->data, refs->data, refs->len * sizeof(header_field_info *)) == 0)
+        (refs->len == 0 || memcmp(v->refs->data, refs->data, refs->len * sizeof(header_field_info *)) == 0))
         return v->sparse;
     {
         GString *text = g_string_new(v->hook);
@@ -233,7 +234,8 @@ lua_view(lua_view_t *v, packet_info *pinfo, proto_tree *tree)
     if (!v->refs)
         v->refs = g_array_new(FALSE, FALSE, sizeof(header_field_info *));
     g_array_set_size(v->refs, 0);
-    g_array_append_vals(v->refs, refs->data, refs->len);
+    if (refs->len)
+        g_array_append_vals(v->refs, refs->data, refs->len);
     v->cols = cols;
     v->experts = experts;
     return v->sparse;
