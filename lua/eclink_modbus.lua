@@ -723,6 +723,19 @@ local function piece_source(tvb, p)
     return ByteArray.new(p.data, true):tvb("EC-Link image bytes from bits"), 0
 end
 
+-- The Info tags of an ADU after those of its images: every frame past a
+-- counter's limit says so, not only the one with the finding; [unacked].
+local function add_adu_tags(infos, rec)
+    local stalled = handshake.tags(rec[R_PCI_AGE], rec[R_PCO_AGE])
+    if stalled ~= "" then infos.tags = (infos.tags or "") .. stalled end
+    for _, fd in ipairs(rec.findings or NONE) do
+        if fd[1] == ef.cmd_from_ru_late or fd[1] == ef.cmd_to_ru_late then
+            infos.tags = (infos.tags or "") .. " [unacked]"
+            return
+        end
+    end
+end
+
 -- sp: a sparse plan (sparse_plan()) or nil: the full tree.
 local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp)
     local fc = bit.band(fcb, 0x7F)
@@ -748,14 +761,7 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
                 end
             end
         end
-        local stalled = handshake.tags(rec[R_PCI_AGE], rec[R_PCO_AGE])
-        if stalled ~= "" then infos.tags = (infos.tags or "") .. stalled end
-        for _, fd in ipairs(rec.findings or NONE) do
-            if fd[1] == ef.cmd_from_ru_late or fd[1] == ef.cmd_to_ru_late then
-                infos.tags = (infos.tags or "") .. " [unacked]"
-                break
-            end
-        end
+        add_adu_tags(infos, rec)
         return infos, rec.poll_gap
     end
     local item = tree:add(proto, tvb(off, adu_len))
@@ -811,10 +817,6 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
         item:add(pf.pco_age, nstime(rec[R_PCO_AGE]))
             :set_generated()
     end
-    -- every frame past a counter's limit says so in Info, not only the one with the finding
-    local unacked
-    local stalled = handshake.tags(rec[R_PCI_AGE], rec[R_PCO_AGE])
-    if stalled ~= "" then infos.tags = (infos.tags or "") .. stalled end
     if rec.bu_state_prev then item:add(pf.bu_state_prev, rec.bu_state_prev):set_generated() end
     local l = rec.links or NONE
     for _, name in ipairs({ "pci_since", "pco_since", "cmd_from_ru_in", "cao_in", "cmd_to_ru_in", "cai_in",
@@ -829,9 +831,8 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
     end
     for _, fd in ipairs(rec.findings or NONE) do
         item:add_proto_expert_info(fd[1], fd[2])
-        if fd[1] == ef.cmd_from_ru_late or fd[1] == ef.cmd_to_ru_late then unacked = " [unacked]" end
     end
-    if unacked then infos.tags = (infos.tags or "") .. unacked end
+    add_adu_tags(infos, rec)
     if rec.periodic then
         local ba = ByteArray.new(rec.periodic.data, true)
         local rtvb = ba:tvb("Reassembled periodic data")

@@ -428,6 +428,14 @@ local function data_range(tvb, base, objs, name)
     return ByteArray.new(table.concat(parts), true):tvb(name):range()
 end
 
+-- The used slots of a polled uplink and their module groups: k -> group.
+local function slot_group(rec, k)
+    for i, u in ipairs(rec.slots or {}) do
+        if u == k then return rec.groups[i] end
+    end
+    return nil
+end
+
 local function add_watchdog(root, rec, field, range)
     local wd = root:add(field, range)
     if rec.wd_age then wd:add(pf.watchdog_age, nstime(rec.wd_age)):set_generated() end
@@ -487,10 +495,9 @@ local function show_polled_up(rec, tvb, root, h, pinfo) -- vrshark_io hook: pinf
         st:add(pf.slot, k):set_generated()
         st:add(pf.slot_status, sr)
         st:add(pf.slot_terminal, sr)
-        local gi
-        for i, u in ipairs(rec.slots or {}) do if u == k then gi = i end end
-        if gi and rec.groups[gi] then
-            local r = data_range(tvb, rec.base, rec.groups[gi], "MC-MB2 slot " .. k .. " uplink data")
+        local g = slot_group(rec, k)
+        if g then
+            local r = data_range(tvb, rec.base, g, "MC-MB2 slot " .. k .. " uplink data")
             if r then st:add(pf.slot_uplink_data, r) end
             if r then iodata.decode("mcmb2.up", -- vrshark_io hook
                 { terminal = bit.rshift(s, 4), slot = k, frame_id = tvb(0, 2):uint() }, -- vrshark_io hook
@@ -582,14 +589,6 @@ end
 -- columns when they are wanted. A field without an adder here means show().
 -- c: { rec, tvb, tree, plan, up, h = tvb offset of the header }
 local function add_at(c, field, off, len) c.tree:add(field, c.tvb:range(off, len)) end
-
--- The used slots of a polled uplink and their module groups: k -> group.
-local function slot_group(rec, k)
-    for i, u in ipairs(rec.slots or {}) do
-        if u == k then return rec.groups[i] end
-    end
-    return nil
-end
 
 local function polled_up(c) return c.up and c.plan.system ~= "duplex" end
 local function polled_down(c) return not c.up and c.plan.system ~= "duplex" end
