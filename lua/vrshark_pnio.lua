@@ -69,7 +69,8 @@ local by_fid      -- FrameID -> { plan, ... } (plan.sender: Ethernet source Addr
 local pending_down -- { { ctl = Address, dev = Address, plan = downlink plan waiting for its FrameID }, ... }
 local cm_ports    -- UDP port -> true: controller ports added to udp.port for Connect responses
 local tries       -- FrameID -> failed header checks
-local frames      -- frame number -> record
+local frames      -- frame number -> record (shared by frames that analyse alike: shared_record)
+local last_rec    -- plan -> its latest distinct records (shared_record)
 local ars         -- AR UUID -> parsed Connect
 local heuristic, learn -- the preferences mcmb2.heuristic and mcmb2.connect, read in init()
 
@@ -136,6 +137,7 @@ end
 local function init()
     for port in pairs(cm_ports or {}) do udp_table:remove(port, carrier) end
     by_fid, pending_down, tries, frames, ars, cm_ports = {}, {}, {}, {}, {}, {}
+    last_rec = setmetatable({}, { __mode = "k" })
     local prefs = systems.prefs()
     heuristic, learn = prefs.heuristic, prefs.connect
     if C then fe.pn_frame_id:remove_all(carrier) end
@@ -319,6 +321,41 @@ end
 -- per frame instead of a C call per byte read.
 local RawBytes = { __index = { get_index = function(self, i) return string.byte(self.s, i + 1) end } }
 
+-- A record alike field by field to one of the plan's latest distinct
+-- records is replaced by it (records are not changed after the first pass,
+-- and a finding makes a table of its own). A healthy base analyses alike
+-- frame after frame (the watchdog's age takes a few values, nothing to
+-- report), and one table per frame was most of the plugins' memory on a
+-- long capture and a good part of their time, in the garbage collector
+-- (docs/quality.md).
+local RECENT = 8
+
+local function alike(a, b)
+    if a.findings ~= b.findings or a.wd_age ~= b.wd_age then return false end
+    local n = 0
+    for k, v in pairs(a) do
+        if b[k] ~= v then return false end
+        n = n + 1
+    end
+    for _ in pairs(b) do n = n - 1 end
+    return n == 0
+end
+
+local function shared_record(rec)
+    if rec.findings ~= record.NO_FINDINGS then return rec end
+    local recent = last_rec[rec.plan]
+    if not recent then
+        recent = { next = 1 }
+        last_rec[rec.plan] = recent
+    end
+    for i = 1, #recent do
+        if alike(rec, recent[i]) then return recent[i] end
+    end
+    recent[recent.next] = rec
+    recent.next = recent.next % RECENT + 1
+    return rec
+end
+
 -- tvb: the PN-RT frame from the FrameID on.
 local function first_pass(fid, tvb, pinfo)
     local cands = by_fid[fid]
@@ -344,7 +381,7 @@ local function first_pass(fid, tvb, pinfo)
         return rec
     end
     dec.analyse(rec, setmetatable({ s = tvb:raw(base, size) }, RawBytes), pinfo.abs_ts, pinfo.number)
-    return rec
+    return shared_record(rec)
 end
 
 local function show(rec, tvb, pinfo, tree)
