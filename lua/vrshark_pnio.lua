@@ -137,7 +137,7 @@ end
 local function init()
     for port in pairs(cm_ports or {}) do udp_table:remove(port, carrier) end
     by_fid, pending_down, tries, frames, ars, cm_ports = {}, {}, {}, {}, {}, {}
-    last_rec = setmetatable({}, { __mode = "k" })
+    last_rec = {}
     local prefs = systems.prefs()
     heuristic, learn = prefs.heuristic, prefs.connect
     if C then fe.pn_frame_id:remove_all(carrier) end
