@@ -331,7 +331,6 @@ local RawBytes = { __index = { get_index = function(self, i) return string.byte(
 local RECENT = 8
 
 local function alike(a, b)
-    if a.findings ~= b.findings or a.wd_age ~= b.wd_age then return false end
     local n = 0
     for k, v in pairs(a) do
         if b[k] ~= v then return false end
