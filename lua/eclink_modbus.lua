@@ -218,8 +218,19 @@ local R_START, R_COUNT, R_REQUEST, R_TIME, R_RESPONSE, R_PCI_AGE, R_PCO_AGE, R_A
 local unpack = table.unpack or unpack  -- luacheck: ignore 113 (Lua 5.1/5.2 global)
 local NONE = {}
 
+-- The port is taken again when each file starts, in case a plugin loaded
+-- after this one put another dissector (Modbus/TCP itself) back on it: a
+-- later DissectorTable add replaces ours silently. Dissectors compare by
+-- name (Lua gives each lookup a new object).
+local function own_port()
+    if current_port == 0 then return end
+    local cur = tcp_port_table:get_dissector(current_port)
+    if cur == nil or tostring(cur) ~= tostring(front) then tcp_port_table:add(current_port, front) end
+end
+
 local function init_state()
     read_prefs()
+    own_port()
     conns = {}
     adus = {}
 end

@@ -134,7 +134,39 @@ local function set_hooks()
     fe.hook(fe.pn_hook, "pending", carrier, pending_down ~= nil and #pending_down > 0)
 end
 
+-- Without the C plugin: EtherType 0x8892 is taken again when each file
+-- starts, in case a plugin loaded after this one put PN-RT back (a later
+-- DissectorTable add replaces ours silently). PN-RT, or nothing, is replaced
+-- (PN-RT becomes the dissector called first); anything else is somebody's
+-- own wrapper: left alone, said once on stderr and on each Connect.
+-- (Dissectors compare by name: Lua gives each lookup a new object.)
+local taken_by      -- name of the dissector holding 0x8892 instead of ours, or nil
+local told_taken
+local ef_taken = not C and ProtoExpert.new("vrshark_pnio.ethertype_taken",
+    "EtherType 0x8892 is taken by another dissector: cyclic frames are not decoded",
+    expert.group.UNDECODED, expert.severity.ERROR) or nil
+if ef_taken then carrier.experts = { ef_taken } end
+
+local function own_ethertype()
+    local cur = ethertype_table:get_dissector(ETH_PNRT)
+    local name = cur and tostring(cur)
+    taken_by = nil
+    if name ~= nil and name == tostring(Dissector.get("vrshark_pnio")) then return end
+    if cur == nil or name == "PN-RT" then
+        pn_rt = cur or pn_rt
+        ethertype_table:add(ETH_PNRT, carrier)
+        return
+    end
+    taken_by = name
+    if not told_taken then
+        told_taken = true
+        io.stderr:write(string.format('vrshark: EtherType 0x8892 (PROFINET RT) is taken by "%s": MC-MB2-PN and '
+            .. "EC-Link over PROFINET are not decoded; remove or disable that plugin\n", name))
+    end
+end
+
 local function init()
+    if not C then own_ethertype() end
     for port in pairs(cm_ports or {}) do udp_table:remove(port, carrier) end
     by_fid, pending_down, tries, frames, ars, cm_ports = {}, {}, {}, {}, {}, {}
     last_rec = {}
@@ -463,6 +495,10 @@ local function connect(tvb, pinfo, tree)
         end
     end
     if rec then show(rec, tvb, pinfo, tree) end
+    if rec and taken_by then
+        tree:add_proto_expert_info(ef_taken, string.format('Cyclic frames of this Connect are not decoded: '
+            .. 'EtherType 0x8892 is taken by "%s", not by vrshark_pnio', taken_by))
+    end
     return tvb:len()
 end
 

@@ -59,6 +59,7 @@
 #include <epan/conversation.h>
 #include <epan/tap.h>
 #include <epan/exceptions.h>
+#include <epan/expert.h>
 
 #include "vrshark-frontends.h"
 
@@ -82,6 +83,8 @@
 
 static int proto_vrshark_pnio = -1;
 static int proto_vrshark_mbtcp = -1;
+
+static expert_field ei_pn_taken = EI_INIT;
 
 static dissector_handle_t pn_rt_handle;
 static dissector_handle_t mbtcp_handle;
@@ -257,7 +260,7 @@ lua_view_free(lua_view_t *v)
 static int
 dissect_pn_cyclic(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
 {
-    int consumed = call_dissector_only(pn_rt_handle, tvb, pinfo, tree, data);
+    int consumed = pn_rt_handle ? call_dissector_only(pn_rt_handle, tvb, pinfo, tree, data) : 0;
     guint16 fid;
     guint idx;
 
@@ -282,6 +285,48 @@ dissect_pn_cyclic(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *dat
         pn_tries[idx] < VRSHARK_PN_CANDIDATE_TRIES)
         pn_tries[idx]++;
     return consumed;
+}
+
+/* ---- Owning EtherType 0x8892 ----------------------------------------------- */
+
+/* Plugins are handed off in an order that depends on the folders they sit in
+ * (personal, global, WIRESHARK_PLUGIN_DIR): Wireshark's own profinet plugin
+ * may be handed off after this one and put PN-RT back on EtherType 0x8892,
+ * and then no cyclic frame would reach the Lua decoders. Every hand-off has
+ * run when a file starts, so the entry is checked there (and at hand-off):
+ * PN-RT, or nothing, is replaced by the front end again (PN-RT becomes the
+ * dissector it wraps); anything else is somebody's own wrapper, left alone
+ * and said once on stderr and as expert info on each Connect whose cyclic
+ * frames it costs. */
+static const char *pn_taken_by;     /* the dissector holding 0x8892, or NULL */
+
+static void
+own_pn_rt(void)
+{
+    static gboolean said;
+    dissector_handle_t cur = dissector_get_uint_handle(find_dissector_table("ethertype"), ETHERTYPE_PNRT);
+    dissector_handle_t pn_rt = find_dissector("pn_rt");
+
+    pn_taken_by = NULL;
+    if (cur == pn_cyclic_handle)
+        return;
+    if (cur == NULL || cur == pn_rt) {
+        if (pn_rt)
+            pn_rt_handle = pn_rt;
+        dissector_add_uint("ethertype", ETHERTYPE_PNRT, pn_cyclic_handle);
+        return;
+    }
+    /* (the name the Lua side can give too: the protocol's short name) */
+    pn_taken_by = dissector_handle_get_protocol_short_name(cur);
+    if (!pn_taken_by)
+        pn_taken_by = dissector_handle_get_dissector_name(cur);
+    if (!pn_taken_by)
+        pn_taken_by = "another dissector";
+    if (!said) {
+        fprintf(stderr, "vrshark: EtherType 0x8892 (PROFINET RT) is taken by \"%s\": MC-MB2-PN and EC-Link "
+                "over PROFINET are not decoded; remove or disable that plugin\n", pn_taken_by);
+        said = TRUE;
+    }
 }
 
 /* ---- PNIO-CM (DCE/RPC over UDP) ----------------------------------------- */
@@ -335,6 +380,10 @@ dissect_pn_cm(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
     if (is_connect(tvb) && dissector_get_string_handle(pn_hook_table, "connect")) {
         if (!pinfo->fd->visited && tvb_get_uint8(tvb, 1) == DCERPC_DG_REQUEST)
             learn_controller_port(pinfo);
+        if (pn_taken_by)
+            expert_add_info_format(pinfo, proto_tree_add_item(tree, proto_vrshark_pnio, tvb, 0, 0, ENC_NA),
+                &ei_pn_taken, "Cyclic frames of this Connect are not decoded: EtherType 0x8892 is taken "
+                "by \"%s\", not by vrshark_pnio", pn_taken_by);
         dissector_try_string_with_data(pn_hook_table, "connect", tvb, pinfo, tree, FALSE, NULL);
     }
     return tvb_captured_length(tvb);
@@ -515,6 +564,7 @@ frontends_init(void)
     for (i = 0; i < pn_learned_ports->len; i++)
         dissector_delete_uint("udp.port", g_array_index(pn_learned_ports, guint32, i), pn_cm_handle);
     g_array_set_size(pn_learned_ports, 0);
+    own_pn_rt();
 }
 
 static void
@@ -548,6 +598,12 @@ proto_register_vrshark_frontends(void)
     mb_hook_table = register_dissector_table(VRSHARK_MB_HOOK_TABLE,
         "vrshark: Modbus/TCP connections for Lua", proto_vrshark_mbtcp, FT_STRING, FALSE /* case-sensitive */);
 
+    static ei_register_info ei[] = {
+        { &ei_pn_taken, { "vrshark_pnio.ethertype_taken", PI_UNDECODED, PI_ERROR,
+            "EtherType 0x8892 is taken by another dissector: cyclic frames are not decoded", EXPFILL } },
+    };
+    expert_register_field_array(expert_register_protocol(proto_vrshark_pnio), ei, array_length(ei));
+
     pn_learned_ports = g_array_new(FALSE, FALSE, sizeof(guint32));
     full_tree_always = g_getenv("VRSHARK_FULL_TREE") != NULL;
     register_init_routine(frontends_init);
@@ -557,13 +613,10 @@ proto_register_vrshark_frontends(void)
 void
 proto_reg_handoff_vrshark_frontends(void)
 {
-    dissector_table_t ethertype = find_dissector_table("ethertype");
-
-    pn_rt_handle = dissector_get_uint_handle(ethertype, ETHERTYPE_PNRT);
-    if (!pn_rt_handle)
-        pn_rt_handle = find_dissector_add_dependency("pn_rt", proto_vrshark_pnio);
+    pn_rt_handle = find_dissector_add_dependency("pn_rt", proto_vrshark_pnio);
     mbtcp_handle = find_dissector_add_dependency("mbtcp", proto_vrshark_mbtcp);
     udp_heur_list = find_heur_dissector_list("udp");
-    dissector_add_uint("ethertype", ETHERTYPE_PNRT, pn_cyclic_handle);
+    /* taken again when each file starts: own_pn_rt() */
+    own_pn_rt();
     dissector_add_uint("udp.port", UDP_PORT_PNIO_CM, pn_cm_handle);
 }

@@ -1,0 +1,167 @@
+"""Every protocol decoded after each documented install (installed_testlib):
+the personal install, the system install and the Lua plugins alone, run by
+the system tshark as a user, with no WIRESHARK_PLUGIN_DIR. Each decodes one
+capture of every protocol and transport exactly as tools/tshark does (the
+whole -V text, two passes, and the packet list in one pass), and the
+protocol really is there (a layout that decodes nothing fails, even if the
+harness decoded nothing too).
+
+The front ends own their table entries whatever order plugins are handed
+off in: a plugin that puts PN-RT or Modbus/TCP back on EtherType 0x8892 or
+the Modbus port changes nothing; one that puts its own dissector there is
+named once on stderr and on the Connect whose cyclic frames it costs."""
+import shutil
+
+import pytest
+
+from conftest import CAPTURES, ROOT, Tshark, _world_dir
+from installed_testlib import IS_ROOT, Installed
+
+CRANE_CSV = ROOT / "examples" / "crane" / "crane.csv"
+
+# capture -> a display filter that matches its frames of that protocol:
+# every protocol and transport, and machine data from an IO list.
+CASES = {
+    "eglink_analysis_session.pcap": "eglink",
+    "eclink_modbus_basic.pcap": "eclink_modbus",
+    "eclink_pnio_connect.pcap": "eclink_pnio",
+    "mcmb2_duplex_connect.pcap": "mcmb2.system == \"duplex\"",
+    "mcmb2_polled_connect.pcap": "mcmb2.system == \"polled\"",
+    "crane_eglink.pcap": "vrshark_io",
+    "crane_mcmb2.pcap": "vrshark_io",
+    "crane_eclink_modbus.pcap": "vrshark_io",
+}
+# What needs the C plugin (EG-Link is C only).
+NEEDS_C = {"eglink_analysis_session.pcap", "crane_eglink.pcap"}
+
+
+@pytest.fixture(scope="module", params=["personal", "system", "lua-only"])
+def installed(request):
+    if request.param == "system" and not IS_ROOT:
+        pytest.skip("the system install is tried as root (unshare -m, mount --bind)")
+    inst = Installed(request.param)
+    inst.add_io_list(CRANE_CSV)
+    yield inst
+    inst.remove()
+
+
+@pytest.fixture(scope="module")
+def harness():
+    """tools/tshark with the crane's IO list, and the same without the C plugin."""
+    conf = _world_dir("vrshark-conf-")
+    io = _world_dir("vrshark-io-")
+    shutil.copy(CRANE_CSV, io / "crane.csv")
+    (io / "crane.csv").chmod(0o644)
+    full, lua_only = Tshark(conf), Tshark(conf)
+    for t in (full, lua_only):
+        t.env["VRSHARK_IO_DIR"] = str(io)
+    lua_only.env["VRSHARK_NO_C_PLUGIN"] = "1"
+    yield {"full": full, "lua-only": lua_only}
+    shutil.rmtree(conf, ignore_errors=True)
+    shutil.rmtree(io, ignore_errors=True)
+
+
+def run_installed(inst, args):
+    proc = inst.tshark(args)
+    assert proc.returncode == 0, proc.stderr
+    for bad in ("Lua Error", "Dissector bug", "dissector bug", "Lua: Error"):
+        assert bad not in proc.stdout + proc.stderr, "%s in the %s install" % (bad, inst.kind)
+    return proc
+
+
+@pytest.mark.parametrize("capture", sorted(CASES))
+def test_decodes_as_the_harness(installed, harness, capture):
+    if installed.kind == "lua-only" and capture in NEEDS_C:
+        pytest.skip("EG-Link needs the C plugin")
+    ref = harness["lua-only" if installed.kind == "lua-only" else "full"]
+    path = str(CAPTURES / capture)
+    filt = CASES[capture]
+    # the protocol is there at all, on the frames where the harness has it
+    for two_pass in ([], ["-2"]):
+        args = ["-n", "-r", path, "-Y", filt] + two_pass
+        listed = run_installed(installed, args).stdout
+        assert listed, "%s: nothing matches %r in the %s install" % (capture, filt, installed.kind)
+        assert listed == ref.run(args).stdout, "%s: other frames match %r in the %s install" % (
+            capture, filt, installed.kind)
+    # and everything reads as through tools/tshark: the packet list of one
+    # pass, and the whole tree of two
+    for args in (["-n", "-r", path, "-T", "fields", "-e", "frame.number", "-e", "frame.protocols",
+                  "-e", "_ws.col.Protocol", "-e", "_ws.col.Info"],
+                 ["-n", "-2", "-r", path, "-V"]):
+        got = run_installed(installed, args).stdout
+        want = ref.run(args).stdout
+        assert got == want, "%s differs in the %s install from tools/tshark (%s)" % (
+            capture, installed.kind, " ".join(args[3:]))
+
+
+def test_installed_files(installed):
+    """What each install put where Wireshark looks, and that Wireshark lists it."""
+    plugins = installed.tshark(["-G", "plugins"]).stdout
+    for name in ("eclink_modbus.lua", "eclink_pnio.lua", "mcmb2.lua", "vrshark_pnio.lua", "vrshark_io.lua"):
+        assert name in plugins, "%s not loaded in the %s install" % (name, installed.kind)
+    assert ("eglink.so" in plugins) == (installed.kind != "lua-only")
+    # Lua modules (.luam) are not run as plugins
+    assert ".luam" not in plugins
+
+
+PN_RT_BACK = """-- a plugin handed off after vrshark that puts PN-RT back
+DissectorTable.get("ethertype"):add(0x8892, Dissector.get("pn_rt"))
+DissectorTable.get("tcp.port"):add(502, Dissector.get("mbtcp"))
+"""
+
+OWN_WRAPPER = """-- somebody's own PN-RT wrapper on EtherType 0x8892
+local p = Proto("otherpn", "Another PROFINET wrapper")
+local pn_rt = Dissector.get("pn_rt")
+function p.dissector(tvb, pinfo, tree) return pn_rt:call(tvb, pinfo, tree) end
+DissectorTable.get("ethertype"):add(0x8892, p)
+"""
+
+
+@pytest.fixture
+def personal_pair(request):
+    """A personal install and a Lua-only one, each used by one test."""
+    made = []
+
+    def make(kind):
+        inst = Installed(kind)
+        made.append(inst)
+        return inst
+    yield make
+    for inst in made:
+        inst.remove()
+
+
+@pytest.mark.parametrize("kind", ["personal", "lua-only"])
+def test_entries_taken_back_from_a_later_plugin(personal_pair, harness, kind):
+    inst = personal_pair(kind)
+    inst.add_io_list(CRANE_CSV)     # as the harness has it
+    # (Lua plugins run in folder-listing order: one beside vrshark/, one in a
+    # folder of its own)
+    inst.add_lua_plugin("zz_pn_rt_back.lua", PN_RT_BACK)
+    inst.add_lua_plugin("zz-later/pn_rt_back.lua", PN_RT_BACK)
+    ref = harness["lua-only" if kind == "lua-only" else "full"]
+    for capture, filt in (("mcmb2_duplex_connect.pcap", "pn_rt && mcmb2"),
+                          ("eclink_modbus_basic.pcap", "eclink_modbus")):
+        args = ["-n", "-2", "-r", str(CAPTURES / capture), "-Y", filt]
+        proc = run_installed(inst, args)
+        assert proc.stdout and proc.stdout == ref.run(args).stdout, (kind, capture, proc.stderr)
+        assert "taken by" not in proc.stderr
+
+
+@pytest.mark.parametrize("kind", ["personal", "lua-only"])
+def test_a_foreign_wrapper_is_named(personal_pair, kind):
+    inst = personal_pair(kind)
+    inst.add_lua_plugin("zz_other_wrapper.lua", OWN_WRAPPER)
+    path = str(CAPTURES / "mcmb2_duplex_connect.pcap")
+    proc = run_installed(inst, ["-n", "-r", path, "-2", "-T", "fields", "-e", "frame.number",
+                                "-e", "_ws.expert.message", "-E", "aggregator=|",
+                                "-Y", "_ws.expert.severity == error"])
+    lines = [line.split("\t") for line in proc.stdout.splitlines()]
+    message = ('Cyclic frames of this Connect are not decoded: EtherType 0x8892 is taken by "OTHERPN", '
+               'not by vrshark_pnio')
+    on_connect = [int(n) for n, m in lines if message in m.split("|")]
+    assert on_connect == [1, 2], proc.stdout   # the Connect request and its response
+    # said once on stderr, whatever the number of passes and files
+    assert proc.stderr.count('EtherType 0x8892 (PROFINET RT) is taken by "OTHERPN"') == 1, proc.stderr
+    # the wrapper decodes PN-RT as before; nothing of ours
+    assert run_installed(inst, ["-n", "-r", path, "-Y", "pn_rt && mcmb2"]).stdout == ""
