@@ -2,6 +2,7 @@
 (captures/crane_eclink_pnio.pcap) and Modbus/TCP (captures/crane_eclink_modbus.pcap):
 command data from and to the RU and the periodic data, the same fields and
 values as on EG-Link; multiplexed periodic data once reassembled; the server key."""
+import re
 import pytest
 
 from conftest import CAPTURES
@@ -64,9 +65,10 @@ def test_modbus_every_field_exact(crane, two_pass):
 
 def test_shown_under_the_image_items(crane):
     text = crane.verbose(CAPTURES / "crane_eclink_pnio.pcap", display_filter="frame.number == 8")
-    cmd = text.split("Command to RU: ", 1)[1]
+    # (Wireshark 4.2 and later mark a long bytes label "Periodic data […]:")
+    cmd = re.split(r"Command to RU(?: \[…\])?: ", text, maxsplit=1)[1]
     assert cmd.split("\n")[1].strip() == "Machine data (crane.csv)"
-    periodic = text.split("Periodic data: ", 1)[1]
+    periodic = re.split(r"Periodic data(?: \[…\])?: ", text, maxsplit=1)[1]
     assert periodic.split("\n")[1].strip() == "Machine data (crane.csv)"
     assert "Load on the hook (t): 52.3 (raw 5230)" in periodic
 
