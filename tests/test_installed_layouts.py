@@ -165,3 +165,17 @@ def test_a_foreign_wrapper_is_named(personal_pair, kind):
     assert proc.stderr.count('EtherType 0x8892 (PROFINET RT) is taken by "OTHERPN"') == 1, proc.stderr
     # the wrapper decodes PN-RT as before; nothing of ours
     assert run_installed(inst, ["-n", "-r", path, "-Y", "pn_rt && mcmb2"]).stdout == ""
+
+
+CM_PORT_TAKEN = """-- somebody's own dissector on the PNIO-CM port
+local p = Proto("othercm", "Another PNIO-CM reader")
+function p.dissector(tvb) return tvb:len() end
+DissectorTable.get("udp.port"):add(34964, p)
+"""
+
+
+def test_a_foreign_connect_port_is_named(personal_pair):
+    inst = personal_pair("personal")
+    inst.add_lua_plugin("zz_other_cm.lua", CM_PORT_TAKEN)
+    proc = run_installed(inst, ["-n", "-2", "-r", str(CAPTURES / "mcmb2_duplex_connect.pcap")])
+    assert proc.stderr.count('UDP port 34964 (PNIO-CM) is taken by "OTHERCM"') == 1, proc.stderr

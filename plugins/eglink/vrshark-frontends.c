@@ -329,6 +329,30 @@ own_pn_rt(void)
     }
 }
 
+/* UDP 34964 (PNIO-CM): empty, or still ours, at each file start; anything
+ * else there is said once (no Connect is then read: layouts come from the
+ * layout table and the cyclic frames). */
+static void
+own_pn_cm(void)
+{
+    static gboolean said;
+    dissector_handle_t cur = dissector_get_uint_handle(find_dissector_table("udp.port"), UDP_PORT_PNIO_CM);
+
+    if (cur == pn_cm_handle)
+        return;
+    if (cur == NULL) {
+        dissector_add_uint("udp.port", UDP_PORT_PNIO_CM, pn_cm_handle);
+        return;
+    }
+    if (!said) {
+        const char *name = dissector_handle_get_protocol_short_name(cur);
+
+        fprintf(stderr, "vrshark: UDP port 34964 (PNIO-CM) is taken by \"%s\": PROFINET Connects are not "
+                "read; layouts come from the layout table and the cyclic frames\n", name ? name : "another dissector");
+        said = TRUE;
+    }
+}
+
 /* ---- PNIO-CM (DCE/RPC over UDP) ----------------------------------------- */
 
 static gboolean
@@ -565,6 +589,7 @@ frontends_init(void)
         dissector_delete_uint("udp.port", g_array_index(pn_learned_ports, guint32, i), pn_cm_handle);
     g_array_set_size(pn_learned_ports, 0);
     own_pn_rt();
+    own_pn_cm();
 }
 
 static void
