@@ -138,3 +138,20 @@ def test_step7_report_installed(user):
     for path in captures:
         assert path.rsplit("/", 1)[1] in proc.stdout
     assert "stalled" in proc.stdout
+
+
+def test_profinet_worked_example(user):
+    """docs/profinet.md, "Worked example": what frames 2, 7, 13 and 15 read."""
+    doc = " ".join((ROOT / "docs" / "profinet.md").read_text().split("## Worked example", 1)[1].split())
+    rows = {int(r[0]): r[1:] for r in frames(user, "mcmb2_polled_connect.pcap", "frame.number in {2,7,13,15}",
+                                               ("frame.number", "_ws.col.Info", "_ws.expert.message"))}
+    assert rows[2][1] == "Cyclic data layout learned: polled device: uplink FrameID 0x8005, downlink FrameID 0x8006"
+    assert '"%s"' % rows[2][1] in doc
+    assert "`%s`" % rows[7][0] in doc
+    assert '"Slot 2 now serves terminal 5 (was terminal 2): dynamic polling"' in doc
+    assert rows[7][1] == "Slot 2 now serves terminal 5 (was terminal 2): dynamic polling"
+    assert rows[13][0].startswith("Uplink polled: Fieldbus update failure (E010), ") and rows[13][0].endswith("[E010]")
+    assert "Y=20" in rows[15][0] and "differ from the configured layout (Y=24" in rows[15][1]
+    tree = user.tshark(["-n", "-2", "-r", str(CAPTURES / "mcmb2_polled_connect.pcap"), "-T", "fields",
+                        "-e", "mcmb2.slot.status", "-e", "mcmb2.slot.terminal", "-Y", "frame.number == 7"]).stdout
+    assert tree.split("\t")[1].strip() == "1,5,3,0"
