@@ -28,9 +28,11 @@ ones in one pass, the earlier ones too on a second pass (tshark -2, GUI).
 A connection not accepted within CANDIDATE_TRIES ADUs is left to Modbus.
 "always" decodes every connection on the port; "off" leaves Modbus alone.
 
-Port: the BU's port is presented to Wireshark's Modbus/TCP dissector as
-its default port 502 while it runs, so that it tells queries from
-responses without its own port preference.
+Port: eclink_modbus.port, or with 0 (the default) the port of Wireshark's
+Modbus/TCP dissector, mbtcp.tcp.port (502 unless set): one setting is enough,
+whichever the user sets. Wireshark's Modbus/TCP dissector tells queries from
+responses by its own port, so on another port the BU's port is presented to
+it as that one while it runs, and on its own port it is left alone.
 
 Per connection, on the first pass, the latest value of every image byte is
 kept (so each frame can show the assembled images as of that frame), the
@@ -144,10 +146,8 @@ local DETECT_HEURISTIC, DETECT_ALWAYS, DETECT_OFF = 0, 1, 2
 -- ADUs of a connection the heuristic looks at before it gives up (the C front
 -- end's VRSHARK_MB_CANDIDATE_TRIES counts frames: the same bound)
 local CANDIDATE_TRIES = 1024
--- Wireshark's Modbus/TCP dissector tells queries from responses by its own
--- port preference (default 502)
-local MBTCP_PORT = 502
-proto.prefs.port = Pref.uint("Modbus/TCP port", 502, "TCP port of the BU's Modbus/TCP server")
+proto.prefs.port = Pref.uint("Modbus/TCP port", 0, "TCP port of the BU's Modbus/TCP server; "
+    .. "0: the port of Wireshark's Modbus/TCP dissector (mbtcp.tcp.port, 502 unless set)")
 proto.prefs.detection = Pref.enum("Detection", DETECT_HEURISTIC,
     "heuristic: decode a connection once its traffic shows a BU (input images whose PCI moves every 125 ms, "
     .. "or an input image and a written output image); always: every connection on the port; off: leave "
@@ -161,7 +161,11 @@ proto.prefs.assembled = Pref.bool("Show assembled images", false,
     "Show on every EC-Link frame the input and output images as assembled from all accesses so far")
 
 local tcp_port_table = DissectorTable.get("tcp.port")
-local current_port = 0
+local current_port = 0      -- the port the decoder (or the C front end) sits on, by this file
+local displaced = false     -- that port held Wireshark's Modbus/TCP dissector before
+-- Wireshark's Modbus/TCP dissector tells queries from responses by its own
+-- port preference, mbtcp.tcp.port (Lua-only; the C front end reads it).
+local mbtcp_port = 502
 -- preference values read once per change, not per ADU
 local opt = {}
 
@@ -170,17 +174,48 @@ local function read_prefs()
     opt.pci_timeout = proto.prefs.pci_timeout / 1000
 end
 
+-- Dissectors compare by name (Lua gives each lookup a new object).
+local function holds(port, d)
+    local cur = tcp_port_table:get_dissector(port)
+    return cur ~= nil and tostring(cur) == tostring(d)
+end
+
+-- mbtcp.tcp.port, which Lua cannot read (a Decode As preference): the port
+-- the tcp.port table gives Wireshark's Modbus/TCP dissector, one other than
+-- 502 if there is one (502 keeps it too). About 15 ms; once a file.
+local function find_mbtcp_port()
+    local found
+    for p = 1, 65535 do
+        if holds(p, mbtcp) and (found == nil or found == 502) then found = p end
+    end
+    return found or 502
+end
+
+-- Without the C plugin: the decoder on its port (eclink_modbus.port, or
+-- mbtcp.tcp.port when that is 0), at each file start and preference change.
+-- A later DissectorTable add (a plugin loaded after this one putting
+-- Modbus/TCP back) replaces ours silently, so the port is taken again each
+-- time. With the C plugin its front end does the same in C (own_mb_port).
+local function place_on_port()
+    if C then return end
+    local ours = Dissector.get("eclink_modbus")     -- (tostring of a Proto is not its dissector's)
+    -- the port of the last file given back first (to mbtcp if it had it), so
+    -- that mbtcp's own port is found in the table as Wireshark set it
+    if current_port ~= 0 and holds(current_port, ours) then
+        tcp_port_table:remove(current_port, front)
+        if displaced then tcp_port_table:add(current_port, mbtcp) end
+    end
+    mbtcp_port = find_mbtcp_port()
+    local port = proto.prefs.port
+    if port == 0 then port = mbtcp_port end
+    displaced = holds(port, mbtcp)
+    tcp_port_table:add(port, front)
+    current_port = port
+end
+
 local function prefs_changed()
     read_prefs()
-    local port = proto.prefs.port
-    if port ~= current_port then
-        if current_port ~= 0 then
-            tcp_port_table:remove(current_port, front)
-            if current_port == 502 then tcp_port_table:add(502, mbtcp) end
-        end
-        if port ~= 0 then tcp_port_table:add(port, front) end
-        current_port = port
-    end
+    place_on_port()
     if C then
         fe.hook(fe.mb_hook, "heuristic", proto, opt.detection == DETECT_HEURISTIC)
         fe.hook(fe.mb_hook, "always", proto, opt.detection == DETECT_ALWAYS)
@@ -218,23 +253,17 @@ local R_START, R_COUNT, R_REQUEST, R_TIME, R_RESPONSE, R_PCI_AGE, R_PCO_AGE, R_A
 local unpack = table.unpack or unpack  -- luacheck: ignore 113 (Lua 5.1/5.2 global)
 local NONE = {}
 
--- The port is taken again when each file starts, in case a plugin loaded
--- after this one put another dissector (Modbus/TCP itself) back on it: a
--- later DissectorTable add replaces ours silently. Dissectors compare by
--- name (Lua gives each lookup a new object).
-local function own_port()
-    if current_port == 0 then return end
-    local cur = tcp_port_table:get_dissector(current_port)
-    if cur == nil or tostring(cur) ~= tostring(front) then tcp_port_table:add(current_port, front) end
-end
-
 local function init_state()
     read_prefs()
-    own_port()
     conns = {}
     adus = {}
 end
-proto.init = init_state
+-- (the port is taken at each file start; at load, by prefs_changed() below,
+-- once the dissector exists)
+proto.init = function()
+    init_state()
+    place_on_port()
+end
 init_state()
 
 local function conn_key(pinfo, is_request)
@@ -884,12 +913,12 @@ function proto.dissector(tvb, pinfo, tree)
     if not via_front then
         -- let mbtcp use TCP desegmentation as if TCP had called it directly
         if pinfo.can_desegment > 0 then pinfo.can_desegment = pinfo.can_desegment + 1 end
-        -- mbtcp tells queries from responses by its port: show it the BU's as 502
+        -- mbtcp tells queries from responses by its own port: show it the BU's as that
         local sp, dp = pinfo.src_port, pinfo.dst_port
-        local moved = pinfo.match_uint ~= MBTCP_PORT and (sp == pinfo.match_uint) ~= (dp == pinfo.match_uint)
-            and sp ~= MBTCP_PORT and dp ~= MBTCP_PORT
+        local moved = pinfo.match_uint ~= mbtcp_port and (sp == pinfo.match_uint) ~= (dp == pinfo.match_uint)
+            and sp ~= mbtcp_port and dp ~= mbtcp_port
         if moved then
-            if is_request then pinfo.dst_port = MBTCP_PORT else pinfo.src_port = MBTCP_PORT end
+            if is_request then pinfo.dst_port = mbtcp_port else pinfo.src_port = mbtcp_port end
         end
         consumed = wrap.call(mbtcp, tvb, pinfo, tree)
         if moved then pinfo.src_port, pinfo.dst_port = sp, dp end

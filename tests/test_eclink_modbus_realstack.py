@@ -244,3 +244,39 @@ def test_no_modbus_classification_warning(tshark, real_capture):
     out = tshark.run(["-n", "-r", str(cap), "-o", "eclink_modbus.port:%d" % PORT]).stdout
     assert "classify" not in out.lower()
     assert "Query: Trans:" in out and "Response: Trans:" in out
+
+
+# Wireshark's own Modbus/TCP port preference (mbtcp.tcp.port) and ours
+# (eclink_modbus.port, 0 by default: follow mbtcp's): one of them is enough,
+# both agree, and mbtcp is never shown a port it cannot classify by.
+PORT_SETTINGS = {
+    "ours": {"eclink_modbus.port": str(PORT)},
+    "wiresharks": {"mbtcp.tcp.port": str(PORT)},
+    "both": {"eclink_modbus.port": str(PORT), "mbtcp.tcp.port": str(PORT)},
+}
+
+
+@pytest.mark.parametrize("setting", sorted(PORT_SETTINGS))
+def test_either_port_setting_is_enough(tshark, real_capture, setting):
+    cap, log = real_capture
+    prefs = PORT_SETTINGS[setting]
+    out = tshark.run(["-n", "-2", "-r", str(cap)] + sum((["-o", "%s:%s" % kv] for kv in prefs.items()), [])).stdout
+    assert "classify" not in out.lower()
+    got = tshark.frames(cap, ["ip.src", "eclink.image", "modbus.func_code"], prefs=prefs, two_pass=True)
+    inputs = [v for v in got.values() if v["ip.src"] == BU and v["eclink.image"] == "input"]
+    assert len(inputs) == len(log["read"]), setting
+    # every Modbus/TCP frame classified: a function code on each
+    assert all(v["modbus.func_code"] for v in got.values() if v["eclink.image"])
+
+
+def test_neither_port_setting_as_wireshark_alone(tshark, real_capture, work_dir):
+    """No setting names the port: no EC-Link, and the packet list reads as
+    Wireshark's own (the system tshark with its own plugins only)."""
+    cap, _ = real_capture
+    args = ["-n", "-r", str(cap), "-T", "fields", "-e", "frame.protocols", "-e", "_ws.col.Info"]
+    ours = tshark.run(args).stdout
+    alone = subprocess.run(["tshark"] + args, env={"PATH": "/usr/bin:/bin", "HOME": str(work_dir), "TZ": "UTC",
+                                                 "WIRESHARK_CONFIG_DIR": str(work_dir)},
+                           capture_output=True, text=True).stdout
+    assert ours == alone
+    assert "eclink" not in ours

@@ -16,9 +16,9 @@
  *                      is added to udp.port for the response (until the
  *                      next file).
  *   Modbus/TCP port    "vrshark.mbtcp" (protocol "vrshark_mbtcp", which
- *   (the Lua side puts takes itself out of the layer list): mbtcp first,
- *   the front end on   then the Lua decoder registered in vrshark.mbtcp.hook
- *   its port)          as "always" (every connection), or as "heuristic":
+ *   (eclink_modbus.    takes itself out of the layer list): mbtcp first,
+ *   port, or mbtcp's   then the Lua decoder registered in vrshark.mbtcp.hook
+ *   own when that is 0) as "always" (every connection), or as "heuristic":
  *                      a TCP connection (conversation) becomes a candidate
  *                      when its client first asks for what a BU's image
  *                      evidence needs (the whole input image read, or the
@@ -27,9 +27,13 @@
  *                      non-zero); from then on every frame goes to it. After
  *                      VRSHARK_MB_CANDIDATE_TRIES refusals, first pass only,
  *                      the connection is left to mbtcp. On a port other
- *                      than 502 mbtcp is shown the server's port as 502
- *                      while it runs: it tells queries from responses by
- *                      its own port preference (default 502).
+ *                      than mbtcp's own (mbtcp.tcp.port) mbtcp is shown the
+ *                      server's port as its own while it runs: it tells
+ *                      queries from responses by that preference.
+ *
+ * Table entries are taken again when each file starts (own_pn_rt,
+ * own_pn_cm, own_mb_port): the order of plugin hand-offs depends on the
+ * folders the plugins sit in, and a later hand-off replaces an entry.
  *
  * The Lua side detects these tables (DissectorTable.get under pcall),
  * registers its decoders and the FrameIDs it learns into them, and stops
@@ -60,6 +64,7 @@
 #include <epan/tap.h>
 #include <epan/exceptions.h>
 #include <epan/expert.h>
+#include <epan/prefs.h>
 
 #include "vrshark-frontends.h"
 
@@ -90,6 +95,7 @@ static dissector_handle_t pn_rt_handle;
 static dissector_handle_t mbtcp_handle;
 static dissector_handle_t pn_cyclic_handle;
 static dissector_handle_t pn_cm_handle;
+static dissector_handle_t mb_front_handle;
 
 static dissector_table_t pn_frame_id_table;
 static dissector_table_t pn_hook_table;
@@ -470,7 +476,62 @@ mb_evidence_request(tvbuff_t *tvb)
     }
     return FALSE;
 }
-#define MBTCP_DEFAULT_PORT 502
+/* The TCP port of Wireshark's Modbus/TCP dissector (its preference
+ * mbtcp.tcp.port, 502 unless set), found when each file starts: mbtcp tells
+ * queries from responses by it. */
+static guint mb_port;
+/* The port the front end sits on (eclink_modbus.port, or mbtcp's port when
+ * that is 0), or 0; and whether it took that port from mbtcp. */
+static guint mb_placed;
+static gboolean mb_displaced;
+
+/* mbtcp.tcp.port is a Decode As preference, which prefs_get_uint_value()
+ * does not read: it is the port the tcp.port table gives mbtcp, one other
+ * than 502 if there is one (502 keeps it when the preference moves). The
+ * Lua side finds it the same way without the C plugin. */
+static void
+find_mbtcp_port(const gchar *table_name, ftenum_t selector_type, gpointer key, gpointer value,
+                gpointer user_data)
+{
+    guint *found = (guint *)user_data;
+
+    (void)table_name;
+    (void)selector_type;
+    if (dtbl_entry_get_handle((dtbl_entry_t *)value) == mbtcp_handle && (*found == 0 || *found == 502))
+        *found = GPOINTER_TO_UINT(key);
+}
+
+/* At each file start: the front end on the BU's port. The port of the last
+ * file is given back first (to mbtcp if it had it), so that mbtcp's own port
+ * is found in the table as Wireshark set it; then the front end sits on
+ * eclink_modbus.port, or on mbtcp's port when that is 0 (the default). Only
+ * with the Lua decoders (their preferences exist). */
+static void
+own_mb_port(void)
+{
+    dissector_table_t tcp = find_dissector_table("tcp.port");
+    guint want = 0;
+
+    if (mb_placed && dissector_get_uint_handle(tcp, mb_placed) == mb_front_handle) {
+        if (mb_displaced)
+            dissector_add_uint("tcp.port", mb_placed, mbtcp_handle);
+        else
+            dissector_delete_uint("tcp.port", mb_placed, mb_front_handle);
+    }
+    mb_placed = 0;
+    mb_port = 0;
+    dissector_table_foreach("tcp.port", find_mbtcp_port, &mb_port);
+    if (!prefs_find_module("eclink_modbus"))
+        return;
+    want = prefs_get_uint_value("eclink_modbus", "port");
+    if (want == 0)
+        want = mb_port;
+    if (want == 0)
+        return;
+    mb_displaced = dissector_get_uint_handle(tcp, want) == mbtcp_handle;
+    dissector_add_uint("tcp.port", want, mb_front_handle);
+    mb_placed = want;
+}
 
 /* Removes the front end's own entry from the layer list: Modbus/TCP looks as
  * without it (tcp:mbtcp:modbus), and mbtcp gets the layer number it would
@@ -503,23 +564,24 @@ call_mb_decoder(lua_view_t *v, gboolean full, tvbuff_t *tvb, packet_info *pinfo,
 }
 
 /* mbtcp classifies an ADU as query or response by its own TCP port
- * preference (default 502). On another port it is shown the server's port
- * as 502 while it runs, so that one setting (eclink_modbus.port) is enough. */
+ * preference (mbtcp.tcp.port). On another port it is shown the server's port
+ * as that one while it runs, so that one setting (eclink_modbus.port or
+ * mbtcp.tcp.port) is enough; on its own port it is left alone. */
 static int
 call_mbtcp(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
 {
     guint32 bu_port = pinfo->match_uint;
     guint32 srcport = pinfo->srcport, destport = pinfo->destport;
-    gboolean moved = bu_port != MBTCP_DEFAULT_PORT && (srcport == bu_port) != (destport == bu_port) &&
-                     srcport != MBTCP_DEFAULT_PORT && destport != MBTCP_DEFAULT_PORT;
+    gboolean moved = mb_port != 0 && bu_port != mb_port && (srcport == bu_port) != (destport == bu_port) &&
+                     srcport != mb_port && destport != mb_port;
     volatile int consumed = 0;
 
     if (!moved)
         return call_dissector_only(mbtcp_handle, tvb, pinfo, tree, data);
     if (destport == bu_port)
-        pinfo->destport = MBTCP_DEFAULT_PORT;
+        pinfo->destport = mb_port;
     else
-        pinfo->srcport = MBTCP_DEFAULT_PORT;
+        pinfo->srcport = mb_port;
     TRY {
         consumed = call_dissector_only(mbtcp_handle, tvb, pinfo, tree, data);
     }
@@ -590,6 +652,7 @@ frontends_init(void)
     g_array_set_size(pn_learned_ports, 0);
     own_pn_rt();
     own_pn_cm();
+    own_mb_port();
 }
 
 static void
@@ -613,7 +676,7 @@ proto_register_vrshark_frontends(void)
     pn_cm_handle = register_dissector("vrshark_pnio.cm", dissect_pn_cm, proto_vrshark_pnio);
     proto_vrshark_mbtcp = proto_register_protocol("vrshark Modbus/TCP front end", "vrshark_mbtcp",
                                                   "vrshark_mbtcp");
-    register_dissector(VRSHARK_MB_FRONT_NAME, dissect_mbtcp_front, proto_vrshark_mbtcp);
+    mb_front_handle = register_dissector(VRSHARK_MB_FRONT_NAME, dissect_mbtcp_front, proto_vrshark_mbtcp);
 
     pn_frame_id_table = register_dissector_table(VRSHARK_PN_FRAME_ID_TABLE,
         "vrshark: PROFINET cyclic FrameIDs decoded in Lua", proto_vrshark_pnio, FT_UINT16, BASE_HEX);
