@@ -481,3 +481,40 @@ def test_pcapng_and_gzip(report, tmp_path):
     for path in (ng, gz):
         assert timeline(report, path) == [
             (1, "error", 1, "bad CRC (6x, frames 1-6 over 0.050 s)")]
+
+
+@pytest.fixture
+def odd_files(tmp_path):
+    """Files tshark opens, or refuses, that are not captures of ours."""
+    tmp_path.chmod(0o755)
+    files = {
+        "text3": b"vm\n",                                        # read by tshark as one frame, no time
+        "random": bytes((i * 73 + 11) % 256 for i in range(4096)),
+        "pcap_header_only": bytes.fromhex("d4c3b2a1020004000000000000000000ffff000001000000"),
+    }
+    cut = (CAPTURES / "eglink_armed.pcap").read_bytes()
+    files["pcap_cut"] = cut[:len(cut) // 2 + 7]
+    paths = {}
+    for name, data in files.items():
+        path = tmp_path / name
+        path.write_bytes(data)
+        path.chmod(0o644)
+        paths[name] = path
+    paths["directory"] = tmp_path
+    return paths
+
+
+@pytest.mark.parametrize("name", ["text3", "random", "pcap_header_only", "pcap_cut", "directory"])
+def test_any_input_reports_or_says_why(report, odd_files, name):
+    """Whatever tshark makes of a file: a report (exit 0/1), or exit 2 with
+    one line naming the file; never a traceback."""
+    proc = report("--json", odd_files[name])
+    assert "Traceback" not in proc.stderr and "Error" not in proc.stderr.split(":", 1)[0]
+    if proc.returncode == 2:
+        assert len(proc.stderr.splitlines()) == 1 and str(odd_files[name]) in proc.stderr, proc.stderr
+    else:
+        assert proc.returncode == 0, proc.stderr
+        doc = as_json(proc)["captures"][0]
+        assert doc["devices"] == [] or name == "pcap_cut"
+    if name == "text3":
+        assert proc.returncode == 0 and as_json(proc)["captures"][0]["frames"] == 1

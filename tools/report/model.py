@@ -279,8 +279,11 @@ class Capture:
     # --- rows ---------------------------------------------------------------
 
     def add(self, c):
-        frame = int(c[0])
-        epoch = float(c[1])
+        # Any file tshark opens gives rows, some without a time or even a
+        # number (a text file read as one frame): such a frame takes the
+        # time of the frame before it.
+        frame = int(c[0]) if c[0].isdigit() else self.last_frame + 1
+        epoch = float(c[1]) if c[1] else (self.first_epoch or 0.0) + self.last_time
         if self.first_epoch is None:
             self.first_epoch = epoch
         t = epoch - self.first_epoch
@@ -394,7 +397,7 @@ class Capture:
             self._counter(dev, "PCO", num(c[C["eclink_pco"]]), frame, t)
         for name, limit in (("pci", "eclink.pci"), ("pco", "eclink.pco")):
             age = c[C["%s_%s_age" % (transport, name)]]
-            if age:
+            if last(age):
                 dev.plot("%s age" % name.upper(), "age", t, float(last(age)), self.limits[limit])
         self._experts(dev, c, frame, t)
 
@@ -437,6 +440,8 @@ class Capture:
         statuses = c[C["mcmb2_slot_status"]].split(",")
         terminals = c[C["mcmb2_slot_terminal"]].split(",")
         for slot, st, term in zip(slots, statuses, terminals):
+            if not (slot and st and term):
+                continue
             st, term = int(st, 0), int(term, 0)
             name = "slot %s" % slot
             self._transition(dev, name, (st, term), frame, t, slot_text)
