@@ -67,6 +67,24 @@
 #define EGLINK_STAT_INIT_RETURN(ok) do { (void)(ok); return; } while (0)
 #endif
 
+/* A uint preference's value by module and preference name: 4.6 dropped
+ * prefs_get_uint_value(module, name) (the name now reads a pref_t). */
+#if EGLINK_WS_AT_LEAST(4, 6)
+#include <epan/prefs.h>
+#include <epan/prefs-int.h>
+static inline unsigned
+eglink_prefs_get_uint(const char *module_name, const char *pref_name)
+{
+    module_t *module = prefs_find_module(module_name);
+    pref_t *pref = module ? prefs_find_preference(module, pref_name) : NULL;
+
+    return pref ? prefs_get_uint_value(pref, pref_current) : 0;
+}
+#else
+#include <epan/prefs.h>
+#define eglink_prefs_get_uint prefs_get_uint_value
+#endif
+
 #if !EGLINK_WS_AT_LEAST(4, 6)
 #define dissector_try_uint_with_data    dissector_try_uint_new
 #define dissector_try_string_with_data  dissector_try_string_new

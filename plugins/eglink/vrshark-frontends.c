@@ -523,7 +523,7 @@ own_mb_port(void)
     dissector_table_foreach("tcp.port", find_mbtcp_port, &mb_port);
     if (!prefs_find_module("eclink_modbus"))
         return;
-    want = prefs_get_uint_value("eclink_modbus", "port");
+    want = eglink_prefs_get_uint("eclink_modbus", "port");
     if (want == 0)
         want = mb_port;
     if (want == 0)
