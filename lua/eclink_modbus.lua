@@ -161,7 +161,7 @@ proto.prefs.assembled = Pref.bool("Show assembled images", false,
     "Show on every EC-Link frame the input and output images as assembled from all accesses so far")
 
 local tcp_port_table = DissectorTable.get("tcp.port")
-local current_port = 0      -- the port the decoder (or the C front end) sits on, by this file
+local current_port = 0      -- without the C plugin: the port the decoder sits on
 local displaced = false     -- that port held Wireshark's Modbus/TCP dissector before
 -- Wireshark's Modbus/TCP dissector tells queries from responses by its own
 -- port preference, mbtcp.tcp.port (Lua-only; the C front end reads it).
