@@ -115,7 +115,6 @@ class Installed:
             shutil.copytree(real, copy, symlinks=True)
             shutil.copytree(staged, copy, symlinks=True, dirs_exist_ok=True)
             self.mounts.append((real, copy))
-        self.stage = stage
 
     def _install_lua_only(self):
         plugins = self.home / ".local" / "lib" / "wireshark" / "plugins" / "vrshark"

@@ -118,7 +118,7 @@ DissectorTable.get("ethertype"):add(0x8892, p)
 
 
 @pytest.fixture
-def personal_pair(request):
+def personal_pair():
     """A personal install and a Lua-only one, each used by one test."""
     made = []
 
