@@ -20,12 +20,15 @@ as it is) and then adds the EC-Link view of every register and bit access:
   function code).
 
 Detection (preference): "heuristic" accepts a connection on evidence only
-a BU gives (vrshark/modbus_detect.luam: input images whose PCI moves at the
-BU's 125 ms cadence, or an input image and a written output image). From
-the first image it looks at, the connection is analysed as if accepted;
-its frames are shown once it is accepted: the accepting frame and later
-ones in one pass, the earlier ones too on a second pass (tshark -2, GUI).
-A connection not accepted within CANDIDATE_TRIES ADUs is left to Modbus.
+a BU and its controller give, over time (vrshark/modbus_detect.luam: input
+images whose PCI moves at the BU's 125 ms cadence while the other fields
+stay, and output writes consistent over more than one write). From the
+first image it looks at, the connection is analysed as if accepted; its
+frames are shown once it is accepted: the accepting frame and later ones in
+one pass, the earlier ones too on a second pass (tshark -2, GUI). A
+connection not accepted within CANDIDATE_TRIES ADUs is left to Modbus. An
+accepted connection whose input images stop being valid (DROP_IMAGES in a
+row) is dropped again with a note, and judged afresh.
 "always" decodes every connection on the port; "off" leaves Modbus alone.
 
 Port: eclink_modbus.port, or with 0 (the default) the port of Wireshark's
@@ -112,7 +115,11 @@ ef.no_request = ProtoExpert.new("eclink_modbus.no_request", "Response without a 
 -- a controller that does not read the input image cannot watch PCI
 ef.poll_gap = ProtoExpert.new("eclink_modbus.poll_gap", "Input image not read for longer than the PCI timeout",
     expert.group.SEQUENCE, expert.severity.WARN)
+-- an accepted connection whose input images stopped being a BU's
+ef.dropped = ProtoExpert.new("eclink_modbus.dropped", "Input images no longer valid: not taken for a BU any more",
+    expert.group.PROTOCOL, expert.severity.NOTE)
 hs_experts[#hs_experts + 1] = ef.periodic_reassembled
+hs_experts[#hs_experts + 1] = ef.dropped
 hs_experts[#hs_experts + 1] = ef.no_request
 hs_experts[#hs_experts + 1] = ef.poll_gap
 proto.experts = hs_experts
@@ -283,6 +290,7 @@ local function get_conn(key)
             accepted = nil,
             det = detect.new(),
             tries = 0,
+            watch = {},        -- accepted: the run of invalid input images
             pre = {},          -- records analysed before acceptance (shown once accepted)
             periodic = nil,
             hs = handshake.new(),
@@ -391,6 +399,21 @@ local function look(c, accesses, tvb, off, t)
         end
     end
     return yes
+end
+
+-- An accepted connection's full input images, watched: false once
+-- detect.DROP_IMAGES of them in a row were invalid.
+local function still_valid(c, accesses, tvb, off)
+    for _, a in ipairs(accesses) do
+        if full_input(a.tname, a.start, a.count) then
+            for _, p in ipairs(map_access(a.tname, a.start, a.count, tvb, off + a.data, a.coil)) do
+                if p.kind == "input" and p.length == 64 and not detect.still_valid(c.watch, p.data) then
+                    return false
+                end
+            end
+        end
+    end
+    return true
 end
 
 -- Apply a piece to the connection's stored image.
@@ -623,6 +646,18 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb)
         else
             return NOT_DECODED
         end
+    end
+    -- accepted, but the input images stopped being valid: the connection is
+    -- judged afresh from the next ADU on; this one says so (a note, instead
+    -- of alarms on every frame of a device that is not, or no longer, a BU)
+    if det == DETECT_HEURISTIC and c.accepted and c.accepted ~= pinfo.number
+        and not still_valid(c, accesses, tvb, off) then
+        add_finding(rec, { ef.dropped, string.format(
+            "%d input images in a row not valid: connection (recognized in frame %d) no longer taken for a BU's; "
+            .. "left to Modbus/TCP until it is recognized again", detect.DROP_IMAGES, c.accepted) })
+        rec[R_ACCEPTED] = c.accepted
+        conns[conn_key(pinfo, is_request)] = nil
+        return rec
     end
     rec[R_ACCEPTED] = c.accepted or false
     -- poll gap: the first read of the input image after more than the PCI timeout

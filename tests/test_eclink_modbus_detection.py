@@ -16,21 +16,25 @@ ALWAYS = {"eclink_modbus.detection": "always"}
 
 
 def test_late_accept(tshark, capture_file):
-    """An output write (4) before the first input image (7): recognized in 7
-    (an input image and an output image). One pass shows 7 on; the second
-    pass shows the earlier frames of the connection too."""
+    """Output writes (4, 8) before and between the input images (7, 11, 15):
+    recognized in 15, the third input image of a PCI chain, after two
+    consistent writes. One pass shows 15 on; the second pass shows the
+    earlier frames of the connection too."""
     cap = capture_file("eclink_modbus_late_accept.pcap")
     names = ["eclink.image", "eclink.pco", "eclink.pci", "eclink_modbus.accepted_in"]
     one = tshark.frames(cap, names, display_filter="eclink_modbus")
-    assert sorted(one) == [7, 8, 9]
-    tshark.expect(cap, 7, {"eclink.image": "input", "eclink.pci": 1, "eclink_modbus.accepted_in": 7})
-    tshark.expect(cap, 8, {"eclink.image": "output", "eclink.pco": 2, "eclink_modbus.accepted_in": 7})
+    assert sorted(one) == list(range(15, 22))
+    tshark.expect(cap, 15, {"eclink.image": "input", "eclink.pci": 3, "eclink_modbus.accepted_in": 15})
+    tshark.expect(cap, 16, {"eclink.image": "output", "eclink.pco": 4, "eclink_modbus.accepted_in": 15})
     tshark.expect(cap, 4, {"eclink.image": None, "eclink_modbus.accepted_in": None})
+    tshark.expect(cap, 7, {"eclink.image": None, "eclink_modbus.accepted_in": None})
     two = tshark.frames(cap, names, display_filter="eclink_modbus", two_pass=True)
-    assert sorted(two) == [4, 5, 6, 7, 8, 9]
-    tshark.expect(cap, 4, {"eclink.image": "output", "eclink.pco": 1, "eclink_modbus.accepted_in": 7},
+    assert sorted(two) == list(range(4, 22))
+    tshark.expect(cap, 4, {"eclink.image": "output", "eclink.pco": 1, "eclink_modbus.accepted_in": 15},
                   two_pass=True)
-    for frame in (7, 8, 9):
+    tshark.expect(cap, 7, {"eclink.image": "input", "eclink.pci": 1, "eclink_modbus.accepted_in": 15},
+                  two_pass=True)
+    for frame in range(15, 22):
         assert two[frame] == one[frame]
 
 
@@ -38,7 +42,7 @@ def test_detection_always(tshark, capture_file):
     cap = capture_file("eclink_modbus_late_accept.pcap")
     got = tshark.frames(cap, ["eclink.image", "eclink.pco", "eclink_modbus.accepted_in"],
                         display_filter="eclink_modbus", prefs=ALWAYS)
-    assert sorted(got) == [4, 5, 6, 7, 8, 9]
+    assert sorted(got) == list(range(4, 22))
     tshark.expect(cap, 4, {"eclink.image": "output", "eclink.pco": 1, "eclink_modbus.accepted_in": None},
                   prefs=ALWAYS)
     tshark.expect(cap, 5, {"eclink.image": None, "eclink.pco": None}, prefs=ALWAYS)
@@ -86,14 +90,19 @@ def test_eg_link_unused_is_recognized(tshark, work_dir):
 
 
 def test_eg_link_unused_with_output_write(tshark, work_dir):
-    """The same BU with a controller that writes the output image: recognized in the first write."""
+    """The same BU with a controller that writes the output image (6, 10, ...):
+    recognized on its third input image (13), the writes before it consistent."""
     traffic = Traffic()
     bu_connection(traffic, dict(eg=0, ec=1, cl=6, armed_ru=0, ru_state=0, battery=0, rssi=0, bu_state=0x10),
-                  polls=3, poll=0.125, write=True)
+                  polls=4, poll=0.125, write=True)
     cap = _write(traffic, work_dir, "eg_unused_write.pcap")
-    tshark.expect(cap, 6, {"eclink.image": "output", "eclink_modbus.accepted_in": 6})
-    tshark.expect(cap, 5, {"eclink.image": None})
-    tshark.expect(cap, 5, {"eclink.image": "input", "eclink.bu_state": 0x10, "eclink_modbus.accepted_in": 6},
+    tshark.expect(cap, 13, {"eclink.image": "input", "eclink.pci": 2, "eclink_modbus.accepted_in": 13})
+    tshark.expect(cap, 14, {"eclink.image": "output", "eclink.pco": 2, "eclink_modbus.accepted_in": 13})
+    for frame in (5, 6, 9, 10):
+        tshark.expect(cap, frame, {"eclink.image": None})
+    tshark.expect(cap, 5, {"eclink.image": "input", "eclink.bu_state": 0x10, "eclink_modbus.accepted_in": 13},
+                  two_pass=True)
+    tshark.expect(cap, 6, {"eclink.image": "output", "eclink.pco": 0, "eclink_modbus.accepted_in": 13},
                   two_pass=True)
 
 
@@ -152,13 +161,13 @@ def test_port_preference_one_setting(tshark, capture_file):
     prefs = {"eclink_modbus.port": "5020"}
     tshark.expect(cap, 5, {"modbus.request_frame": 4, "eclink.pci": 1, "eclink_modbus.request_in": 4},
                   prefs=prefs, two_pass=True)
-    tshark.expect(cap, 7, {"modbus.request_frame": 6, "eclink_modbus.request_in": 6}, prefs=prefs)
+    tshark.expect(cap, 7, {"modbus.request_frame": 6, "eclink_modbus.request_in": 6}, prefs=prefs, two_pass=True)
     for env in ({}, {"VRSHARK_NO_C_PLUGIN": "1"}):
         for extra in (["-V"], []):
             out = subprocess.run([tshark.cmd, "-n", "-r", str(cap), "-o", "eclink_modbus.port:5020"] + extra,
                                  env=dict(tshark.env, **env), capture_output=True, text=True, timeout=600).stdout
             assert "classify" not in out.lower()
-        assert out.count("Query: Trans:") == 2 and out.count("Response: Trans:") == 2
+        assert out.count("Query: Trans:") == 8 and out.count("Response: Trans:") == 8
     # without the setting, port 5020 is none of ours
     assert tshark.frames(cap, ["eclink.image"], display_filter="eclink") == {}
 
@@ -254,3 +263,57 @@ def test_no_lua_errors_anywhere(tshark):
         tshark.verbose(cap)
         tshark.verbose(cap, two_pass=True, prefs={"eclink_modbus.assembled": "TRUE"})
         tshark.verbose(cap, prefs={"eclink_modbus.detection": "always"})
+
+
+def test_output_side_over_several_writes(tshark, work_dir):
+    """A valid input chain is not enough while the controller's writes are
+    not those of a BU's controller: PCO jumping about, or the periodic data
+    size changing with every write (an IO device's 112 registers written
+    with counting values). The same chain with consistent writes is
+    recognized."""
+    traffic = Traffic()
+    streams = {}
+    for name, pco_of, size_of in [("pco jumps", lambda i: (i * 100) & 0xFF, lambda i: 8),
+                                  ("size changes", lambda i: i, lambda i: 10 + i),
+                                  ("consistent", lambda i: i, lambda i: 8)]:
+        mb, streams[name] = traffic.client()
+        t0 = traffic.t + 0.01
+        for i in range(12):
+            t = t0 + 0.125 * i
+            read_input(mb, t, 4, mbgen.input_image(pci=i))
+            mb.write_regs(t + 0.004, 0, mbgen.regs(mbgen.output_image(pco=pco_of(i), size=size_of(i))))
+        traffic.done(t0 + 1.6)
+    cap = _write(traffic, work_dir, "output_side.pcap")
+    for two in (False, True):
+        got = tshark.frames(cap, ["tcp.stream"], display_filter="eclink_modbus", two_pass=two)
+        assert sorted({int(v["tcp.stream"]) for v in got.values()}) == [streams["consistent"]]
+
+
+def test_dropped_when_images_stop_being_valid(tshark, work_dir):
+    """A connection recognized on a BU's run whose server then answers with
+    images no BU makes (spare bytes not 0, PCI frozen): the eighth invalid
+    image in a row drops it with one note; later frames are Modbus/TCP only,
+    instead of alarms on every frame."""
+    traffic = Traffic()
+    mb, _ = traffic.client()
+    t0 = traffic.t + 0.01
+    frames = []
+    for i in range(20):
+        t = t0 + 0.125 * i
+        img = mbgen.input_image(pci=i) if i < 6 else mbgen.input_image(pci=1, spare=b"\1\1\1\1", eg=9)
+        frames.append(read_input(mb, t, 4, img)[1])
+    traffic.done(t0 + 2.6)
+    cap = _write(traffic, work_dir, "dropped.pcap")
+    dropped = frames[6 + 7]
+    for two in (False, True):
+        exp = tshark.experts(cap, two_pass=two)
+        notes = {f: [x for x in m if "no longer" in x] for f, m in exp.items() if any("no longer" in x for x in m)}
+        assert notes == {dropped: ["8 input images in a row not valid: connection (recognized in frame %d) no "
+                                   "longer taken for a BU's; left to Modbus/TCP until it is recognized again"
+                                   % frames[2]]}
+        got = tshark.frames(cap, ["eclink.image"], display_filter="eclink_modbus", two_pass=two)
+        shown = sorted(got)
+        assert shown[-1] == dropped and not [f for f in frames if f > dropped and f in got]
+        # the images before the drop still tell what is wrong with them
+        assert "Spare bytes 60..63 are not 0" in exp[frames[6]]
+        tshark.expect(cap, dropped + 2, {"eclink.image": None, "modbus.func_code": 4}, two_pass=two)

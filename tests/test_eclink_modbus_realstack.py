@@ -6,7 +6,11 @@ input image whose PCI moves every 125 ms (EG-Link Unused, EC-Link only). A
 pymodbus client plays the PLC: it reads the input image, echoes CCI in CAO
 and writes the output image (holding registers 0..111), logging what it read
 and wrote. Three ordinary servers on 127.0.0.2..4 (0/1 flags, counters,
-random registers) are polled at registers 0..31 beside it. All servers use
+random registers) are polled at registers 0..31 beside it, and an ordinary
+IO device on 127.0.0.5 (0/1 digital inputs changing every few cycles) is
+polled exactly as a PLC polls a BU: the whole input image (input registers
+0..31), 112 holding registers written from 0 (values counting up) and a
+read/write (function 23), every 100-125 ms. All servers use
 one free port above 1024 (not 502), named in the one setting
 eclink_modbus.port.
 
@@ -34,6 +38,7 @@ def _free_port():
 PORT = _free_port()
 BU = "127.0.0.1"
 ORDINARY = {"127.0.0.2": "flags", "127.0.0.3": "counters", "127.0.0.4": "random"}
+BU_LIKE = "127.0.0.5"       # an ordinary IO device polled like a BU
 RUN_S = 2.0
 
 SERVERS = r'''
@@ -71,6 +76,13 @@ class Registers(ModbusSequentialDataBlock):
             regs = [img[2 * k] | img[2 * k + 1] << 8 for k in range(32)]   # image byte 2n in the low byte
         elif self.kind == "flags":
             regs = [rnd.randrange(2) for _ in range(32)]
+        elif self.kind == "io":
+            # 0/1 digital inputs: three steadily on, three changing every few
+            # reads, the rest off (every value check of an input image passes)
+            regs = [0] * 32
+            regs[10] = regs[12] = regs[13] = 1
+            for k in (0, 5, 16):
+                regs[k] = (self.reads // (3 + k % 2)) % 2
         elif self.kind == "counters":
             regs = [(self.reads * (k + 1)) & 0xFFFF for k in range(32)]
         else:
@@ -85,7 +97,8 @@ def context(kind):
 
 async def main():
     servers = [ModbusTcpServer(context(kind), address=(ip, PORT)) for ip, kind in
-               [("127.0.0.1", "bu"), ("127.0.0.2", "flags"), ("127.0.0.3", "counters"), ("127.0.0.4", "random")]]
+               [("127.0.0.1", "bu"), ("127.0.0.2", "flags"), ("127.0.0.3", "counters"), ("127.0.0.4", "random"),
+                ("127.0.0.5", "io")]]
     await asyncio.gather(*(s.serve_forever() for s in servers))
 
 asyncio.run(main())
@@ -137,9 +150,20 @@ def _plc(log):
     """The PLC: every 50 ms read the input image, echo CCI in CAO, write the output image."""
     bu = _client(BU)
     others = {ip: _client(ip) for ip in ORDINARY}
+    io = _client(BU_LIKE)
     pco = 1
     end = time.monotonic() + RUN_S
+    next_io, count = time.monotonic(), 0
     while time.monotonic() < end:
+        if time.monotonic() >= next_io:
+            # the IO device, polled as a BU would be, every 100-125 ms
+            assert not io.read_input_registers(0, count=32, device_id=1).isError()
+            assert not io.write_registers(0, [(count + k) & 0xFFFF for k in range(112)], device_id=1).isError()
+            assert not io.readwrite_registers(read_address=2048, read_count=32, write_address=0,
+                                              values=[(count + k) & 0xFFFF for k in range(112)],
+                                              device_id=1).isError()
+            count += 1
+            next_io += 0.100 + 0.025 * (count % 2)
         rr = bu.read_input_registers(0, count=32, device_id=1)
         assert not rr.isError(), rr
         regs = list(rr.registers)
@@ -152,7 +176,7 @@ def _plc(log):
         for client in others.values():
             assert not client.read_input_registers(0, count=32, device_id=1).isError()
         time.sleep(0.05)
-    for client in [bu] + list(others.values()):
+    for client in [bu, io] + list(others.values()):
         client.close()
 
 
@@ -221,7 +245,9 @@ def test_bu_values_match_what_the_plc_read(tshark, real_capture):
 def test_recognized_within_the_first_second(tshark, real_capture):
     cap, _ = real_capture
     got = tshark.frames(cap, NAMES, prefs=PREFS)
-    bu_frames = {f: v for f, v in got.items() if BU in (v["ip.src"], v["ip.dst"]) and v["modbus.func_code"]}
+    # every client connects from 127.0.0.1: the BU's frames are those between
+    # 127.0.0.1 and itself
+    bu_frames = {f: v for f, v in got.items() if v["ip.src"] == v["ip.dst"] == BU and v["modbus.func_code"]}
     first = min(bu_frames)
     accepted = {v["eclink_modbus.accepted_in"] for v in bu_frames.values() if v["eclink_modbus.accepted_in"]}
     assert len(accepted) == 1
@@ -280,3 +306,15 @@ def test_neither_port_setting_as_wireshark_alone(tshark, real_capture, work_dir)
                            capture_output=True, text=True).stdout
     assert ours == alone
     assert "eclink" not in ours
+
+
+def test_io_device_polled_like_a_bu_never_decoded(tshark, real_capture):
+    """An ordinary IO device whose 0/1 inputs pass every value check of an
+    input image, and whose PLC writes a whole output image: not a BU."""
+    cap, _ = real_capture
+    for two in (False, True):
+        got = tshark.frames(cap, NAMES, prefs=PREFS, two_pass=two)
+        polled = [v for v in got.values() if BU_LIKE in (v["ip.src"], v["ip.dst"]) and v["modbus.func_code"]]
+        assert {v["modbus.func_code"] for v in polled} >= {"4", "16", "23"}
+        assert len(polled) >= 40
+        assert [v for v in polled if v["eclink.image"] or v["eclink_modbus.accepted_in"]] == []

@@ -107,26 +107,26 @@ TIMELINES = {
         (27, 'warning', 2, '1 packet lost'),
     ],
     "eclink_modbus_faults.pcap": [
-        (13, 'warning', 1, 'no input image for 0.700 s (after frame 9, limit 500 ms)'),
-        (13, 'error', 1, 'PCI stalled at 2 for 0.825 s (unchanged since frame 9, limit 500 ms), moving again in frame 17'),
-        (20, 'warning', 1, 'command from RU not echoed by CAO in time (2x, frames 20-26 over 0.135 s)'),
-        (20, 'warning', 1, 'command to RU not echoed by CAI in time'),
-        (21, 'warning', 1, 'no input image for 2.050 s (after frame 17, limit 500 ms)'),
-        (22, 'error', 1, 'PCO stalled at 4 for 2.175 s (unchanged since frame 18, limit 2000 ms), moving again in frame 26'),
-        (29, 'note', 1, 'RU 0x1234 state Enabled -> undefined 0x05 (after 3.125 s or more)'),
-        (29, 'error', 1, 'VLAPs out of range'),
-        (29, 'error', 1, 'undefined link status'),
-        (29, 'error', 1, 'undefined RU state'),
-        (29, 'error', 1, 'percentage over 100'),
-        (29, 'error', 1, 'flag not 0 or 1'),
-        (29, 'error', 1, 'undefined RU disabled reason'),
-        (29, 'error', 1, 'joystick out of range'),
-        (29, 'warning', 1, 'spare not 0 (2x, frames 29-32 over 0.097 s)'),
-        (31, 'note', 1, 'BU state Armed -> undefined 0x42 (after 3.175 s or more)'),
-        (31, 'note', 1, 'RU state undefined 0x05 (RU 0x1234) -> Initial (no RU armed) (after 0.050 s)'),
-        (31, 'error', 1, 'undefined BU state'),
-        (31, 'error', 1, 'RU fields not 0 while no RU is armed'),
-        (32, 'error', 1, 'periodic data size over 51200'),
+        (21, 'warning', 1, 'no input image for 0.700 s (after frame 17, limit 500 ms)'),
+        (21, 'error', 1, 'PCI stalled at 2 for 0.825 s (unchanged since frame 17, limit 500 ms), moving again in frame 25'),
+        (28, 'warning', 1, 'command from RU not echoed by CAO in time (2x, frames 28-34 over 0.135 s)'),
+        (28, 'warning', 1, 'command to RU not echoed by CAI in time'),
+        (29, 'warning', 1, 'no input image for 2.050 s (after frame 25, limit 500 ms)'),
+        (30, 'error', 1, 'PCO stalled at 4 for 2.175 s (unchanged since frame 26, limit 2000 ms), moving again in frame 34'),
+        (37, 'note', 1, 'RU 0x1234 state Enabled -> undefined 0x05 (after 3.250 s or more)'),
+        (37, 'error', 1, 'VLAPs out of range'),
+        (37, 'error', 1, 'undefined link status'),
+        (37, 'error', 1, 'undefined RU state'),
+        (37, 'error', 1, 'percentage over 100'),
+        (37, 'error', 1, 'flag not 0 or 1'),
+        (37, 'error', 1, 'undefined RU disabled reason'),
+        (37, 'error', 1, 'joystick out of range'),
+        (37, 'warning', 1, 'spare not 0 (2x, frames 37-40 over 0.097 s)'),
+        (39, 'note', 1, 'BU state Armed -> undefined 0x42 (after 3.300 s or more)'),
+        (39, 'note', 1, 'RU state undefined 0x05 (RU 0x1234) -> Initial (no RU armed) (after 0.050 s)'),
+        (39, 'error', 1, 'undefined BU state'),
+        (39, 'error', 1, 'RU fields not 0 while no RU is armed'),
+        (40, 'error', 1, 'periodic data size over 51200'),
     ],
     "eclink_pnio_connect.pcap": [
         (7, 'note', 1, 'BU state Disarmed -> Armed (after 0.250 s or more)'),
@@ -227,7 +227,7 @@ def test_devices_mcmb2_terminals(report):
 
 @pytest.mark.parametrize("name, kind, device, layout", [
     ("eclink_modbus_faults.pcap", "eclink_modbus", "EC-Link BU, Modbus/TCP server 192.168.2.41:502",
-     "heuristic, recognised in frame 6"),
+     "heuristic, recognised in frame 13"),
     ("eclink_pnio_connect.pcap", "eclink_pnio", "EC-Link BU, PROFINET device 00:30:11:00:00:02",
      "Connect in frame 1"),
     ("mcmb2_duplex_watchdog.pcap", "mcmb2", "MC-MB2-PN duplex base 00:30:11:00:00:02",
@@ -286,11 +286,11 @@ def test_faults_gate_warn(report):
     assert proc.returncode == 1
     assert [ln for ln in proc.stdout.splitlines() if ln.startswith("== ")] == \
         ["== " + c for c in captures]
-    assert "     0.928      13  error     [1]  PCI stalled at 2 for 0.825 s (unchanged since " \
-        "frame 9, limit 500 ms), moving again in frame 17" in proc.stdout.splitlines()
+    assert "     1.178      21  error     [1]  PCI stalled at 2 for 0.825 s (unchanged since " \
+        "frame 17, limit 500 ms), moving again in frame 25" in proc.stdout.splitlines()
     assert proc.stderr.splitlines() == [
         "vrshark-report: FAIL (--fail-on warn): 17 finding(s) at warning or above; first: "
-        "captures/eclink_modbus_faults.pcap frame 13: no input image for 0.700 s (after frame 9, "
+        "captures/eclink_modbus_faults.pcap frame 21: no input image for 0.700 s (after frame 17, "
         "limit 500 ms)"]
 
 

@@ -128,6 +128,24 @@ def cycle(mb, t, inp, out):
     return r + w
 
 
+# The heuristic accepts a connection on a run of cycles only a BU and its
+# controller give (lua/vrshark/modbus_detect.luam): PCI moving in the 125 ms
+# cadence, output writes consistent over more than one write. A scenario
+# too short for that ends with RUN_CYCLES such cycles (its frames are then
+# decoded on the second pass, tshark -2), or starts with them (every frame
+# of it decoded in one pass).
+RUN_CYCLES = 3
+
+
+def bu_run(mb, t, pci, pco, inp=None, out=None, n=RUN_CYCLES):
+    """n healthy cycles 125 ms apart from time t, PCI and PCO counting on from
+    pci and pco; inp and out: the other fields of the images (dicts).
+    Returns the time after the run."""
+    for k in range(n):
+        cycle(mb, t + 0.125 * k, input_image(pci=pci + k, **(inp or {})), output_image(pco=pco + k, **(out or {})))
+    return t + 0.125 * n
+
+
 @capture("eclink_modbus_basic.pcap",
          "EC-Link over Modbus/TCP: cyclic input/output images, a command each way, BU Armed -> Blocked")
 def basic():
@@ -183,6 +201,8 @@ def functions():
     mb.read_write(t + 1.1, 0, regs(out[0:8]), 0, regs(out[0:20]))  # 26-27 fc 23 holding 0..3 / 0..9
     mb.exception(t + 1.2, 3, struct.pack(">HH", 200, 10), 2)       # 28-29 exception 0x83
     mb.read_regs(t + 1.3, 3, 2100, regs(bytes(8)))         # 30-31 outside the image map
+    bu_run(mb, t + 1.4, 2, 2, dict(cci=2, cai=5, joy=(100, 200, -300, 0), sw=(1, -1, 0, 0, 0, 0, 0, 0)),
+           dict(cco=5, cao=2))                             # 32-43 recognized in 41
     return cap
 
 
@@ -209,6 +229,7 @@ def segments():
     a3 = mb.adu(struct.pack(">BB", 4, 64) + regs(inp3), tid=12)
     c.server_send(0.303, a3[:30])                          # 9
     c.server_send(0.304, a3[30:])                          # 10
+    bu_run(mb, 0.425, 4, 2, dict(ru_state=4))               # 11-22 recognized in 20
     return cap
 
 
@@ -239,22 +260,23 @@ def periodic():
 def faults():
     cap = Capture()
     mb = ModbusClient(cap)
-    t = 0.1
-    # 4-11: two good cycles; CCI changes in the second (new command from RU)
+    # 4-11: a healthy run the connection is recognized on (in 13)
+    t = bu_run(mb, 0.1, 255, 255, dict(cci=1), dict(cao=1, cco=1), n=2)
+    # 12-19: two good cycles; CCI changes in the second (new command from RU)
     cycle(mb, t, input_image(pci=1, cci=1), output_image(pco=1, cao=1, cco=1))
     cycle(mb, t + 0.125, input_image(pci=2, cci=2), output_image(pco=2, cao=1, cco=2))
-    # 12-19: PCI stalls (same PCI 700 ms later), PCO keeps moving
+    # 20-27: PCI stalls (same PCI 700 ms later), PCO keeps moving
     cycle(mb, t + 0.825, input_image(pci=2, cci=2), output_image(pco=3, cao=1, cco=2))
     cycle(mb, t + 0.95, input_image(pci=3, cci=2), output_image(pco=4, cao=1, cco=2))
-    # 20-27: 2.6 s later: CAO still not echoing CCI 2, CCO 2 not echoed by CAI, PCO stalled
+    # 28-35: 2.6 s later: CAO still not echoing CCI 2, CCO 2 not echoed by CAI, PCO stalled
     cycle(mb, t + 3.0, input_image(pci=4, cci=2), output_image(pco=4, cao=1, cco=2))
     cycle(mb, t + 3.125, input_image(pci=5, cci=2), output_image(pco=5, cao=2, cco=2))
-    # 28-31: bad values in the input image
+    # 36-39: bad values in the input image
     mb.read_regs(t + 3.25, 4, 0, regs(input_image(
         pci=6, cci=2, vlaps=4, eg=7, ru_state=5, battery=101, rssi=150, cable=2, docked=3,
         disabled=4, joy=(1001, -1001, 0, 0), encsw=2, spare=b"\0\1\0\0")))
     mb.read_regs(t + 3.3, 4, 0, regs(unarmed_image(pci=7, cci=2, bu_state=0x42, joy=(5, 0, 0, 0))))
-    # 32-33: bad output image
+    # 40-41: bad output image
     mb.write_regs(t + 3.35, 0, regs(output_image(pco=6, cao=2, cco=2, size=60000, block=1, spare=9)))
     return cap
 
@@ -267,6 +289,10 @@ def noswap():
     inp = input_image(pci=9, armed_ru=0x0102, joy=(-1000, 1, 0, 0))
     mb.read_regs(0.1, 4, 0, regs(inp, swap=False))
     mb.write_regs(0.11, 0, regs(output_image(pco=5, size=300, block=1), swap=False))
+    for k in range(RUN_CYCLES):                            # 8-19 recognized in 17
+        cycle_regs = regs(input_image(pci=10 + k, armed_ru=0x0102, joy=(-1000, 1, 0, 0)), swap=False)
+        mb.read_regs(0.225 + 0.125 * k, 4, 0, cycle_regs)
+        mb.write_regs(0.235 + 0.125 * k, 0, regs(output_image(pco=6 + k, size=300, block=1), swap=False))
     return cap
 
 
@@ -276,17 +302,19 @@ def port5020():
     cap = Capture()
     mb = ModbusClient(cap, server_port=5020)
     cycle(mb, 0.1, input_image(pci=1), output_image(pco=1))
+    bu_run(mb, 0.225, 2, 2)                                # 8-19 recognized in 17
     return cap
 
 
 @capture("eclink_modbus_late_accept.pcap",
-         "EC-Link over Modbus/TCP: output writes before the first input image read")
+         "EC-Link over Modbus/TCP: output writes before the first input image read, then a BU's run")
 def late_accept():
     cap = Capture()
     mb = ModbusClient(cap)
     mb.write_regs(0.1, 0, regs(output_image(pco=1)))       # 4-5 before acceptance
     mb.read_regs(0.2, 4, 0, regs(input_image(pci=1)))      # 6-7 accepts in 7
     mb.write_regs(0.3, 0, regs(output_image(pco=2)))       # 8-9
+    bu_run(mb, 0.325, 2, 3)                                # 10-21 recognized in 15
     return cap
 
 

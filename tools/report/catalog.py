@@ -103,6 +103,7 @@ EXPERTS = {
     "eclink_modbus.bu_state_change": (NOTE, "state", "BU state changed"),
     "eclink_modbus.no_request": (NOTE, "finding", "response without its request"),
     "eclink_modbus.poll_gap": (WARNING, "poll_gap", "input image not read"),
+    "eclink_modbus.dropped": (NOTE, "finding", "images no longer valid: not taken for a BU any more"),
     # EC-Link over PROFINET
     "eclink_pnio.pci_stalled": (ERROR, "stall", "PCI"),
     "eclink_pnio.pco_stalled": (ERROR, "stall", "PCO"),
