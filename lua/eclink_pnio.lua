@@ -38,6 +38,7 @@ local epf = {
     pci_age = ProtoField.relative_time("eclink_pnio.pci_age", "Time since PCI changed"),
     pco_age = ProtoField.relative_time("eclink_pnio.pco_age", "Time since PCO changed"),
     layout = ProtoField.string("eclink_pnio.layout", "Layout from"),
+    layout_entry = ProtoField.string("eclink_pnio.layout_entry", "Layout table entry (to pin it: mcmb2.layouts)"),
     iops = ProtoField.uint8("eclink_pnio.iops", "IOPS", base.HEX, record.IOXS),
     iocs = ProtoField.uint8("eclink_pnio.iocs", "IOCS", base.HEX, record.IOXS),
 }
@@ -53,7 +54,9 @@ eef.short = ProtoExpert.new("eclink_pnio.short", "C-SDU shorter than the layout"
     expert.severity.ERROR)
 eef.learned = ProtoExpert.new("eclink_pnio.layout.learned", "Cyclic data layout learned from this Connect",
     expert.group.SEQUENCE, expert.severity.CHAT)
-for _, k in ipairs({ "iops_bad", "short", "learned" }) do eclp_experts[#eclp_experts + 1] = eef[k] end
+eef.inferred = ProtoExpert.new("eclink_pnio.layout.inferred", "Cyclic data layout inferred from the cyclic frames",
+    expert.group.SEQUENCE, expert.severity.NOTE)
+for _, k in ipairs({ "iops_bad", "short", "learned", "inferred" }) do eclp_experts[#eclp_experts + 1] = eef[k] end
 eclp.experts = eclp_experts
 
 ------------------------------------------------------------------------
@@ -112,6 +115,7 @@ local function show(rec, tvb, pinfo, tree)
     local up = plan.dir == "up"
     local root = record.root(rec, tvb, tree, eclp, up and ", input image" or ", output image")
     root:add(epf.layout, plan.source):set_generated()
+    if plan.entry then root:add(epf.layout_entry, plan.entry):set_generated() end
     attach(rec, "top", root)
     pinfo.cols.protocol = "EC-Link"
     if rec.size < plan.need then
@@ -140,5 +144,6 @@ local function show_connect(rec, tvb, tree, text)
     item:add_proto_expert_info(eef.learned, "Cyclic data layout learned: " .. text)
 end
 
-systems.register({ "eclink" }, { proto = eclp, short = eef.short, analyse = analyse, show = show,
+systems.register({ "eclink" }, { proto = eclp, short = eef.short, inferred = eef.inferred, analyse = analyse,
+                                 show = show,
                                  show_connect = show_connect })

@@ -79,6 +79,7 @@ local pf = {
     system = ProtoField.string("mcmb2.system", "System"),
     direction = ProtoField.string("mcmb2.direction", "Direction"),
     layout = ProtoField.string("mcmb2.layout", "Layout from"),
+    layout_entry = ProtoField.string("mcmb2.layout_entry", "Layout table entry (to pin it: mcmb2.layouts)"),
     status = ProtoField.uint8("mcmb2.status", "MC-MB2-PN status", base.HEX, STATUS, 0x0F),
     terminal = ProtoField.uint8("mcmb2.terminal", "Terminal number", base.DEC, nil, 0xF0),
     uplink_watchdog = ProtoField.uint8("mcmb2.uplink_watchdog", "Uplink watchdog counter", base.DEC),
@@ -147,10 +148,16 @@ local ef = {
         expert.severity.ERROR),
     learned = expert_new("mcmb2.layout.learned", "Cyclic data layout learned from this Connect",
         expert.group.SEQUENCE, expert.severity.CHAT),
+    inferred = expert_new("mcmb2.layout.inferred", "Cyclic data layout inferred from the cyclic frames",
+        expert.group.SEQUENCE, expert.severity.NOTE),
+    ambiguous = expert_new("mcmb2.layout.ambiguous",
+        "More than one layout fits these cyclic frames: none is decoded until one is left",
+        expert.group.SEQUENCE, expert.severity.NOTE),
 }
 mcmb2.experts = { ef.status_undefined, ef.slot_status_undefined, ef.terminal_not_zero, ef.not_valid, ef.e010,
                   ef.data_not_zero, ef.uplink_stalled, ef.downlink_stalled, ef.terminal_changed,
-                  ef.layout_mismatch, ef.iops_bad, ef.iocs_bad, ef.reserved_not_zero, ef.short, ef.learned }
+                  ef.layout_mismatch, ef.iops_bad, ef.iocs_bad, ef.reserved_not_zero, ef.short, ef.learned,
+                  ef.inferred, ef.ambiguous }
 
 ------------------------------------------------------------------------
 -- Preferences
@@ -551,6 +558,7 @@ local function show(rec, tvb, pinfo, tree)
     root:add(pf.system, plan.system):set_generated()
     root:add(pf.direction, up and "uplink" or "downlink"):set_generated()
     root:add(pf.layout, plan.source):set_generated()
+    if plan.entry then root:add(pf.layout_entry, plan.entry):set_generated() end
     attach(rec, "top", root)
     pinfo.cols.protocol = "MC-MB2"
     if rec.size < plan.need then
@@ -598,6 +606,7 @@ local ADDERS = {
     ["mcmb2.system"] = function(c) c.tree:add(pf.system, c.plan.system) end,
     ["mcmb2.direction"] = function(c) c.tree:add(pf.direction, c.up and "uplink" or "downlink") end,
     ["mcmb2.layout"] = function(c) c.tree:add(pf.layout, c.plan.source) end,
+    ["mcmb2.layout_entry"] = function(c) if c.plan.entry then c.tree:add(pf.layout_entry, c.plan.entry) end end,
     ["mcmb2.status"] = function(c) if c.up then add_at(c, pf.status, c.h, 1) end end,
     ["mcmb2.terminal"] = function(c) if c.up then add_at(c, pf.terminal, c.h, 1) end end,
     ["mcmb2.uplink_watchdog"] = function(c) if c.up then add_at(c, pf.uplink_watchdog, c.h + 1, 1) end end,
@@ -693,5 +702,16 @@ local function show_connect(rec, tvb, tree, text)
     item:add_proto_expert_info(ef.learned, "Cyclic data layout learned: " .. text)
 end
 
-systems.register({ "duplex", "polled" }, { proto = mcmb2, short = ef.short, analyse = analyse, show = show,
-                                          sparse = sparse, show_connect = show_connect })
+-- Cyclic frames of one FrameID pair that more than one layout fits
+-- (vrshark/pnio_infer.luam): said on the frame that found it; nothing is
+-- decoded until one is left.
+local function show_ambiguous(rec, tvb, tree)
+    local item = tree:add(mcmb2, tvb:range(0, 0))
+    item:append_text(": layout not inferred yet, more than one fits")
+    item:add_proto_expert_info(ef.ambiguous, "Layouts that fit these cyclic frames equally: " .. rec.text
+        .. "; none is decoded until one is left (or pin one in mcmb2.layouts)")
+end
+
+systems.register({ "duplex", "polled" }, { proto = mcmb2, short = ef.short, inferred = ef.inferred,
+                                          analyse = analyse, show = show, sparse = sparse,
+                                          show_connect = show_connect, show_ambiguous = show_ambiguous })

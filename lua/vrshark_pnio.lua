@@ -31,7 +31,12 @@ Layouts (vrshark/pnio_layout.luam) come from, best first:
      vrshark/pnio_layout.luam);
   3. a polled MC-MB2-PN uplink header, which describes itself (Y, Z, slot
      status); the downlink from the controller to the same device is laid
-     out with it.
+     out with it;
+  4. the cyclic frames of a duplex/simplex MC-MB2-PN base or an EC-Link BU
+     themselves (vrshark/pnio_infer.luam): a run of frames of one FrameID
+     pair, whose IOxS positions, module sizes, watchdogs or EC-Link images
+     leave one layout. Its frames before the settling frame are analysed
+     then, in frame order: shown on the second pass (tshark -2, the GUI).
 
 The decoders register themselves in vrshark/pnio_systems.luam by system
 ("duplex", "polled", "eclink"); the per-frame record they fill is described
@@ -45,6 +50,7 @@ package.path = dir .. "/?.luam;" .. package.path
 set_plugin_info(require("vrshark.version").info(
     "PROFINET IO carrier of MC-MB2-PN and EC-Link cyclic frames (layouts from Connect, table, polled header)"))
 local layout = require("vrshark.pnio_layout")
+local infer = require("vrshark.pnio_infer")
 local record = require("vrshark.pnio_record")
 local systems = require("vrshark.pnio_systems")
 local wrap = require("vrshark.wrap")
@@ -72,6 +78,8 @@ local tries       -- FrameID -> failed header checks
 local frames      -- frame number -> record (shared by frames that analyse alike: shared_record)
 local last_rec    -- plan -> its latest distinct records (shared_record)
 local ars         -- AR UUID -> parsed Connect
+local runs        -- vrshark.pnio_infer state: the runs of FrameIDs without a layout
+local addr_of     -- station key of pnio_infer (tostring of an Ethernet address) -> Address
 local heuristic, learn -- the preferences mcmb2.heuristic and mcmb2.connect, read in init()
 
 local function register(plan)
@@ -131,7 +139,8 @@ local function set_hooks()
     if not C then return end
     fe.hook(fe.pn_hook, "candidate", carrier, heuristic)
     fe.hook(fe.pn_hook, "connect", carrier, learn)
-    fe.hook(fe.pn_hook, "pending", carrier, pending_down ~= nil and #pending_down > 0)
+    fe.hook(fe.pn_hook, "pending", carrier, (pending_down ~= nil and #pending_down > 0)
+        or (runs ~= nil and infer.alive(runs)))
 end
 
 -- Without the C plugin: EtherType 0x8892 is taken again when each file
@@ -169,6 +178,8 @@ local function init()
     if not C then own_ethertype() end
     for port in pairs(cm_ports or {}) do udp_table:remove(port, carrier) end
     by_fid, pending_down, tries, frames, ars, cm_ports = {}, {}, {}, {}, {}, {}
+    runs = infer.new()
+    addr_of = {}
     last_rec = {}
     local prefs = systems.prefs()
     heuristic, learn = prefs.heuristic, prefs.connect
@@ -387,6 +398,66 @@ local function shared_record(rec)
     return rec
 end
 
+-- The record of one cyclic frame of a known plan (C-SDU as string s).
+local function analysed(plan, s, t, frame)
+    local dec = systems.decoder(plan.system)
+    if not dec then return nil end
+    local rec = record.new(plan, 2, #s)
+    if #s < plan.need then
+        record.add_finding(rec, "top", dec.short, string.format(
+            "C-SDU has %d bytes, the layout needs %d", #s, plan.need))
+        return rec
+    end
+    dec.analyse(rec, setmetatable({ s = s }, RawBytes), t, frame)
+    return rec
+end
+
+-- A layout settled by vrshark.pnio_infer: both plans registered, and every
+-- frame of the run (this one last) analysed in frame order.
+local function settle(res)
+    local source = string.format("inferred from cyclic frames %d..%d", res.first, res.last)
+    local dev = "inferred" .. res.last
+    local up, down
+    if res.system == "eclink" then
+        up, down = layout.eclink_plans(res.outlen, res.dap, source, dev)
+    else
+        up, down = layout.mcmb2_plans("duplex", 1, res.up_mods, res.down_mods, res.dap, source, dev)
+    end
+    local list = {}
+    for _, pr in ipairs({ { up, res.up }, { down, res.down } }) do
+        local plan, run = pr[1], pr[2]
+        if plan then
+            plan.fid, plan.sender, plan.entry = run.fid, addr_of[run.src], res.entry
+            register(plan)
+            for _, f in ipairs(run.frames) do list[#list + 1] = { f[1], f[2], f[3], plan } end
+        end
+        run.frames = nil
+    end
+    table.sort(list, function(a, b) return a[1] < b[1] end)
+    for _, f in ipairs(list) do
+        local rec = analysed(f[4], f[2], f[3], f[1])
+        if rec and f[1] == res.last then
+            record.add_finding(rec, "top", systems.decoder(f[4].system).inferred, string.format(
+                "Cyclic data layout inferred from frames %d..%d (no Connect in the capture); to pin it, "
+                .. "add to mcmb2.layouts: %s", res.first, res.last, res.entry))
+        end
+        frames[f[1]] = rec and shared_record(rec)
+    end
+end
+
+-- A cyclic frame of no known layout, fed to vrshark.pnio_infer.
+local function inferred(fid, tvb, base, size, pinfo)
+    local src, dst = tostring(pinfo.dl_src), tostring(pinfo.dl_dst)
+    if not addr_of[src] then addr_of[src] = pinfo.dl_src end
+    local was = infer.alive(runs)
+    local res = infer.feed(runs, fid, src, dst, tvb:raw(base, size), pinfo.abs_ts, pinfo.number)
+    if infer.alive(runs) ~= was then set_hooks() end
+    if not res then return nil end
+    if res.kind == "ambiguous" then return { kind = "ambiguous", text = res.text } end
+    settle(res)
+    return frames[pinfo.number]
+end
+
 -- tvb: the PN-RT frame from the FrameID on.
 local function first_pass(fid, tvb, pinfo)
     local cands = by_fid[fid]
@@ -401,21 +472,18 @@ local function first_pass(fid, tvb, pinfo)
     elseif not plan then
         if not heuristic or fid < 0x8000 or fid > 0xFBFF then return nil end
         plan = recognise(fid, tvb, base, size, pinfo, nil)
+        if not plan then return inferred(fid, tvb, base, size, pinfo) end
     end
     if not plan then return nil end
-    local dec = systems.decoder(plan.system)
-    if not dec then return nil end
-    local rec = record.new(plan, base, size)
-    if size < plan.need then
-        record.add_finding(rec, "top", dec.short, string.format(
-            "C-SDU has %d bytes, the layout needs %d", size, plan.need))
-        return rec
-    end
-    dec.analyse(rec, setmetatable({ s = tvb:raw(base, size) }, RawBytes), pinfo.abs_ts, pinfo.number)
-    return shared_record(rec)
+    local rec = analysed(plan, tvb:raw(base, size), pinfo.abs_ts, pinfo.number)
+    return rec and shared_record(rec)
 end
 
 local function show(rec, tvb, pinfo, tree)
+    if rec.kind == "ambiguous" then
+        systems.decoder("duplex").show_ambiguous(rec, tvb, tree)
+        return
+    end
     if rec.kind ~= "connect" then
         systems.decoder(rec.plan.system).show(rec, tvb, pinfo, tree)
         return
@@ -448,7 +516,8 @@ local function cyclic(tvb, pinfo, tree, view)
     elseif tvb:len() >= 2 then
         local fid = tvb:range(0, 2):uint()
         if by_fid[fid] or (fid >= 0x8000 and fid <= 0xFBFF and heuristic
-                           and ((tries[fid] or 0) < HEUR_TRIES or #pending_down > 0)) then
+                           and ((tries[fid] or 0) < HEUR_TRIES or #pending_down > 0
+                                or not infer.given_up(runs, fid, tostring(pinfo.dl_src), tostring(pinfo.dl_dst)))) then
             rec = first_pass(fid, tvb, pinfo)
             frames[pinfo.number] = rec
         end

@@ -8,8 +8,14 @@ def systems(tshark, capture, **kw):
     return {n: r["mcmb2.system"] for n, r in tshark.frames(capture, ["mcmb2.system"], **kw).items()}
 
 
-def test_not_decoded_without_the_table(tshark, capture_file):
-    assert systems(tshark, capture_file(DUPLEX)) == dict.fromkeys(range(1, 7), "")
+def test_inferred_without_the_table(tshark, capture_file):
+    """No Connect, no table: the layout is inferred once both watchdogs have
+    moved twice (frame 6); frames before it are decoded on the second pass."""
+    assert systems(tshark, capture_file(DUPLEX)) == {**dict.fromkeys(range(1, 6), ""), 6: "duplex"}
+    assert systems(tshark, capture_file(DUPLEX), two_pass=True) == dict.fromkeys(range(1, 7), "duplex")
+    tshark.expect(capture_file(DUPLEX), 1, {"mcmb2.layout": "inferred from cyclic frames 1..6",
+                                            "mcmb2.layout_entry": "0xc010/0xc011=duplex:8/4@4",
+                                            "mcmb2.uplink_data": "0102030405060708"}, two_pass=True)
 
 
 def test_duplex_from_the_table(tshark, capture_file):

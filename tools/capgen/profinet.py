@@ -380,8 +380,8 @@ def polled_vlan():
 
 
 @capture("mcmb2_duplex_noconnect.pcap",
-         "MC-MB2-PN duplex without a Connect (FrameIDs 0xC010/0xC011, 8 up / 4 down bytes): needs the "
-         "mcmb2.layouts preference")
+         "MC-MB2-PN duplex without a Connect (FrameIDs 0xC010/0xC011, 8 up / 4 down bytes): layout "
+         "inferred from its cyclic frames, or from the mcmb2.layouts preference")
 def duplex_noconnect():
     cap = Capture()
     d = Mcmb2("duplex", 8, 4, in_fid=0xC010, out_fid=0xC011)
@@ -463,8 +463,8 @@ def eclink_connect():
 
 
 @capture("eclink_pnio_noconnect.pcap",
-         "EC-Link BU (Input + Commands, 64 in / 20 out) without a Connect (FrameIDs 0xC020/0xC021): needs "
-         "the mcmb2.layouts preference")
+         "EC-Link BU (Input + Commands, 64 in / 20 out) without a Connect (FrameIDs 0xC020/0xC021): layout "
+         "inferred from its cyclic frames, or from the mcmb2.layouts preference")
 def eclink_noconnect():
     cap = Capture()
     bu = EclinkBu(20, in_fid=0xC020, out_fid=0xC021)

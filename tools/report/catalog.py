@@ -79,6 +79,8 @@ EXPERTS = {
     "mcmb2.iocs.bad": (WARNING, "finding", "IOCS not GOOD"),
     "mcmb2.reserved.not_zero": (WARNING, "finding", "reserved byte not 0"),
     "mcmb2.short": (ERROR, "finding", "C-SDU shorter than the layout"),
+    "mcmb2.layout.inferred": (NOTE, "finding", "layout inferred from the cyclic frames (no Connect)"),
+    "mcmb2.layout.ambiguous": (NOTE, "finding", "more than one layout fits the cyclic frames"),
     # EC-Link images (both transports)
     "eclink.relays_open": (WARNING, "relays", "ES-Link relays open"),
     "eclink.ru_stopped": (WARNING, "relays", "RU stopped"),
@@ -112,6 +114,7 @@ EXPERTS = {
     "eclink_pnio.bu_state_change": (NOTE, "state", "BU state changed"),
     "eclink_pnio.iops.bad": (WARNING, "finding", "IOPS not GOOD"),
     "eclink_pnio.short": (ERROR, "finding", "C-SDU shorter than the layout"),
+    "eclink_pnio.layout.inferred": (NOTE, "finding", "layout inferred from the cyclic frames (no Connect)"),
 }
 
 
