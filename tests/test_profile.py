@@ -104,3 +104,58 @@ def test_filter_buttons_compile(profile_conf):
         proc = run(profile_conf, ["-n", "-r", str(ROOT / "captures" / "eglink_armed.pcap"), "-c", "1",
                                   "-Y", expr])
         assert "isn't a valid" not in proc.stderr, (label, proc.stderr)
+
+
+def test_colours_lost_and_repeated_packets(profile_conf):
+    """[lost N] and [Repeated] are warnings: their own colour, not the healthy one."""
+    rules = rule_colours()
+    rows = coloured_rows(profile_conf, "eglink_analysis_lost.pcap")
+    assert rows[13] == rows[15] == rules["vrshark: packets lost or repeated"]
+    assert rows[12] == rules["vrshark: EG-Link"]
+    rows = coloured_rows(profile_conf, "eglink_analysis_repeated.pcap")
+    assert rows[9] == rows[15] == rules["vrshark: packets lost or repeated"]
+
+
+def test_colours_eglink_gaps_have_their_own_rule(profile_conf):
+    """A VRPI/VRPO gap is coloured by a rule of that name (not "watchdog stalled")."""
+    rules = rule_colours()
+    rows = coloured_rows(profile_conf, "eglink_analysis_vrpi_gap.pcap")
+    assert rows[16] == rows[20] == rules["vrshark: VRPI / VRPO gap"]
+    assert "eglink" not in [ln for ln in (PROFILE / "colorfilters").read_text().splitlines()
+                            if ln.startswith("@vrshark: watchdog stalled@")][0]
+
+
+def _button(label):
+    buttons = dict(re.findall(r'^"TRUE","([^"]+)","([^"]+)"', (PROFILE / "dfilter_buttons").read_text(), re.M))
+    return buttons[label]
+
+
+def _matching(conf, capture, expr):
+    out = run(conf, ["-n", "-r", str(ROOT / "captures" / capture), "-Y", expr, "-T", "fields",
+                     "-e", "frame.number"]).stdout
+    return [int(x) for x in out.split()]
+
+
+def test_safety_button_shows_the_gap_rows(profile_conf):
+    assert {16, 20} <= set(_matching(profile_conf, "eglink_analysis_vrpi_gap.pcap", _button("Safety")))
+
+
+def test_commands_button_shows_the_acknowledgements_of_every_protocol(profile_conf):
+    """EC-Link over PROFINET acknowledgements too (as over Modbus/TCP)."""
+    acks = _matching(profile_conf, "eclink_pnio_connect.pcap",
+                     "eclink_pnio.cmd_from_ru.ack || eclink_pnio.cmd_to_ru.ack")
+    assert acks
+    assert set(acks) <= set(_matching(profile_conf, "eclink_pnio_connect.pcap", _button("Commands")))
+
+
+def test_healthy_eglink_is_not_wiresharks_tcp_or_udp_colour(profile_conf):
+    """Plain TCP/UDP rows (Wireshark's own rules after ours) must not pass for healthy EG-Link."""
+    ours = rule_colours()["vrshark: EG-Link"][0]
+    theirs = {}
+    for line in open("/usr/share/wireshark/colorfilters").read().splitlines():
+        m = re.match(r"@(TCP|UDP)@[^@]+@\[(\d+),(\d+),(\d+)\]", line)
+        if m:
+            theirs[m.group(1)] = tuple(int(x) >> 8 for x in m.groups()[1:])
+    assert set(theirs) == {"TCP", "UDP"}
+    for name, rgb in theirs.items():
+        assert sum((a - b) ** 2 for a, b in zip(ours, rgb)) ** 0.5 >= 40, name
