@@ -799,16 +799,18 @@ local function piece_source(tvb, p)
 end
 
 -- The Info tags of an ADU after those of its images: every frame past a
--- counter's limit says so, not only the one with the finding; [unacked].
+-- counter's limit says so, not only the one with the finding; [unacked] (a
+-- command past its deadline), [late ack] (an echo after it).
 local function add_adu_tags(infos, rec)
     local stalled = handshake.tags(rec[R_PCI_AGE], rec[R_PCO_AGE])
     if stalled ~= "" then infos.tags = (infos.tags or "") .. stalled end
+    local unacked, late_ack
     for _, fd in ipairs(rec.findings or NONE) do
-        if fd[1] == ef.cmd_from_ru_late or fd[1] == ef.cmd_to_ru_late then
-            infos.tags = (infos.tags or "") .. " [unacked]"
-            return
-        end
+        if fd[1] == ef.cmd_from_ru_late or fd[1] == ef.cmd_to_ru_late then unacked = true end
+        if fd[1] == ef.cmd_from_ru_late_ack or fd[1] == ef.cmd_to_ru_late_ack then late_ack = true end
     end
+    if unacked then infos.tags = (infos.tags or "") .. " [unacked]" end
+    if late_ack then infos.tags = (infos.tags or "") .. " [late ack]" end
 end
 
 -- sp: a sparse plan (sparse_plan()) or nil: the full tree.

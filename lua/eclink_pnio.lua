@@ -91,6 +91,7 @@ local function analyse(rec, ba, t, frame)
     for _, f in ipairs(r.findings) do
         add_finding(rec, "image", eef[f[1]], f[2])
         if f[1]:find("_late$") then rec.unacked = true end
+        if f[1]:find("_late_ack$") then rec.late_ack = true end
         if f[3] then
             links = links or {}
             links[#links + 1] = { f[3], f[4] }
@@ -134,7 +135,7 @@ local function show(rec, tvb, pinfo, tree)
     record.finish(rec, nil)
     pinfo.cols.info = (up and "Input image " or "Output image ") .. ((info and info.summary) or "")
         .. ((info and info.tags) or "") .. eclink_handshake.tags(rec.pci_age, rec.pco_age)
-        .. (rec.unacked and " [unacked]" or "")
+        .. (rec.unacked and " [unacked]" or "") .. (rec.late_ack and " [late ack]" or "")
 end
 
 local function show_connect(rec, tvb, tree, text)

@@ -95,3 +95,29 @@ def test_profile_colours_every_stalled_frame(tshark, capture_file):
     tagged = [n for n, r in tshark.frames(cap, ["_ws.col.Info"], display_filter="eclink_pnio").items()
               if "stalled" in r["_ws.col.Info"]]
     assert list(coloured) == tagged == [31, 33, 72, 74, 76, 78]
+
+
+def test_late_echo_reads_late_ack(tshark, work_dir):
+    """CAO echoes CCI 2.5 s after the command (scapy-built, with its Connect):
+    the deadline frame says the command is not acknowledged ([unacked]); the
+    echo itself reads [late ack] (README "How findings read"), with its own
+    expert field."""
+    from pnio_testlib import CaptureFile, Device, eclink_submodules, mac
+    from test_pnio_midsession import eclink_image_in, eclink_image_out
+    d = Device(eclink_submodules(4, 224), mac(21), 0x8030, 0x8031)
+    cap = CaptureFile()
+    for p in d.connect():
+        cap.add(p)
+    for i in range(40):            # every 125 ms; CCI 4 from cycle 2, echoed in the output of cycle 22 (2.505 s)
+        cci = 4 if i >= 2 else 3
+        cao = 4 if i >= 22 else 3
+        cap.add(d.cyclic("in", {1: eclink_image_in(i, cci=cci)}), 0.120)
+        cap.add(d.cyclic("out", {2: eclink_image_out(i, cao=cao)}), 0.005)
+    path = cap.write(work_dir / "late_ack.pcap")
+    late = tshark.frames(path, ["_ws.col.Info", "_ws.expert.message"],
+                         display_filter="eclink_pnio.cmd_from_ru.late || eclink_pnio.cmd_from_ru.late_ack")
+    (deadline, echo) = sorted(late)
+    assert late[deadline]["_ws.col.Info"].endswith("[unacked]")
+    assert late[echo]["_ws.col.Info"].endswith("[late ack]")
+    assert late[echo]["_ws.expert.message"] == "CAO echoed CCI 4 after 2.505 s (limit 2.000 s)"
+    tshark.expect(path, echo, {"eclink_pnio.cmd_from_ru.late_ack": True, "eclink_pnio.cmd_from_ru.late": None})
