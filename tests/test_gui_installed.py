@@ -29,6 +29,8 @@ CASES = {
     "eclink_modbus_faults.pcap": ["vrshark: watchdog stalled"],
     "eclink_pnio_connect.pcap": ["vrshark: watchdog stalled"],
     "mcmb2_duplex_watchdog.pcap": ["vrshark: watchdog stalled"],
+    # no Connect: the layout is inferred in frame 6; the GUI shows frames 1-5 decoded too
+    "mcmb2_duplex_midsession.pcap": ["vrshark: watchdog stalled"],
     "mcmb2_polled_connect.pcap": ["vrshark: E010 / fieldbus failure"],
 }
 

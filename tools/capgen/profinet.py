@@ -303,10 +303,11 @@ def duplex_cm_port():
 
 @capture("mcmb2_duplex_watchdog.pcap",
          "MC-MB2-PN simplex with its Connect: uplink watchdog stalls 1.2 s, downlink watchdog stalls 2.2 s")
-def duplex_watchdog():
+def duplex_watchdog(connect=True):
     cap = Capture()
     d = Mcmb2("duplex", 4, 0, in_fid=0x8003, out_fid=0x8004)
-    d.connect(cap, 0.0)
+    if connect:
+        d.connect(cap, 0.0)
     up_wd = down_wd = 0
     for i in range(25):
         t = 0.2 + i * 0.2
@@ -318,6 +319,12 @@ def duplex_watchdog():
         d.uplink(cap, t, [0x11, up_wd & 0xFF], [bytes([1, 2, 3, i])])
         d.downlink(cap, t + 0.001, [0, down_wd & 0xFF], [])
     return cap
+
+
+@capture("mcmb2_duplex_midsession.pcap",
+         "The same simplex base without its Connect (captured mid-session): layout inferred from the cyclic frames")
+def duplex_midsession():
+    return duplex_watchdog(connect=False)
 
 
 def _polled_header(status, wd, y, z, slots):
