@@ -74,6 +74,7 @@ local pf = {
     response_in = ProtoField.framenum("eclink_modbus.response_in", "Response in", base.NONE, frametype.RESPONSE),
     time = ProtoField.relative_time("eclink_modbus.time", "Time since request"),
     accepted_in = ProtoField.framenum("eclink_modbus.accepted_in", "Connection recognized in"),
+    server = ProtoField.string("eclink_modbus.server", "BU (Modbus/TCP server)"),
     bits = ProtoField.string("eclink_modbus.bits", "Partial image byte"),
     assembled = ProtoField.string("eclink_modbus.assembled", "Assembled image"),
     pci_age = ProtoField.relative_time("eclink_modbus.pci_age", "Time since PCI changed"),
@@ -762,6 +763,7 @@ local SPARSE_ADDERS = {
         if c.rec.poll_gap then c.tree:add(pf.poll_gap_from, c.rec.poll_gap_from) end
     end,
     ["eclink_modbus.bu_state_prev"] = rec_value(pf.bu_state_prev, "bu_state_prev"),
+    ["eclink_modbus.server"] = function(c) c.tree:add(pf.server, c.server) end,
 }
 for _, name in ipairs({ "pci_since", "pco_since", "cmd_from_ru_in", "cao_in", "cmd_to_ru_in", "cai_in" }) do
     SPARSE_ADDERS["eclink_modbus." .. name] = link_value(pf[name], name)
@@ -822,8 +824,11 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
     elseif rec[R_REQUEST] then
         r = { start = rec[R_START], count = rec[R_COUNT] }
     end
+    -- the BU: the server, whichever way the ADU goes
+    local server = is_request and (tostring(pinfo.dst) .. ":" .. pinfo.dst_port)
+        or (tostring(pinfo.src) .. ":" .. pinfo.src_port)
     if sp then
-        local c = { rec = rec, tree = tree }
+        local c = { rec = rec, tree = tree, server = server }
         for _, add in ipairs(sp.adders) do add(c) end
         local infos = {}
         for _, a in ipairs(adu_accesses(tvb, off, adu_len, fcb, is_request, r)) do
@@ -852,6 +857,7 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
     end
     item:append_text(": " .. desc)
     item:add(pf.table, tvb(off + 7, 1), desc):set_generated()
+    item:add(pf.server, server):set_generated()
     if rec[R_ACCEPTED] then item:add(pf.accepted_in, rec[R_ACCEPTED]):set_generated() end
     if rec[R_REQUEST] then
         item:add(pf.request_in, rec[R_REQUEST]):set_generated()

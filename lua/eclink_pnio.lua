@@ -38,6 +38,7 @@ local epf = {
     pci_age = ProtoField.relative_time("eclink_pnio.pci_age", "Time since PCI changed"),
     pco_age = ProtoField.relative_time("eclink_pnio.pco_age", "Time since PCO changed"),
     layout = ProtoField.string("eclink_pnio.layout", "Layout from"),
+    frame_id = ProtoField.uint16("eclink_pnio.frame_id", "FrameID", base.HEX),
     layout_entry = ProtoField.string("eclink_pnio.layout_entry", "Layout table entry (to pin it: mcmb2.layouts)"),
     iops = ProtoField.uint8("eclink_pnio.iops", "IOPS", base.HEX, record.IOXS),
     iocs = ProtoField.uint8("eclink_pnio.iocs", "IOCS", base.HEX, record.IOXS),
@@ -117,6 +118,7 @@ local function show(rec, tvb, pinfo, tree)
     local root = record.root(rec, tvb, tree, eclp, up and ", input image" or ", output image")
     root:add(epf.layout, plan.source):set_generated()
     if plan.entry then root:add(epf.layout_entry, plan.entry):set_generated() end
+    root:add(epf.frame_id, tvb:range(0, 2))
     attach(rec, "top", root)
     pinfo.cols.protocol = "EC-Link"
     if rec.size < plan.need then

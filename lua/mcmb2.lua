@@ -559,6 +559,7 @@ local function show(rec, tvb, pinfo, tree)
     root:add(pf.direction, up and "uplink" or "downlink"):set_generated()
     root:add(pf.layout, plan.source):set_generated()
     if plan.entry then root:add(pf.layout_entry, plan.entry):set_generated() end
+    root:add(pf.frame_id, tvb:range(0, 2))
     attach(rec, "top", root)
     pinfo.cols.protocol = "MC-MB2"
     if rec.size < plan.need then
@@ -668,7 +669,7 @@ local ADDERS = {
     end,
     ["mcmb2.iops"] = function(c) record.add_ioxs_sparse(c.tree, c.rec, c.tvb, pf.iops, false) end,
     ["mcmb2.iocs"] = function(c) record.add_ioxs_sparse(c.tree, c.rec, c.tvb, pf.iocs, true) end,
-    ["mcmb2.frame_id"] = function() end,  -- a Connect's only
+    ["mcmb2.frame_id"] = function(c) c.tree:add(pf.frame_id, c.tvb:range(0, 2)) end,
 }
 local SPARSE = { adders = ADDERS, experts = expert_names, prefixes = { "mcmb2", "vrshark_io", "vrshark.io" } }
 

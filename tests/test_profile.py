@@ -159,3 +159,19 @@ def test_healthy_eglink_is_not_wiresharks_tcp_or_udp_colour(profile_conf):
     assert set(theirs) == {"TCP", "UDP"}
     for name, rgb in theirs.items():
         assert sum((a - b) ** 2 for a, b in zip(ours, rgb)) ** 0.5 >= 40, name
+
+
+def _device_column(conf, capture, frames):
+    out = run(conf, ["-C", "vrshark", "-n", "-2", "-r", str(ROOT / "captures" / capture), "-T", "fields",
+                     "-e", "frame.number", "-e", "_ws.col.Device"]).stdout
+    rows = dict(line.split("\t") for line in out.splitlines())
+    return [rows[str(n)] for n in frames]
+
+
+def test_device_column_names_the_device_on_every_protocol(profile_conf):
+    """EC-Link over Modbus/TCP: the BU's server address, requests and
+    responses alike; PROFINET: the FrameID in hex, as the tree shows it."""
+    assert _device_column(profile_conf, "eclink_modbus_basic.pcap", [5, 6, 13]) == ["192.168.2.41:502"] * 3
+    assert _device_column(profile_conf, "eclink_pnio_connect.pcap", [3, 4]) == ["0x8010", "0x8011"]
+    assert _device_column(profile_conf, "mcmb2_duplex_watchdog.pcap", [3, 4]) == ["0x8003", "0x8004"]
+    assert _device_column(profile_conf, "eglink_states.pcap", [2]) == ["0x1001"]
