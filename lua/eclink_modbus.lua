@@ -54,6 +54,7 @@ local handshake = require("vrshark.eclink_handshake")
 local wrap = require("vrshark.wrap")
 local fe = require("vrshark.frontends")
 local detect = require("vrshark.modbus_detect")
+local record = require("vrshark.pnio_record") -- add_time(): times to the ms, as over PROFINET
 local iodata = require("vrshark.iodata") -- vrshark_io hook
 
 image.proto()  -- the single Proto("eclink"), shared with the other EC-Link plugins
@@ -893,12 +894,10 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
         end
     end
     if rec[R_PCI_AGE] then
-        item:add(pf.pci_age, nstime(rec[R_PCI_AGE]))
-            :set_generated()
+        record.add_time(item, pf.pci_age, "Time since PCI changed", rec[R_PCI_AGE], nstime(rec[R_PCI_AGE]))
     end
     if rec[R_PCO_AGE] then
-        item:add(pf.pco_age, nstime(rec[R_PCO_AGE]))
-            :set_generated()
+        record.add_time(item, pf.pco_age, "Time since PCO changed", rec[R_PCO_AGE], nstime(rec[R_PCO_AGE]))
     end
     if rec.bu_state_prev then item:add(pf.bu_state_prev, rec.bu_state_prev):set_generated() end
     local l = rec.links or NONE

@@ -27,7 +27,7 @@ local systems = require("vrshark.pnio_systems")
 local iodata = require("vrshark.iodata") -- vrshark_io hook
 image.proto()  -- the single Proto("eclink"), shared with the other EC-Link plugins
 
-local add_finding, attach, nstime = record.add_finding, record.attach, record.nstime
+local add_finding, attach = record.add_finding, record.attach
 
 local eclp = Proto("eclink_pnio", "EC-Link over PROFINET IO")
 
@@ -129,8 +129,8 @@ local function show(rec, tvb, pinfo, tree)
     local info = image.dissect(tvb, pinfo, root, { kind = up and "input" or "output", offset = base + o.off,
         length = o.len, image_len = o.len })
     iodata.decode_eclink(info, { frame_id = tvb(0, 2):uint() }, pinfo) -- vrshark_io hook
-    if rec.pci_age then root:add(epf.pci_age, nstime(rec.pci_age)):set_generated() end
-    if rec.pco_age then root:add(epf.pco_age, nstime(rec.pco_age)):set_generated() end
+    if rec.pci_age then record.add_time(root, epf.pci_age, "Time since PCI changed", rec.pci_age) end
+    if rec.pco_age then record.add_time(root, epf.pco_age, "Time since PCO changed", rec.pco_age) end
     for _, l in ipairs(rec.links or {}) do root:add(hs_fields[l[1]], l[2]):set_generated() end
     attach(rec, "image", info and info.item or root)
     record.add_ioxs(root, rec, tvb, epf.iops, epf.iocs)

@@ -445,7 +445,7 @@ end
 
 local function add_watchdog(root, rec, field, range)
     local wd = root:add(field, range)
-    if rec.wd_age then wd:add(pf.watchdog_age, nstime(rec.wd_age)):set_generated() end
+    if rec.wd_age then record.add_time(wd, pf.watchdog_age, "Watchdog unchanged for", rec.wd_age) end
     if rec.wd_since then wd:add(pf.watchdog_since, rec.wd_since):set_generated() end
     attach(rec, "wd", wd)
 end

@@ -160,3 +160,17 @@ def test_two_pass_agrees(tshark, capture_file, name):
     assert [row for row in one if int(row[0]) >= first] == [row for row in two if int(row[0]) >= first]
     assert not any(row[1] for row in one if int(row[0]) < first)
     assert any(row[1] for row in one)
+
+
+def test_times_in_the_tree_read_to_the_millisecond(tshark, capture_file):
+    """README "How findings read": times rounded to the millisecond, in the
+    tree too (the field keeps its exact value for filters)."""
+    text = tshark.verbose(capture_file("eclink_modbus_faults.pcap"), display_filter="frame.number == 21")
+    assert "[Time since PCI changed: 0.700 s]" in text
+    assert "0.700000000 seconds" not in text
+    text = tshark.verbose(capture_file("mcmb2_duplex_watchdog.pcap"), display_filter="frame.number == 25")
+    assert "[Watchdog unchanged for: 1.400 s]" in text
+    text = tshark.verbose(capture_file("eclink_pnio_connect.pcap"), display_filter="frame.number == 40")
+    assert "[Time since PCO changed: 0.125 s]" in text
+    assert tshark.field(capture_file("eclink_modbus_faults.pcap"), "frame.number",
+                        display_filter="eclink_modbus.pci_age == 0.7") == ["21"]
