@@ -162,9 +162,11 @@ def test_healthy_eglink_is_not_wiresharks_tcp_or_udp_colour(profile_conf):
 
 
 def _device_column(conf, capture, frames):
-    out = run(conf, ["-C", "vrshark", "-n", "-2", "-r", str(ROOT / "captures" / capture), "-T", "fields",
-                     "-e", "frame.number", "-e", "_ws.col.Device"]).stdout
-    rows = dict(line.split("\t") for line in out.splitlines())
+    """The Device column (the fifth: No., Time, Source, Protocol, Device) of
+    the packet list as tshark prints the profile's columns. (Column fields
+    by title, _ws.col.Device, exist in Wireshark 4.0 only.)"""
+    out = run(conf, ["-C", "vrshark", "-n", "-2", "-r", str(ROOT / "captures" / capture)]).stdout
+    rows = {line.split()[0]: line.split()[4] for line in out.splitlines() if line.strip()}
     return [rows[str(n)] for n in frames]
 
 
