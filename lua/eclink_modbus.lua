@@ -105,7 +105,7 @@ local hs_fields, hs_new_fields = handshake.fields("eclink_modbus", pf)
 local pf_list = {}
 for _, f in pairs(pf) do pf_list[#pf_list + 1] = f end
 for _, f in ipairs(hs_new_fields) do pf_list[#pf_list + 1] = f end
-pf.pci_since, pf.pco_since = hs_fields.pci_since, hs_fields.pco_since
+pf.pci_since, pf.pco_since, pf.deadline_in = hs_fields.pci_since, hs_fields.pco_since, hs_fields.deadline_in
 proto.fields = pf_list
 
 -- the handshake experts (same wording as over PROFINET) come from vrshark.eclink_handshake
@@ -497,7 +497,10 @@ local function analyse(c, rec, t, frame, touched)
         if fd[3] then set_link(rec, fd[3], fd[4]) end
     end
     for k, v in pairs(r.links) do set_link(rec, k, v) end
-    for _, b in ipairs(r.back) do set_link(b[1], b[2], b[3]) end
+    for _, b in ipairs(r.back) do
+        set_link(b[1], b[2], b[3])
+        if b[4] then add_finding(b[1], { ef[b[4][1]], b[4][2] }) end
+    end
     rec[R_PCI_AGE], rec[R_PCO_AGE], rec.bu_state_prev = r.pci_age or false, r.pco_age or false, r.bu_state_prev
     -- periodic output multiplexing
     if touched.output and known(out, 0, 1) and known(out, 20, 3) then
@@ -766,7 +769,8 @@ local SPARSE_ADDERS = {
     ["eclink_modbus.bu_state_prev"] = rec_value(pf.bu_state_prev, "bu_state_prev"),
     ["eclink_modbus.server"] = function(c) c.tree:add(pf.server, c.server) end,
 }
-for _, name in ipairs({ "pci_since", "pco_since", "cmd_from_ru_in", "cao_in", "cmd_to_ru_in", "cai_in" }) do
+for _, name in ipairs({ "pci_since", "pco_since", "cmd_from_ru_in", "cao_in", "cmd_to_ru_in", "cai_in",
+                      "deadline_in" }) do
     SPARSE_ADDERS["eclink_modbus." .. name] = link_value(pf[name], name)
 end
 for _, name in ipairs({ "cmd_from_ru_latency", "cmd_to_ru_latency" }) do
@@ -803,7 +807,8 @@ end
 
 -- The Info tags of an ADU after those of its images: every frame past a
 -- counter's limit says so, not only the one with the finding; [unacked] (a
--- command past its deadline), [late ack] (an echo after it).
+-- command whose deadline passed, on the command's frame), [late ack] (an
+-- echo after it).
 local function add_adu_tags(infos, rec)
     local stalled = handshake.tags(rec[R_PCI_AGE], rec[R_PCO_AGE])
     if stalled ~= "" then infos.tags = (infos.tags or "") .. stalled end
@@ -902,7 +907,7 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
     if rec.bu_state_prev then item:add(pf.bu_state_prev, rec.bu_state_prev):set_generated() end
     local l = rec.links or NONE
     for _, name in ipairs({ "pci_since", "pco_since", "cmd_from_ru_in", "cao_in", "cmd_to_ru_in", "cai_in",
-                          "periodic_reassembled_in" }) do
+                          "deadline_in", "periodic_reassembled_in" }) do
         if l[name] then item:add(pf[name], l[name]):set_generated() end
     end
     for _, name in ipairs({ "cmd_from_ru_latency", "cmd_to_ru_latency" }) do

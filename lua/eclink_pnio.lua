@@ -87,11 +87,10 @@ local function analyse(rec, ba, t, frame)
     else
         out = { pco = ba:get_index(o), cco = ba:get_index(o + 1), cao = ba:get_index(o + 3) }
     end
-    local r = eclink_handshake.update(hs, inp, out, t, frame)
+    local r = eclink_handshake.update(hs, inp, out, t, frame, rec)
     local links
     for _, f in ipairs(r.findings) do
         add_finding(rec, "image", eef[f[1]], f[2])
-        if f[1]:find("_late$") then rec.unacked = true end
         if f[1]:find("_late_ack$") then rec.late_ack = true end
         if f[3] then
             links = links or {}
@@ -105,6 +104,17 @@ local function analyse(rec, ba, t, frame)
         end
     end
     rec.links = links
+    -- the command frame of a missed deadline: its finding and the link to
+    -- the frame that saw the deadline pass (shown on the second pass)
+    for _, b in ipairs(r.back) do
+        local cmd = b[1]
+        if cmd and b[4] then
+            add_finding(cmd, "image", eef[b[4][1]], b[4][2])
+            cmd.unacked = true
+            cmd.links = cmd.links or {}
+            cmd.links[#cmd.links + 1] = { b[2], b[3] }
+        end
+    end
     rec.pci_age = r.pci_age and eclink_handshake.ms(r.pci_age)
     rec.pco_age = r.pco_age and eclink_handshake.ms(r.pco_age)
 end

@@ -49,11 +49,22 @@ def test_stalls_and_late_echoes(tshark, capture_file):
     assert exp[21] == ["PCI 2 has not changed for 0.700 s (limit 0.500 s)"]
     tshark.expect(cap, 21, {"eclink_modbus.pci_since": 17, "eclink_modbus.pci_age": "0.700000000",
                             "eclink_modbus.pco_since": None})
-    # a missing echo shows on the first frame after the deadline (a read request here) ...
+    # the first frame after the deadline (a read request here) only notes which command ...
     assert exp[28] == ["Input image not read for 2.050 s (PCI timeout 0.500 s)",
-                       "Command from RU (CCI 2) not acknowledged by CAO within 2.000 s",
-                       "Command to RU (CCO 2) not acknowledged by CAI within 2.000 s"]
-    tshark.expect(cap, 28, {"eclink_modbus.cmd_from_ru_in": 17, "eclink_modbus.cmd_to_ru_in": 18})
+                       "Deadline of the command from RU (CCI 2) passed with no CAO echo",
+                       "Deadline of the command to RU (CCO 2) passed with no CAI echo"]
+    tshark.expect(cap, 28, {"eclink_modbus.cmd_from_ru_in": 17, "eclink_modbus.cmd_to_ru_in": 18,
+                            "eclink_modbus.cmd_from_ru.deadline": True, "eclink_modbus.cmd_from_ru.late": None})
+    # ... the commands themselves are not acknowledged, linked forward to it (second pass)
+    two = tshark.experts(cap, two_pass=True)
+    assert two[17] == ["New command from RU: CCI 1 -> 2",
+                       "Command from RU (CCI 2) not acknowledged by CAO within 2.000 s (deadline at frame 28)"]
+    assert two[18] == ["New command to RU: CCO 1 -> 2",
+                       "Command to RU (CCO 2) not acknowledged by CAI within 2.000 s (deadline at frame 28)"]
+    for n in (17, 18):
+        tshark.expect(cap, n, {"eclink_modbus.deadline_in": 28}, two_pass=True)
+    tshark.expect(cap, 17, {"eclink_modbus.cmd_from_ru.late": True}, two_pass=True)
+    tshark.expect(cap, 18, {"eclink_modbus.cmd_to_ru.late": True}, two_pass=True)
     # ... a stall on the first frame after the limit that carries the unchanged counter
     assert exp[30] == ["PCO 4 has not changed for 2.050 s (limit 2.000 s)"]
     tshark.expect(cap, 30, {"eclink_modbus.pco_since": 26, "eclink_modbus.pci_since": None})
@@ -70,13 +81,13 @@ def test_severities_one_voice(tshark, capture_file):
     for n in (21, 30):
         assert_fields(got[n], {"_ws.expert.severity": "8388608", "_ws.expert.group": "33554432"}, "frame %d" % n)
     late = tshark.frames(cap, names, display_filter="eclink_modbus.cmd_from_ru.late || "
-                                                    "eclink_modbus.cmd_from_ru.late_ack")
-    assert list(late) == [28, 34]
-    # the deadline passed without an echo (28); the echo came late (34)
-    assert list(tshark.frames(cap, [], display_filter="eclink_modbus.cmd_from_ru.late")) == [28]
+                                                    "eclink_modbus.cmd_from_ru.late_ack", two_pass=True)
+    assert list(late) == [17, 34]
+    # the command not acknowledged in time (17, second pass); the echo came late (34)
+    assert list(tshark.frames(cap, [], display_filter="eclink_modbus.cmd_from_ru.late", two_pass=True)) == [17]
     assert list(tshark.frames(cap, [], display_filter="eclink_modbus.cmd_from_ru.late_ack")) == [34]
-    for n in (28, 34):
-        assert set(late[n]["_ws.expert.severity"].split(",")) == {"6291456"}, n
+    for n in (17, 34):     # 17 also notes the new command (chat)
+        assert set(late[n]["_ws.expert.severity"].split(",")) - {"2097152"} == {"6291456"}, n
         assert set(late[n]["_ws.expert.group"].split(",")) == {"33554432"}, n
     chat = tshark.frames(cap, names, display_filter="eclink_modbus.cmd_from_ru")
     assert_fields(chat[17], {"_ws.expert.severity": "2097152", "_ws.expert.group": "33554432"}, "frame 17")
@@ -87,7 +98,13 @@ def test_info_tags_for_stalls_and_unacked_commands(tshark, capture_file):
                                                               ["_ws.col.Info"]).items()}
     assert info[21].endswith("BU=Armed RU 0x1234=Enabled] [PCI stalled 0.700 s]")
     assert info[30].endswith("size=0 block=0] [PCO stalled 2.050 s]")
-    assert info[28].endswith("Read Input Registers [unacked] [poll gap 2.050 s]")
+    # [unacked] on the commands (second pass), not on the read request that saw the deadline pass
+    assert info[28].endswith("Read Input Registers [poll gap 2.050 s]")
+    two = {n: r["_ws.col.Info"] for n, r in tshark.frames(capture_file("eclink_modbus_faults.pcap"),
+                                                           ["_ws.col.Info"], two_pass=True).items()}
+    assert two[17].endswith("BU=Armed RU 0x1234=Enabled] [unacked]")
+    assert two[18].endswith("CAO=1 size=0 block=0] [unacked]")
+    assert [n for n, i in two.items() if "[unacked]" in i] == [17, 18]
     # a late echo reads [late ack], as README "How findings read" says (not [unacked])
     assert info[34].endswith("[late ack]")
     assert "stalled" not in info[25] and "stalled" not in info[17]
@@ -149,12 +166,16 @@ ANALYSIS_FIELDS = ["frame.number", "eclink.image", "eclink.pci", "eclink.pco", "
                                   "eclink_modbus_segments.pcap", "eclink_modbus_late_accept.pcap"])
 def test_two_pass_agrees(tshark, capture_file, name):
     """Everything but the forward links (response_in, cao_in, cai_in,
-    periodic.reassembled_in, only known once the later frame is seen) and the
-    frames before the connection is recognized (decoded on the second pass
-    only) is the same in one pass and in two."""
+    periodic.reassembled_in, deadline_in and the command's "not acknowledged"
+    finding, only known once the later frame is seen) and the frames before
+    the connection is recognized (decoded on the second pass only) is the
+    same in one pass and in two."""
     cap = capture_file(name)
-    one = tshark.fields(cap, ANALYSIS_FIELDS)
-    two = tshark.fields(cap, ANALYSIS_FIELDS, two_pass=True)
+
+    def without_forward(row):
+        return row[:-1] + [",".join(m for m in row[-1].split(",") if "(deadline at frame" not in m)]
+    one = [without_forward(r) for r in tshark.fields(cap, ANALYSIS_FIELDS)]
+    two = [without_forward(r) for r in tshark.fields(cap, ANALYSIS_FIELDS, two_pass=True)]
     accepted = ANALYSIS_FIELDS.index("eclink_modbus.accepted_in")
     first = min(int(row[accepted].split(",")[0]) for row in one if row[accepted])
     assert [row for row in one if int(row[0]) >= first] == [row for row in two if int(row[0]) >= first]

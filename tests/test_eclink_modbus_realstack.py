@@ -47,15 +47,19 @@ from pymodbus.datastore import ModbusDeviceContext, ModbusSequentialDataBlock, M
 from pymodbus.server import ModbusTcpServer
 
 PORT = int(sys.argv[1])
+# "commands": the BU alone, its RU sending CCI 6 at 0.5 s and CCI 7 at 4 s
+MODE = sys.argv[2] if len(sys.argv) > 2 else "plant"
 T0 = time.monotonic()
 rnd = random.Random(1)
 
 
 def bu_image():
     """The BU's input image now: PCI every 125 ms, joystick 1 following it."""
-    pci = int((time.monotonic() - T0) / 0.125) & 0xFF
+    t = time.monotonic() - T0
+    pci = int(t / 0.125) & 0xFF
     joy = (pci * 37) % 1000
-    img = bytes([pci, 5, 0, 9]) + b"FROM-RU-COMMAND!"
+    cci = 5 if MODE != "commands" or t < 0.5 else 6 if t < 4.0 else 7
+    img = bytes([pci, cci, 0, 9]) + b"FROM-RU-COMMAND!"
     img += bytes([0x11, 1, 0, 0, 1, 1]) + (0x4242).to_bytes(2, "big")     # Armed; EG-Link Unused, EC, C-Link 1
     img += bytes([3, 77, 88, 0, 0, 0]) + joy.to_bytes(2, "big", signed=True) + bytes(6)
     img += bytes(16) + bytes([42, 0]) + bytes(4)
@@ -96,9 +100,10 @@ def context(kind):
 
 
 async def main():
+    plant = [("127.0.0.1", "bu"), ("127.0.0.2", "flags"), ("127.0.0.3", "counters"), ("127.0.0.4", "random"),
+             ("127.0.0.5", "io")]
     servers = [ModbusTcpServer(context(kind), address=(ip, PORT)) for ip, kind in
-               [("127.0.0.1", "bu"), ("127.0.0.2", "flags"), ("127.0.0.3", "counters"), ("127.0.0.4", "random"),
-                ("127.0.0.5", "io")]]
+               (plant[:1] if MODE == "commands" else plant)]
     await asyncio.gather(*(s.serve_forever() for s in servers))
 
 asyncio.run(main())
@@ -180,29 +185,36 @@ def _plc(log):
         client.close()
 
 
-@pytest.fixture(scope="module")
-def real_capture():
-    """(capture path, what the PLC read and wrote)."""
+def captured(mode="plant", plc=None):
+    """Fixture body: yields (capture path, what the PLC read and wrote) from a
+    temporary folder removed afterwards."""
     # readable by tshark when tools/tshark drops root
     folder = Path(tempfile.mkdtemp(prefix="vrshark-realstack-"))
     folder.chmod(0o777)
     try:
-        yield _capture(folder)
+        yield _capture(folder, mode, plc)
     finally:
         shutil.rmtree(folder, ignore_errors=True)
 
 
-def _capture(folder):
-    cap = folder / "realstack.pcapng"
+@pytest.fixture(scope="module")
+def real_capture():
+    yield from captured()
+
+
+def _capture(folder, mode="plant", plc=None):
+    """Runs the servers (mode: "plant" or "commands") and the PLC (default
+    _plc) under dumpcap: (capture path, what the PLC read and wrote)."""
+    cap = folder / ("realstack-%s.pcapng" % mode)
     script = folder / "servers.py"
     script.write_text(SERVERS)
-    servers = subprocess.Popen([sys.executable, str(script), str(PORT)], stdout=subprocess.DEVNULL,
+    servers = subprocess.Popen([sys.executable, str(script), str(PORT), mode], stdout=subprocess.DEVNULL,
                                stderr=subprocess.PIPE, text=True)
     log = {"read": [], "written": []}
     try:
         dumpcap = _start_capture(cap)
         try:
-            _plc(log)
+            (plc or _plc)(log)
             time.sleep(0.2)
         finally:
             _stop(dumpcap)

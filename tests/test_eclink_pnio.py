@@ -33,7 +33,9 @@ def test_handshake_experts(tshark, capture_file):
     assert "PCI 10 has not changed for 0.625 s (limit 0.500 s)" in ex[31]
     assert "New command from RU: CCI 1 -> 2" in ex[43]
     assert "PCO 18 has not changed for 2.125 s (limit 2.000 s)" in ex[72]
-    assert "Command from RU (CCI 2) not acknowledged by CAO within 2.000 s" in ex[76]
+    assert ex[76] == ["Deadline of the command from RU (CCI 2) passed with no CAO echo"]
+    two = tshark.experts(capture_file(CAP), two_pass=True)
+    assert "Command from RU (CCI 2) not acknowledged by CAO within 2.000 s (deadline at frame 76)" in two[43]
     stalls = [n for n, m in ex.items() if any("has not changed" in x for x in m)]
     assert stalls == [31, 72]
 
@@ -65,20 +67,32 @@ def test_handshake_severities_and_info_tags(tshark, capture_file):
         assert_fields(got[n], {"_ws.expert.severity": "8388608", "_ws.expert.group": "33554432"}, "frame %d" % n)
     assert got[31]["_ws.col.Info"].endswith("BU=Armed RU 0x1234=Enabled [PCI stalled 0.625 s]")
     assert got[72]["_ws.col.Info"].endswith("block=0 [PCO stalled 2.125 s]")
+    # the deadline of CCI 2 (frame 43) passes at 76: a note there, [unacked] on the command
     tshark.expect(cap, 76, {"_ws.col.Info": "Output image PCO=18 CCO=1 CAO=1 size=10 block=0 "
-                                            "[PCO stalled 2.375 s] [unacked]"})
+                                            "[PCO stalled 2.375 s]"}, two_pass=True)
+    tshark.expect(cap, 43, {"_ws.col.Info": "Input image PCI=15 CCI=2 BU=Armed RU 0x1234=Enabled [unacked]",
+                            "eclink_pnio.deadline_in": 76}, two_pass=True)
     # ages to the millisecond
     tshark.expect(cap, 31, {"eclink_pnio.pci_age": "0.625000000"})
 
 
 def test_filters_by_expert_field(tshark, capture_file):
-    assert list(tshark.frames(capture_file(CAP), [], display_filter="eclink_pnio.cmd_from_ru.late")) == [76]
+    cap = capture_file(CAP)
+    assert list(tshark.frames(cap, [], display_filter="eclink_pnio.cmd_from_ru.late", two_pass=True)) == [43]
+    assert list(tshark.frames(cap, [], display_filter="eclink_pnio.cmd_from_ru.deadline")) == [76]
+    tshark.expect(cap, 76, {"eclink_pnio.cmd_from_ru_in": 43, "_ws.expert.message":
+                            "Deadline of the command from RU (CCI 2) passed with no CAO echo"})
 
 
 def test_two_pass_agrees(tshark, capture_file):
+    """All but the command's own "not acknowledged" finding (a forward link)."""
     fields = ["eclink.pci", "eclink_pnio.pci_age", "_ws.expert.message"]
     one = tshark.frames(capture_file(CAP), fields)
-    assert one == tshark.frames(capture_file(CAP), fields, two_pass=True)
+    two = tshark.frames(capture_file(CAP), fields, two_pass=True)
+    forward = ",Command from RU (CCI 2) not acknowledged by CAO within 2.000 s (deadline at frame 76)"
+    assert forward in two[43]["_ws.expert.message"]
+    two[43]["_ws.expert.message"] = two[43]["_ws.expert.message"].replace(forward, "")
+    assert one == two
     assert any(r["_ws.expert.message"] for r in one.values())
 
 
@@ -99,7 +113,7 @@ def test_profile_colours_every_stalled_frame(tshark, capture_file):
 
 def test_late_echo_reads_late_ack(tshark, work_dir):
     """CAO echoes CCI 2.5 s after the command (scapy-built, with its Connect):
-    the deadline frame says the command is not acknowledged ([unacked]); the
+    the command says it is not acknowledged ([unacked], second pass); the
     echo itself reads [late ack] (README "How findings read"), with its own
     expert field."""
     from pnio_testlib import CaptureFile, Device, eclink_submodules, mac
@@ -114,10 +128,10 @@ def test_late_echo_reads_late_ack(tshark, work_dir):
         cap.add(d.cyclic("in", {1: eclink_image_in(i, cci=cci)}), 0.120)
         cap.add(d.cyclic("out", {2: eclink_image_out(i, cao=cao)}), 0.005)
     path = cap.write(work_dir / "late_ack.pcap")
-    late = tshark.frames(path, ["_ws.col.Info", "_ws.expert.message"],
+    late = tshark.frames(path, ["_ws.col.Info", "_ws.expert.message"], two_pass=True,
                          display_filter="eclink_pnio.cmd_from_ru.late || eclink_pnio.cmd_from_ru.late_ack")
-    (deadline, echo) = sorted(late)
-    assert late[deadline]["_ws.col.Info"].endswith("[unacked]")
+    (command, echo) = sorted(late)
+    assert late[command]["_ws.col.Info"].endswith("CCI=4 BU=Armed RU 0x4242=Enabled [unacked]")
     assert late[echo]["_ws.col.Info"].endswith("[late ack]")
     assert late[echo]["_ws.expert.message"] == "CAO echoed CCI 4 after 2.505 s (limit 2.000 s)"
     tshark.expect(path, echo, {"eclink_pnio.cmd_from_ru.late_ack": True, "eclink_pnio.cmd_from_ru.late": None})

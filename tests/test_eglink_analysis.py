@@ -16,7 +16,7 @@ from conftest import assert_fields
 CHAT = "2097152"    # _ws.expert.severity of PI_CHAT
 FINDING_NAMES = ("serial_gap", "serial_repeat", "serial_restart", "vrpi_gap", "vrpo_gap",
                  "vrpi_missing", "vrpo_missing", "retransmission", "vrci_unacked",
-                 "vrco_unacked", "late_ack", "bu_state_changed", "origin_changed",
+                 "vrco_unacked", "vrci_deadline", "vrco_deadline", "late_ack", "bu_state_changed", "origin_changed",
                  "burst_incomplete", "burst_size", "shared_group")
 
 
@@ -74,13 +74,13 @@ def cap(capture_file):
     return lambda name: capture_file("eglink_analysis_%s.pcap" % name)
 
 
-def info(tshark, capture, frame):
-    return tshark.frame(capture, frame, ["_ws.col.Info"])["_ws.col.Info"]
+def info(tshark, capture, frame, **kw):
+    return tshark.frame(capture, frame, ["_ws.col.Info"], **kw)["_ws.col.Info"]
 
 
-def tags(tshark, capture, frame):
+def tags(tshark, capture, frame, **kw):
     """The [tags] of a frame's Info column, in order."""
-    return re.findall(r"\[[^\]]+\]", info(tshark, capture, frame))
+    return re.findall(r"\[[^\]]+\]", info(tshark, capture, frame, **kw))
 
 
 # --- periodic packets ---------------------------------------------------------
@@ -167,13 +167,14 @@ SEQUENCE = "33554432"
     ("vrci_unacked", "retransmission", "note"), ("vrci_retransmission", "command", "chat"),
     ("vrci_retransmission", "ack", "chat"), ("vrco", "unknown_ack", "chat"),
     ("shared_group", "shared_group", "warning"), ("origin_changed", "origin_changed", "warning"),
+    ("vrci_unacked", "vrci_deadline", "note"), ("vrco_unacked", "vrco_deadline", "note"),
 ])
 def test_severity_and_group(tshark, cap, name, expert, severity):
     """README "How findings read": gaps are errors, losses and the like warnings,
     changes notes, commands chat; all in the Sequence group."""
     field = "eglink.analysis." + expert
     rows = tshark.fields(cap(name), ["_ws.expert.severity", "_ws.expert.group", field],
-                         display_filter=field)
+                         display_filter=field, two_pass=True)
     assert rows
     for sev, group, _ in rows:
         pairs = set(zip(sev.split(","), group.split(",")))
@@ -249,28 +250,47 @@ def test_vrci_retransmission_then_ack(tshark, cap):
 
 
 def test_vrci_never_acknowledged(tshark, cap):
-    exp = analysis_experts(tshark, cap("vrci_unacked"))
+    """The finding sits on the command (frame 5), linked forward to the packet
+    at which the deadline was seen passing (61, second pass); that packet only
+    gets a note naming the command, and no tag."""
+    exp = analysis_experts(tshark, cap("vrci_unacked"), two_pass=True)
     retrans = {f for f, v in exp.items()
                if v == [("eglink.analysis.retransmission", "Retransmission of VRCI command 8")]}
     assert len(retrans) == 19
     failed = {f: v for f, v in exp.items() if f not in retrans}
     # The first packet of the BU later than 2000 ms after the first VRCI (t=0.2 s):
     # the VRPO at 2.24 s.
-    assert failed == {61: [("eglink.analysis.vrci_unacked",
-                            "VRCI command 8 not acknowledged by a VRAO within 2000 ms: the BU "
-                            "reports to the RU application that the command failed")]}
-    assert present(tshark, cap("vrci_unacked"), ["eglink.analysis.failed_command"]) == \
-        {61: {"eglink.analysis.failed_command": "5"}}
-    assert expert_links(tshark, cap("vrci_unacked"))[61] == \
-        {"eglink.analysis.vrci_unacked": "eglink.analysis.failed_command"}
+    assert failed == {
+        5: [("eglink.analysis.vrci_unacked",
+             "VRCI command 8 not acknowledged by a VRAO within 2000 ms (deadline at frame 61): "
+             "the BU reports to the RU application that the command failed")],
+        61: [("eglink.analysis.vrci_deadline",
+              "Deadline of VRCI command 8 (frame 5) passed with no VRAO (2000 ms)")]}
+    assert present(tshark, cap("vrci_unacked"), ["eglink.analysis.failed_command",
+                                                 "eglink.analysis.deadline_in"], two_pass=True) == \
+        {5: {"eglink.analysis.deadline_in": "61"}, 61: {"eglink.analysis.failed_command": "5"}}
+    links = expert_links(tshark, cap("vrci_unacked"), two_pass=True)
+    assert links[5]["eglink.analysis.vrci_unacked"] == "eglink.analysis.deadline_in"
+    assert links[61] == {"eglink.analysis.vrci_deadline": "eglink.analysis.failed_command"}
     assert present(tshark, cap("vrci_unacked"), ["eglink.analysis.ack_in"], two_pass=True) == {}
-    assert tags(tshark, cap("vrci_unacked"), 61) == ["[unacked]"]
+    assert tags(tshark, cap("vrci_unacked"), 5, two_pass=True) == ["[unacked]"]
+    assert tags(tshark, cap("vrci_unacked"), 61, two_pass=True) == []
+
+
+def test_vrci_never_acknowledged_one_pass(tshark, cap):
+    """One pass cannot go back to the command: the note at the deadline is
+    all it shows (documented forward link)."""
+    exp = analysis_experts(tshark, cap("vrci_unacked"))
+    assert {f: v for f, v in exp.items() if v[0][0] != "eglink.analysis.retransmission"} == {
+        61: [("eglink.analysis.vrci_deadline",
+              "Deadline of VRCI command 8 (frame 5) passed with no VRAO (2000 ms)")]}
+    assert tags(tshark, cap("vrci_unacked"), 5) == []
 
 
 def test_vrci_timeout_preference(tshark, cap):
     exp = names(analysis_experts(tshark, cap("vrci_unacked"),
                                  prefs={"eglink.vrci_ack_timeout_ms": 1000}))
-    failed = [f for f, n in exp.items() if "eglink.analysis.vrci_unacked" in n]
+    failed = [f for f, n in exp.items() if "eglink.analysis.vrci_deadline" in n]
     # The retransmission at 1.2 s is exactly 1000 ms after the first (not later): the
     # VRPO at 1.24 s is the first packet past the deadline.
     assert failed == [34]
@@ -296,12 +316,19 @@ def test_vrco_vrai_and_unknown_acks(tshark, cap):
 
 
 def test_vrco_not_acknowledged_and_late_ack(tshark, cap):
-    exp = analysis_experts(tshark, cap("vrco_unacked"))
+    """Command 4 (frame 5) is never acknowledged; command 5 (frame 52) is, 2.3 s
+    late (frame 94): both commands are unacknowledged on their own frames, the
+    late acknowledgement reads [late ack]."""
+    exp = analysis_experts(tshark, cap("vrco_unacked"), two_pass=True)
     assert {f: v for f, v in exp.items() if v[0][0] != "eglink.analysis.retransmission"} == {
-        46: [("eglink.analysis.vrco_unacked",
-              "VRCO command 4 not acknowledged by a VRAI within 2000 ms")],
-        89: [("eglink.analysis.vrco_unacked",
-              "VRCO command 5 not acknowledged by a VRAI within 2000 ms")],
+        5: [("eglink.analysis.vrco_unacked",
+             "VRCO command 4 not acknowledged by a VRAI within 2000 ms (deadline at frame 46)")],
+        46: [("eglink.analysis.vrco_deadline",
+              "Deadline of VRCO command 4 (frame 5) passed with no VRAI (2000 ms)")],
+        52: [("eglink.analysis.vrco_unacked",
+              "VRCO command 5 not acknowledged by a VRAI within 2000 ms (deadline at frame 89)")],
+        89: [("eglink.analysis.vrco_deadline",
+              "Deadline of VRCO command 5 (frame 52) passed with no VRAI (2000 ms)")],
         94: [("eglink.analysis.late_ack",
               "Acknowledges VRCO command 5 2.300 s after its first transmission, later than "
               "2000 ms")],
@@ -315,22 +342,41 @@ def test_vrco_not_acknowledged_and_late_ack(tshark, cap):
     assert expert_links(tshark, cap("vrco_unacked"))[94] == \
         {"eglink.analysis.late_ack": "eglink.analysis.ack_to"}
     assert tags(tshark, cap("vrco_unacked"), 94) == ["[late ack]"]
-    assert tags(tshark, cap("vrco_unacked"), 46) == ["[unacked]"]
+    assert tags(tshark, cap("vrco_unacked"), 5, two_pass=True) == ["[unacked]"]
+    assert tags(tshark, cap("vrco_unacked"), 52, two_pass=True) == ["[unacked]"]
+    assert tags(tshark, cap("vrco_unacked"), 46, two_pass=True) == []
+    assert tags(tshark, cap("vrco_unacked"), 89, two_pass=True) == []
+
+
+def test_vrco_late_ack_is_the_first_packet_after_the_deadline(tshark, cap):
+    """With a 2250 ms timeout, the VRAI at 2.3 s is the first packet past the
+    deadline of command 5: the deadline was seen passing at the acknowledgement."""
+    prefs = {"eglink.vrco_ack_timeout_ms": 2250}
+    exp = names(analysis_experts(tshark, cap("vrco_unacked"), two_pass=True, prefs=prefs))
+    assert exp[52] == ["eglink.analysis.vrco_unacked"]
+    assert exp[94] == ["eglink.analysis.late_ack"]
+    tshark.expect(cap("vrco_unacked"), 52, {"eglink.analysis.deadline_in": 94}, two_pass=True,
+                  prefs=prefs)
 
 
 def test_vrco_timeout_preference(tshark, cap):
     exp = names(analysis_experts(tshark, cap("vrco_unacked"),
                                  prefs={"eglink.vrco_ack_timeout_ms": 2500}))
-    assert [f for f, n in exp.items() if "eglink.analysis.vrco_unacked" in n] == [56]
+    assert [f for f, n in exp.items() if "eglink.analysis.vrco_deadline" in n] == [56]
     assert not [f for f, n in exp.items() if "eglink.analysis.late_ack" in n]
 
 
-def test_no_frame_numbers_in_messages(tshark, cap):
-    """Frames are referred to by links, never by numbers in the text."""
+def test_frame_numbers_in_messages_match_their_links(tshark, cap):
+    """Frames are referred to by links; a message that names a frame (an
+    unacknowledged command and its deadline) names the one its link holds."""
+    link_fields = ["eglink.analysis.deadline_in", "eglink.analysis.failed_command"]
     for name in ("vrpi_gap", "vrpo_gap", "repeated", "vrci_unacked", "vrco_unacked",
                  "vrpo_incomplete", "shared_group"):
-        for frame, experts in analysis_experts(tshark, cap(name), chat=True).items():
-            assert not [m for _, m in experts if "frame" in m], (name, frame)
+        links = tshark.frames(cap(name), link_fields, two_pass=True)
+        for frame, experts in analysis_experts(tshark, cap(name), chat=True, two_pass=True).items():
+            for _, message in experts:
+                named = re.findall(r"frame (\d+)", message)
+                assert set(named) <= set(links[frame].values()), (name, frame, message)
 
 
 # --- VRPO reassembly --------------------------------------------------------------
@@ -759,8 +805,23 @@ def test_statistics_row_per_bu_on_a_shared_group(tshark, cap):
 # --- one pass and two passes -----------------------------------------------------
 
 # A single pass cannot show links to later frames: the acknowledgement of a
-# command and the frame a VRPO fragment is reassembled in.
-FORWARD = re.compile(r"^\s*\[(Acknowledged in frame|Reassembled in): \d+")
+# command, the frame a VRPO fragment is reassembled in, and the packet at
+# which a command's deadline was seen passing (with the finding under it).
+FORWARD = re.compile(r"^\s*\[(Acknowledged in frame|Reassembled in|"
+                     r"Acknowledgement deadline passed in frame): \d+")
+
+
+def without_forward(lines):
+    """The lines of a -V text without the forward links and what hangs on them."""
+    out, depth = [], None
+    for line in lines:
+        indent = len(line) - len(line.lstrip())
+        if depth is not None and indent > depth:
+            continue
+        depth = indent if FORWARD.match(line) else None
+        if depth is None:
+            out.append(line)
+    return out
 
 
 @pytest.mark.parametrize("name", ["vrpi_gap", "vrpo_gap", "lost", "repeated", "vrci_retransmission",
@@ -770,6 +831,5 @@ FORWARD = re.compile(r"^\s*\[(Acknowledged in frame|Reassembled in): \d+")
 def test_one_pass_equals_two_pass(tshark, cap, name):
     one = tshark.verbose(cap(name)).splitlines()
     two = tshark.verbose(cap(name), two_pass=True).splitlines()
-    assert [line for line in one if not FORWARD.match(line)] == \
-        [line for line in two if not FORWARD.match(line)]
+    assert without_forward(one) == without_forward(two)
     assert not [line for line in one if FORWARD.match(line) and line not in two]

@@ -8,9 +8,11 @@
  * the GUI show the same findings. Most frames need only a 16-byte record in a
  * table indexed by frame number; a frame with findings, a command link or a
  * reassembly ID keeps its full record with p_add_proto_data. A finding that depends
- * on time passing (a missing VRPI/VRPO, an unacknowledged command) is
- * reported on the first packet of the BU that arrives after the deadline:
- * that is the earliest packet at which a one-pass reader knows it.
+ * on time passing (a missing VRPI/VRPO) is reported on the first packet of
+ * the BU that arrives after the deadline: that is the earliest packet at
+ * which a one-pass reader knows it. An unacknowledged command is reported
+ * on the command itself, with a forward link to that packet (second pass and
+ * GUI); the packet gets a note naming the command.
  *
  * Which packets belong to one BU: the BU sends VRPI/VRCI/VRAI to its input
  * port, the machine controller sends VRPO/VRCO/VRAO to the input port + 2,
@@ -63,6 +65,7 @@ static int hf_ack_in = -1;
 static int hf_ack_to = -1;
 static int hf_ack_time = -1;
 static int hf_failed_command = -1;
+static int hf_deadline_in = -1;
 static int hf_incomplete_burst = -1;
 static int hf_last_vrpi = -1;
 static int hf_last_vrpo = -1;
@@ -92,6 +95,8 @@ static expert_field ei_vrpo_missing = EI_INIT;
 static expert_field ei_retransmission = EI_INIT;
 static expert_field ei_vrci_unacked = EI_INIT;
 static expert_field ei_vrco_unacked = EI_INIT;
+static expert_field ei_vrci_deadline = EI_INIT;
+static expert_field ei_vrco_deadline = EI_INIT;
 static expert_field ei_late_ack = EI_INIT;
 static expert_field ei_unknown_ack = EI_INIT;
 static expert_field ei_bu_state_changed = EI_INIT;
@@ -135,6 +140,7 @@ typedef struct {
     nstime_t last_ts;           /* latest transmission */
     guint32 first_frame;
     guint32 ack_frame;          /* first acknowledgement, 0 if none (yet) */
+    guint32 deadline_frame;     /* first packet seen after the deadline passed unacknowledged */
     guint16 command_id;
     guint8 dir;                 /* EGLINK_DIR_IN: VRCI, EGLINK_DIR_OUT: VRCO */
     guint8 failed;              /* the deadline passed unacknowledged */
@@ -666,11 +672,14 @@ check_commands(eglink_sender_t *s, eglink_frame_t *fd, packet_info *pinfo, int d
         eglink_cmd_t *cmd = s->cmds[i];
         gint64 age;
 
-        if (!cmd || cmd->ack_frame || cmd->failed)
+        /* The acknowledgement this packet carries, even late, is not a
+         * deadline passing unnoticed: track_ack() records it. */
+        if (!cmd || cmd->ack_frame || cmd->failed || cmd == fd->cmd)
             continue;
         age = ns_between(&pinfo->abs_ts, &cmd->first_ts);
         if (age > timeout) {
             cmd->failed = TRUE;
+            cmd->deadline_frame = pinfo->num;
             add_finding(fd, dir == EGLINK_DIR_IN ? FND_FAILED_VRCI : FND_FAILED_VRCO,
                         cmd->first_frame, cmd->command_id, age);
         }
@@ -839,8 +848,15 @@ track_ack(eglink_cmd_t *cmd, eglink_frame_t *fd, packet_info *pinfo, int dir, gu
     if (!cmd->ack_frame) {
         cmd->ack_frame = pinfo->num;
         fd->flags |= FF_FIRST_ACK;
-        if (fd->delta_ns > ack_timeout_ns(dir))
+        if (fd->delta_ns > ack_timeout_ns(dir)) {
             add_finding(fd, FND_LATE_ACK, cmd->first_frame, command_id, fd->delta_ns);
+            /* The acknowledgement is the first packet after the deadline:
+             * the deadline was seen passing here. */
+            if (!cmd->failed) {
+                cmd->failed = TRUE;
+                cmd->deadline_frame = pinfo->num;
+            }
+        }
     }
 }
 
@@ -1129,10 +1145,26 @@ show_command(proto_tree *at, proto_item *aitem, tvbuff_t *tvb, packet_info *pinf
         } else {
             expert_add_info_format(pinfo, aitem, &ei_command, "New %s command %u", what, cmd->command_id);
         }
-        /* Known on the first pass only when the acknowledgement came first. */
+        /* Known on the first pass only when the acknowledgement came first:
+         * forward links, shown on the second pass and in the GUI. */
         if (cmd->ack_frame) {
             ti = add_generated_uint(at, hf_ack_in, tvb, cmd->ack_frame);
             proto_item_append_text(ti, " (%s)", ack);
+        }
+        /* The finding sits on the command itself (its first transmission),
+         * linked to the packet at which the deadline was seen passing. */
+        if (cmd->failed && cmd->deadline_frame && !(fd->flags & FF_RETRANS)) {
+            ti = add_generated_uint(at, hf_deadline_in, tvb, cmd->deadline_frame);
+            if (cmd->dir == EGLINK_DIR_IN)
+                expert_add_info_format(pinfo, ti, &ei_vrci_unacked,
+                    "VRCI command %u not acknowledged by a VRAO within %u ms (deadline at frame %u): "
+                    "the BU reports to the RU application that the command failed",
+                    cmd->command_id, pref_vrci_ack_timeout_ms, cmd->deadline_frame);
+            else
+                expert_add_info_format(pinfo, ti, &ei_vrco_unacked,
+                    "VRCO command %u not acknowledged by a VRAI within %u ms (deadline at frame %u)",
+                    cmd->command_id, pref_vrco_ack_timeout_ms, cmd->deadline_frame);
+            col_append_str(pinfo->cinfo, COL_INFO, " [unacked]");
         }
     } else {
         ti = add_generated_uint(at, hf_ack_to, tvb, cmd->first_frame);
@@ -1226,19 +1258,19 @@ show_findings(proto_tree *at, proto_item *aitem, tvbuff_t *tvb, packet_info *pin
                 "an RU armed, opens the ES-Link relays", t, pref_vrpo_gap_ms);
             col_append_fstr(pinfo->cinfo, COL_INFO, " [no VRPO %s]", t);
             break;
+        /* This packet only saw the deadline pass: a note naming the command;
+         * the warning and the [unacked] tag are on the command's frame. */
         case FND_FAILED_VRCI:
             ti = add_generated_uint(at, hf_failed_command, tvb, f->frame);
-            expert_add_info_format(pinfo, ti, &ei_vrci_unacked,
-                "VRCI command %u not acknowledged by a VRAO within %u ms: the BU reports to the "
-                "RU application that the command failed", f->value, pref_vrci_ack_timeout_ms);
-            col_append_str(pinfo->cinfo, COL_INFO, " [unacked]");
+            expert_add_info_format(pinfo, ti, &ei_vrci_deadline,
+                "Deadline of VRCI command %u (frame %u) passed with no VRAO (%u ms)",
+                f->value, f->frame, pref_vrci_ack_timeout_ms);
             break;
         case FND_FAILED_VRCO:
             ti = add_generated_uint(at, hf_failed_command, tvb, f->frame);
-            expert_add_info_format(pinfo, ti, &ei_vrco_unacked,
-                "VRCO command %u not acknowledged by a VRAI within %u ms",
-                f->value, pref_vrco_ack_timeout_ms);
-            col_append_str(pinfo->cinfo, COL_INFO, " [unacked]");
+            expert_add_info_format(pinfo, ti, &ei_vrco_deadline,
+                "Deadline of VRCO command %u (frame %u) passed with no VRAI (%u ms)",
+                f->value, f->frame, pref_vrco_ack_timeout_ms);
             break;
         case FND_UNKNOWN_ACK:
             expert_add_info_format(pinfo, aitem, &ei_unknown_ack,
@@ -1476,6 +1508,11 @@ eglink_analysis_register(int proto, module_t *prefs)
           { "Unacknowledged command", "eglink.analysis.failed_command", FT_FRAMENUM, BASE_NONE,
             FRAMENUM_TYPE(FT_FRAMENUM_NONE), 0x0,
             "Command whose acknowledgement deadline passed before this packet", HFILL } },
+        { &hf_deadline_in,
+          { "Acknowledgement deadline passed in frame", "eglink.analysis.deadline_in", FT_FRAMENUM,
+            BASE_NONE, FRAMENUM_TYPE(FT_FRAMENUM_NONE), 0x0,
+            "First packet of the BU or its controller after this command's acknowledgement deadline "
+            "passed unacknowledged (second pass and GUI)", HFILL } },
         { &hf_incomplete_burst,
           { "Incomplete VRPO burst", "eglink.analysis.incomplete_burst", FT_FRAMENUM, BASE_NONE,
             FRAMENUM_TYPE(FT_FRAMENUM_NONE), 0x0,
@@ -1563,6 +1600,12 @@ eglink_analysis_register(int proto, module_t *prefs)
         { &ei_vrco_unacked,
           { "eglink.analysis.vrco_unacked", PI_SEQUENCE, PI_WARN,
             "VRCO not acknowledged in time", EXPFILL } },
+        { &ei_vrci_deadline,
+          { "eglink.analysis.vrci_deadline", PI_SEQUENCE, PI_NOTE,
+            "Deadline of a VRCI passed with no VRAO", EXPFILL } },
+        { &ei_vrco_deadline,
+          { "eglink.analysis.vrco_deadline", PI_SEQUENCE, PI_NOTE,
+            "Deadline of a VRCO passed with no VRAI", EXPFILL } },
         { &ei_late_ack,
           { "eglink.analysis.late_ack", PI_SEQUENCE, PI_WARN,
             "Acknowledgement after the deadline", EXPFILL } },

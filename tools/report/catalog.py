@@ -47,7 +47,10 @@ EXPERTS = {
     "eglink.ru_disabled.unknown": (ERROR, "finding", "undefined RU disabled reason"),
     "eglink.joystick.range": (ERROR, "finding", "joystick outside -1000..1000"),
     "eglink.armed_ru.unarmed_data": (ERROR, "finding", "RU fields not 0 while no RU is armed"),
-    # EG-Link conversation analysis
+    # EG-Link conversation analysis. The report reads one pass: a command
+    # that failed shows at the packet that saw its deadline pass (the note
+    # naming it), the moment the BU gives up, not on the command's own frame
+    # (a forward finding, second pass only).
     "eglink.analysis.serial_gap": (WARNING, "finding", "packets lost"),
     "eglink.analysis.serial_repeat": (WARNING, "finding", "repeated packet"),
     "eglink.analysis.serial_restart": (NOTE, "finding", "sender restarted (serial jumped back)"),
@@ -56,8 +59,8 @@ EXPERTS = {
     "eglink.analysis.vrpo_missing": (ERROR, "gap", "VRPO"),
     "eglink.analysis.vrpo_gap": (ERROR, "gap", "VRPO"),
     "eglink.analysis.retransmission": (NOTE, "finding", "command retransmitted"),
-    "eglink.analysis.vrci_unacked": (WARNING, "finding", "VRCI not acknowledged in time: the command failed"),
-    "eglink.analysis.vrco_unacked": (WARNING, "finding", "VRCO not acknowledged in time"),
+    "eglink.analysis.vrci_deadline": (WARNING, "finding", "VRCI not acknowledged in time: the command failed"),
+    "eglink.analysis.vrco_deadline": (WARNING, "finding", "VRCO not acknowledged in time"),
     "eglink.analysis.late_ack": (WARNING, "finding", "late acknowledgement"),
     "eglink.analysis.bu_state_changed": (NOTE, "state", "BU state changed"),
     "eglink.analysis.origin_changed": (WARNING, "finding", "another origin at the same BU address"),
@@ -100,8 +103,8 @@ EXPERTS = {
     # EC-Link over Modbus/TCP
     "eclink_modbus.pci_stalled": (ERROR, "stall", "PCI"),
     "eclink_modbus.pco_stalled": (ERROR, "stall", "PCO"),
-    "eclink_modbus.cmd_from_ru.late": (WARNING, "finding", "command from RU not echoed by CAO in time"),
-    "eclink_modbus.cmd_to_ru.late": (WARNING, "finding", "command to RU not echoed by CAI in time"),
+    "eclink_modbus.cmd_from_ru.deadline": (WARNING, "finding", "command from RU not echoed by CAO in time"),
+    "eclink_modbus.cmd_to_ru.deadline": (WARNING, "finding", "command to RU not echoed by CAI in time"),
     "eclink_modbus.cmd_from_ru.late_ack": (WARNING, "finding", "command from RU echoed by CAO late"),
     "eclink_modbus.cmd_to_ru.late_ack": (WARNING, "finding", "command to RU echoed by CAI late"),
     "eclink_modbus.bu_state_change": (NOTE, "state", "BU state changed"),
@@ -111,8 +114,8 @@ EXPERTS = {
     # EC-Link over PROFINET
     "eclink_pnio.pci_stalled": (ERROR, "stall", "PCI"),
     "eclink_pnio.pco_stalled": (ERROR, "stall", "PCO"),
-    "eclink_pnio.cmd_from_ru.late": (WARNING, "finding", "command from RU not echoed by CAO in time"),
-    "eclink_pnio.cmd_to_ru.late": (WARNING, "finding", "command to RU not echoed by CAI in time"),
+    "eclink_pnio.cmd_from_ru.deadline": (WARNING, "finding", "command from RU not echoed by CAO in time"),
+    "eclink_pnio.cmd_to_ru.deadline": (WARNING, "finding", "command to RU not echoed by CAI in time"),
     "eclink_pnio.cmd_from_ru.late_ack": (WARNING, "finding", "command from RU echoed by CAO late"),
     "eclink_pnio.cmd_to_ru.late_ack": (WARNING, "finding", "command to RU echoed by CAI late"),
     "eclink_pnio.bu_state_change": (NOTE, "state", "BU state changed"),

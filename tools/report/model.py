@@ -541,7 +541,7 @@ class Capture:
             entry.count += 1
             entry.last_frame, entry.last_time = frame, t
         else:
-            if field.endswith(("vrci_unacked", "vrco_unacked")):
+            if field.endswith(("vrci_deadline", "vrco_deadline")):
                 what = "%s of frame %s %s" % (what[:4], c[C["eglink_analysis_failed_command"]],
                                               what[5:])
             elif field.endswith("late_ack") and c[C["eglink_analysis_ack_time"]]:

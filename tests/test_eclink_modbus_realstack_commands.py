@@ -1,0 +1,87 @@
+"""Commands from the RU over a real Modbus/TCP stack: where a late echo and
+a missing echo are reported.
+
+The pymodbus BU of test_eclink_modbus_realstack (alone, mode "commands")
+sends CCI 6 at 0.5 s and CCI 7 at 4 s; the PLC, a pymodbus client, reads the
+input image every 50 ms and writes the output image, echoing CCI 6 in CAO
+only 2.6 s after it first read it, and CCI 7 never. Expected, by what the PLC
+logged (not by anything the project generated):
+- the response that first carries CCI 6 and the one that first carries
+  CCI 7: "not acknowledged" with [unacked] (second pass), linked to the
+  first frame of the connection after the deadline;
+- the write whose CAO first echoes 6: [late ack] with its latency;
+- no other frame tagged, above all no read request.
+"""
+import time
+
+import pytest
+
+import test_eclink_modbus_realstack as rs
+
+ECHO_DELAY_S = 2.6
+RUN_S = 6.6
+
+
+def _plc(log):
+    bu = rs._client(rs.BU)
+    pco, cao = 1, 5
+    first_seen = {}
+    end = time.monotonic() + RUN_S
+    while time.monotonic() < end:
+        rr = bu.read_input_registers(0, count=32, device_id=1)
+        assert not rr.isError(), rr
+        cci = rr.registers[0] >> 8
+        now = time.monotonic()
+        first_seen.setdefault(cci, now)
+        log["read"].append((now, cci))
+        if cci == 6 and now - first_seen[6] >= ECHO_DELAY_S:
+            cao = 6
+        wr = bu.write_registers(0, rs._output_registers(pco, cao), device_id=1)
+        assert not wr.isError(), wr
+        log["written"].append((time.monotonic(), pco, cao))
+        pco = (pco + 1) & 0xFF
+        time.sleep(0.05)
+    bu.close()
+
+
+@pytest.fixture(scope="module")
+def commands_capture():
+    yield from rs.captured("commands", _plc)
+
+
+NAMES = ["_ws.col.Info", "modbus.func_code", "eclink.image", "eclink.cci", "eclink.cao",
+         "eclink_modbus.deadline_in", "eclink_modbus.cmd_from_ru_in", "eclink_modbus.cmd_from_ru_latency",
+         "eclink_modbus.cmd_from_ru.late", "eclink_modbus.cmd_from_ru.late_ack",
+         "eclink_modbus.cmd_from_ru.deadline", "frame.time_relative"]
+
+
+def test_findings_on_the_frames_that_carry_them(tshark, commands_capture):
+    cap, log = commands_capture
+    # what the PLC saw: CCI 6 then 7, echoed 6 only
+    assert [c for c in sorted({c for _, c in log["read"]})] == [5, 6, 7]
+    assert {c for _, _, c in log["written"]} == {5, 6}
+    got = tshark.frames(cap, NAMES, prefs=rs.PREFS, two_pass=True)
+    inputs = [(f, v) for f, v in sorted(got.items()) if v["eclink.image"] == "input"]
+    first_6 = next(f for f, v in inputs if v["eclink.cci"] == "6")
+    first_7 = next(f for f, v in inputs if v["eclink.cci"] == "7")
+    echo = next(f for f, v in sorted(got.items()) if v["eclink.image"] == "output" and v["eclink.cao"] == "6")
+    tagged = {f: v["_ws.col.Info"] for f, v in got.items() if "[unacked]" in v["_ws.col.Info"]
+              or "[late ack]" in v["_ws.col.Info"]}
+    assert sorted(tagged) == sorted([first_6, first_7, echo])
+    assert tagged[first_6].endswith("[unacked]") and tagged[first_7].endswith("[unacked]")
+    assert tagged[echo].endswith("[late ack]")
+    for cmd in (first_6, first_7):
+        assert got[cmd]["eclink_modbus.cmd_from_ru.late"]
+        deadline = int(got[cmd]["eclink_modbus.deadline_in"])
+        # the first frame of the connection past 2 s after the command; it only notes it
+        assert 2.0 < float(got[deadline]["frame.time_relative"]) - float(got[cmd]["frame.time_relative"]) < 2.3
+        assert got[deadline]["eclink_modbus.cmd_from_ru.deadline"]
+        assert int(got[deadline]["eclink_modbus.cmd_from_ru_in"]) == cmd
+        assert "[unacked]" not in got[deadline]["_ws.col.Info"]
+    # the late echo: after about 2.6 s, its own expert, not the unacked one
+    assert got[echo]["eclink_modbus.cmd_from_ru.late_ack"] and not got[echo]["eclink_modbus.cmd_from_ru.late"]
+    assert int(got[echo]["eclink_modbus.cmd_from_ru_in"]) == first_6
+    assert 2.6 <= float(got[echo]["eclink_modbus.cmd_from_ru_latency"]) < 3.0
+    # no read request carries a command finding
+    assert not [f for f, v in got.items() if v["modbus.func_code"] == "4" and not v["eclink.image"]
+                and (v["eclink_modbus.cmd_from_ru.late"] or "[unacked]" in v["_ws.col.Info"])]
