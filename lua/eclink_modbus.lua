@@ -80,6 +80,8 @@ local pf = {
     assembled = ProtoField.string("eclink_modbus.assembled", "Assembled image"),
     pci_age = ProtoField.relative_time("eclink_modbus.pci_age", "Time since PCI changed"),
     pco_age = ProtoField.relative_time("eclink_modbus.pco_age", "Time since PCO changed"),
+    pci_age_ms = ProtoField.uint32("eclink_modbus.pci_age_ms", "Time since PCI changed (ms)"),
+    pco_age_ms = ProtoField.uint32("eclink_modbus.pco_age_ms", "Time since PCO changed (ms)"),
     bu_state_prev = ProtoField.uint8("eclink_modbus.bu_state_prev", "Previous BU state", base.HEX,
         image.vs.bu_state),
     cmd_from_ru_in = ProtoField.framenum("eclink_modbus.cmd_from_ru_in", "Command from RU (new CCI) in",
@@ -762,6 +764,12 @@ local SPARSE_ADDERS = {
     ["eclink_modbus.response_in"] = rec_value(pf.response_in, R_RESPONSE),
     ["eclink_modbus.pci_age"] = rec_value(pf.pci_age, R_PCI_AGE, true),
     ["eclink_modbus.pco_age"] = rec_value(pf.pco_age, R_PCO_AGE, true),
+    ["eclink_modbus.pci_age_ms"] = function(c)
+        if c.rec[R_PCI_AGE] then c.tree:add(pf.pci_age_ms, record.ms(c.rec[R_PCI_AGE])) end
+    end,
+    ["eclink_modbus.pco_age_ms"] = function(c)
+        if c.rec[R_PCO_AGE] then c.tree:add(pf.pco_age_ms, record.ms(c.rec[R_PCO_AGE])) end
+    end,
     ["eclink_modbus.poll_gap_time"] = rec_value(pf.poll_gap_time, "poll_gap", true),
     ["eclink_modbus.poll_gap_from"] = function(c)
         if c.rec.poll_gap then c.tree:add(pf.poll_gap_from, c.rec.poll_gap_from) end
@@ -899,10 +907,12 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
         end
     end
     if rec[R_PCI_AGE] then
-        record.add_time(item, pf.pci_age, "Time since PCI changed", rec[R_PCI_AGE], nstime(rec[R_PCI_AGE]))
+        record.add_time(item, pf.pci_age, "Time since PCI changed", rec[R_PCI_AGE], nstime(rec[R_PCI_AGE]),
+                        pf.pci_age_ms)
     end
     if rec[R_PCO_AGE] then
-        record.add_time(item, pf.pco_age, "Time since PCO changed", rec[R_PCO_AGE], nstime(rec[R_PCO_AGE]))
+        record.add_time(item, pf.pco_age, "Time since PCO changed", rec[R_PCO_AGE], nstime(rec[R_PCO_AGE]),
+                        pf.pco_age_ms)
     end
     if rec.bu_state_prev then item:add(pf.bu_state_prev, rec.bu_state_prev):set_generated() end
     local l = rec.links or NONE

@@ -37,6 +37,8 @@ local eclp = Proto("eclink_pnio", "EC-Link over PROFINET IO")
 local epf = {
     pci_age = ProtoField.relative_time("eclink_pnio.pci_age", "Time since PCI changed"),
     pco_age = ProtoField.relative_time("eclink_pnio.pco_age", "Time since PCO changed"),
+    pci_age_ms = ProtoField.uint32("eclink_pnio.pci_age_ms", "Time since PCI changed (ms)"),
+    pco_age_ms = ProtoField.uint32("eclink_pnio.pco_age_ms", "Time since PCO changed (ms)"),
     layout = ProtoField.string("eclink_pnio.layout", "Layout from"),
     frame_id = ProtoField.uint16("eclink_pnio.frame_id", "FrameID", base.HEX),
     layout_entry = ProtoField.string("eclink_pnio.layout_entry", "Layout table entry (to pin it: mcmb2.layouts)"),
@@ -139,8 +141,12 @@ local function show(rec, tvb, pinfo, tree)
     local info = image.dissect(tvb, pinfo, root, { kind = up and "input" or "output", offset = base + o.off,
         length = o.len, image_len = o.len })
     iodata.decode_eclink(info, { frame_id = tvb(0, 2):uint() }, pinfo) -- vrshark_io hook
-    if rec.pci_age then record.add_time(root, epf.pci_age, "Time since PCI changed", rec.pci_age) end
-    if rec.pco_age then record.add_time(root, epf.pco_age, "Time since PCO changed", rec.pco_age) end
+    if rec.pci_age then
+        record.add_time(root, epf.pci_age, "Time since PCI changed", rec.pci_age, nil, epf.pci_age_ms)
+    end
+    if rec.pco_age then
+        record.add_time(root, epf.pco_age, "Time since PCO changed", rec.pco_age, nil, epf.pco_age_ms)
+    end
     for _, l in ipairs(rec.links or {}) do root:add(hs_fields[l[1]], l[2]):set_generated() end
     attach(rec, "image", info and info.item or root)
     record.add_ioxs(root, rec, tvb, epf.iops, epf.iocs)

@@ -98,6 +98,7 @@ local pf = {
     iops = ProtoField.uint8("mcmb2.iops", "IOPS", base.HEX, IOXS),
     iocs = ProtoField.uint8("mcmb2.iocs", "IOCS", base.HEX, IOXS),
     watchdog_age = ProtoField.relative_time("mcmb2.watchdog_age", "Watchdog unchanged for"),
+    watchdog_ms = ProtoField.uint32("mcmb2.watchdog_ms", "Watchdog unchanged for (ms)"),
     watchdog_since = ProtoField.framenum("mcmb2.watchdog_since", "Watchdog value unchanged since"),
     frame_id = ProtoField.uint16("mcmb2.frame_id", "FrameID", base.HEX),
 }
@@ -445,7 +446,9 @@ end
 
 local function add_watchdog(root, rec, field, range)
     local wd = root:add(field, range)
-    if rec.wd_age then record.add_time(wd, pf.watchdog_age, "Watchdog unchanged for", rec.wd_age) end
+    if rec.wd_age then
+        record.add_time(wd, pf.watchdog_age, "Watchdog unchanged for", rec.wd_age, nil, pf.watchdog_ms)
+    end
     if rec.wd_since then wd:add(pf.watchdog_since, rec.wd_since):set_generated() end
     attach(rec, "wd", wd)
 end
@@ -614,6 +617,9 @@ local ADDERS = {
     ["mcmb2.downlink_watchdog"] = function(c) if not c.up then add_at(c, pf.downlink_watchdog, c.h + 1, 1) end end,
     ["mcmb2.watchdog_age"] = function(c)
         if c.rec.wd_age then c.tree:add(pf.watchdog_age, nstime(c.rec.wd_age)) end
+    end,
+    ["mcmb2.watchdog_ms"] = function(c)
+        if c.rec.wd_age then c.tree:add(pf.watchdog_ms, record.ms(c.rec.wd_age)) end
     end,
     ["mcmb2.watchdog_since"] = function(c)
         if c.rec.wd_since then c.tree:add(pf.watchdog_since, c.rec.wd_since) end

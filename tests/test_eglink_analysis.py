@@ -811,16 +811,27 @@ FORWARD = re.compile(r"^\s*\[(Acknowledged in frame|Reassembled in|"
                      r"Acknowledgement deadline passed in frame): \d+")
 
 
+# A controller joined to its BU by a later acknowledgement: its earlier
+# packets name the BU from the second pass on.
+JOINED_LATER = re.compile(r"^\s*\[BU origin: 0x[0-9a-f]+ \(joined to this BU by a later acknowledgement\)\]")
+
+
 def without_forward(lines):
-    """The lines of a -V text without the forward links and what hangs on them."""
-    out, depth = [], None
+    """The lines of a -V text without the forward links and what hangs on
+    them; a controller's BU known from a later frame reads as not known."""
+    out, depth, joined = [], None, False
     for line in lines:
         indent = len(line) - len(line.lstrip())
         if depth is not None and indent > depth:
             continue
         depth = indent if FORWARD.match(line) else None
+        if JOINED_LATER.match(line):
+            joined = True
+            continue
+        if joined and line.lstrip().startswith("[Device: "):
+            line, joined = line[:indent] + "[Device: BU not known]", False
         if depth is None:
-            out.append(line)
+            out.append(re.sub(r", joined to BU 0x[0-9a-f]+ later\]$", "]", line))
     return out
 
 

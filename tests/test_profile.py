@@ -161,13 +161,45 @@ def test_healthy_eglink_is_not_wiresharks_tcp_or_udp_colour(profile_conf):
         assert sum((a - b) ** 2 for a, b in zip(ours, rgb)) ** 0.5 >= 40, name
 
 
+COLUMNS = ["No.", "Time", "Source", "Protocol", "Device", "BU state", "RU state", "Armed RU",
+           "Watchdog ms", "Info"]
+
+
+def packet_list(conf, capture):
+    """{frame number: {column title: text}} of the packet list as tshark prints
+    the profile's columns (-T tabs; column fields by title, _ws.col.Device,
+    exist in Wireshark 4.0 only)."""
+    out = run(conf, ["-C", "vrshark", "-T", "tabs", "-n", "-2", "-r", str(ROOT / "captures" / capture)]).stdout
+    rows = {}
+    for line in out.splitlines():
+        cells = [c.strip() for c in line.split("\t")]
+        if cells[0].isdigit():
+            rows[int(cells[0])] = dict(zip(COLUMNS, cells))
+    return rows
+
+
 def _device_column(conf, capture, frames):
-    """The Device column (the fifth: No., Time, Source, Protocol, Device) of
-    the packet list as tshark prints the profile's columns. (Column fields
-    by title, _ws.col.Device, exist in Wireshark 4.0 only.)"""
-    out = run(conf, ["-C", "vrshark", "-n", "-2", "-r", str(ROOT / "captures" / capture)]).stdout
-    rows = {line.split()[0]: line.split()[4] for line in out.splitlines() if line.strip()}
-    return [rows[str(n)] for n in frames]
+    rows = packet_list(conf, capture)
+    return [rows[n]["Device"] for n in frames]
+
+
+def test_profile_column_titles():
+    text = (PROFILE / "preferences").read_text()
+    assert re.findall(r'^\t"([^"]+)", "%', text, re.M) == COLUMNS
+
+
+def test_watchdog_column_reads_whole_milliseconds(profile_conf):
+    """The MC-MB2 watchdog age and the EC-Link PCI/PCO ages in whole ms (a
+    time field there prints nine decimals and is cut off)."""
+    rows = packet_list(profile_conf, "mcmb2_duplex_watchdog.pcap")
+    assert [rows[n]["Watchdog ms"] for n in (23, 25, 27, 28)] == ["1200", "1400", "0", "1600"]
+    rows = packet_list(profile_conf, "eclink_modbus_faults.pcap")
+    assert rows[21]["Watchdog ms"] == "700"           # PCI, input image
+    assert rows[30]["Watchdog ms"] == "2050"          # PCO, output image
+    rows = packet_list(profile_conf, "eclink_pnio_connect.pcap")
+    assert rows[31]["Watchdog ms"] == "625"
+    assert rows[72]["Watchdog ms"] == "2125"
+    assert not [r for r in rows.values() if "." in r["Watchdog ms"]]
 
 
 def test_device_column_names_the_device_on_every_protocol(profile_conf):
@@ -177,3 +209,16 @@ def test_device_column_names_the_device_on_every_protocol(profile_conf):
     assert _device_column(profile_conf, "eclink_pnio_connect.pcap", [3, 4]) == ["0x8010", "0x8011"]
     assert _device_column(profile_conf, "mcmb2_duplex_watchdog.pcap", [3, 4]) == ["0x8003", "0x8004"]
     assert _device_column(profile_conf, "eglink_states.pcap", [2]) == ["0x1001"]
+
+
+def test_device_column_on_a_second_controller_of_a_shared_group(profile_conf, tshark):
+    """Two BUs and two controllers on one group: a controller's VRPOs name its
+    BU, also those before the acknowledgement that joined it (frame 18 for
+    10.0.0.12; second pass and GUI). One pass says the BU is not known yet."""
+    cap = "eglink_analysis_shared_group.pcap"
+    assert _device_column(profile_conf, cap, [3, 4, 17, 18, 22]) == ["0x1001", "0x2002", "0x2002", "0x2002",
+                                                                      "0x2002"]
+    one = tshark.frames(ROOT / "captures" / cap, ["eglink.analysis.device", "eglink.analysis.bu_origin"])
+    assert one[4] == {"eglink.analysis.device": "BU not known", "eglink.analysis.bu_origin": ""}
+    assert one[22] == {"eglink.analysis.device": "0x2002", "eglink.analysis.bu_origin": "0x2002"}
+    assert not [n for n, r in one.items() if not r["eglink.analysis.device"]]

@@ -55,6 +55,7 @@ static int hf_eglink_periodic_data_id = -1;     /* looked up by name: eglink.per
 static int hf_analysis = -1;
 static int hf_bu_stream = -1;
 static int hf_bu_origin = -1;
+static int hf_device = -1;
 static int hf_expected_serial = -1;
 static int hf_lost = -1;
 static int hf_repeat_of = -1;
@@ -1185,6 +1186,30 @@ show_command(proto_tree *at, proto_item *aitem, tvbuff_t *tvb, packet_info *pinf
     }
 }
 
+/* The BU a packet belongs to, for filters and the profile's Device column:
+ * its origin, also on a controller's packets from before an acknowledgement
+ * joined it to its BU (known on the second pass and in the GUI only). */
+static void
+show_device(proto_tree *at, proto_item *aitem, tvbuff_t *tvb, packet_info *pinfo, const eglink_frame_t *fd)
+{
+    const char *device;
+    proto_item *ti;
+
+    if (fd->flags & FF_ORIGIN) {
+        add_generated_uint(at, hf_bu_origin, tvb, fd->bu_origin);
+        device = wmem_strdup_printf(pinfo->pool, "0x%04x", fd->bu_origin);
+    } else if (!fd->bu && fd->ctrl && fd->ctrl->bu && fd->ctrl->bu->origin_known) {
+        ti = add_generated_uint(at, hf_bu_origin, tvb, fd->ctrl->bu->origin);
+        proto_item_append_text(ti, " (joined to this BU by a later acknowledgement)");
+        proto_item_append_text(aitem, ", joined to BU 0x%04x later", fd->ctrl->bu->origin);
+        device = wmem_strdup_printf(pinfo->pool, "0x%04x", fd->ctrl->bu->origin);
+    } else {
+        device = fd->bu ? fd->bu->name : "BU not known";
+    }
+    ti = proto_tree_add_string(at, hf_device, tvb, 0, 0, device);
+    proto_item_set_generated(ti);
+}
+
 static const char *
 plural(guint n, const char *one, const char *many)
 {
@@ -1434,8 +1459,7 @@ eglink_analysis_dissect(tvbuff_t *tvb, packet_info *pinfo, proto_tree *eglink_tr
     proto_item_append_text(aitem, ": %s", fd->bu ? fd->bu->name : fd->ctrl->name);
     if (fd->bu)
         add_generated_uint(at, hf_bu_stream, tvb, fd->bu->index);
-    if (fd->flags & FF_ORIGIN)
-        add_generated_uint(at, hf_bu_origin, tvb, fd->bu_origin);
+    show_device(at, aitem, tvb, pinfo, fd);
 
     if (fd->flags & FF_INVALID) {
         proto_item_append_text(aitem, " (not analysed: CRC or size check failed)");
@@ -1471,7 +1495,11 @@ eglink_analysis_register(int proto, module_t *prefs)
           { "BU origin", "eglink.analysis.bu_origin", FT_UINT16, BASE_HEX, NULL, 0x0,
             "Unique ID of the BU this packet belongs to, learned from its VRPI/VRCI/VRAI "
             "(also on the packets of the machine controller joined to it, which carry "
-            "origin 0)", HFILL } },
+            "origin 0; on a controller joined later, from the second pass on)", HFILL } },
+        { &hf_device,
+          { "Device", "eglink.analysis.device", FT_STRING, BASE_NONE, NULL, 0x0,
+            "The BU this packet belongs to: its origin (0x1001), or \"BU not known\" on the "
+            "packets of a controller not joined to a BU", HFILL } },
         { &hf_expected_serial,
           { "Expected serial", "eglink.analysis.expected_serial", FT_UINT16, BASE_DEC, NULL, 0x0,
             "Serial that follows the previous packet of the same sender", HFILL } },
