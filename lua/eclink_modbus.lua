@@ -1029,12 +1029,14 @@ function proto.dissector(tvb, pinfo, tree)
             if gap then gaps[#gaps + 1] = string.format(" [poll gap %.3f s]", gap) end
         end
     end
+    -- the tags first: after Modbus's own long text they stay in view in a
+    -- packet list column that cannot show the whole image summary too
+    local tags = (infos.tags or "") .. table.concat(gaps)
     if #infos > 0 then
-        pinfo.cols.info:append(" [EC-Link " .. table.concat(infos, "; ") .. "]" .. (infos.tags or ""))
-    elseif infos.tags then
-        pinfo.cols.info:append(infos.tags)
+        pinfo.cols.info:append(tags .. " [EC-Link " .. table.concat(infos, "; ") .. "]")
+    elseif tags ~= "" then
+        pinfo.cols.info:append(tags)
     end
-    if #gaps > 0 then pinfo.cols.info:append(table.concat(gaps)) end
     if via_front and decoded then return tvb:len() end
     return consumed
 end

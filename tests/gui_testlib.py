@@ -3,11 +3,12 @@ installed layout's user (installed_testlib), wait until the packet list is
 drawn, take a screenshot, and read the colours of the packet-list rows from
 the picture.
 
-Rows are read along one column of pixels in the right part of the Time
-column, where the times (0.100000) leave the row background
-bare. Runs of one colour are rows of that colour; the height of one row is
+Rows are read along one column of pixels in the left part of the
+"Watchdog ms" column, where its right-aligned numbers leave the row
+background bare. Runs of one colour are rows of that colour; the height of one row is
 that of the shortest run (the selected first row is one)."""
 import os
+import re
 import shutil
 import subprocess
 import time
@@ -16,7 +17,17 @@ from pathlib import Path
 from installed_testlib import IS_ROOT, RUN_UID
 
 WIDTH, HEIGHT = 1600, 1000
-PROBE_X = 170               # the blank right part of the Time column, in pixels
+
+
+def _probe_x():
+    """The blank left part of the "Watchdog ms" column (its numbers sit on the
+    right), from the column widths of the profile (profile/vrshark/recent)."""
+    recent = (Path(__file__).resolve().parents[1] / "profile" / "vrshark" / "recent").read_text()
+    widths = [int(w) for w in re.findall(r'^\t(?:"[^"]+"|%\w+), (\d+)', recent, re.M)]
+    return sum(widths[:8]) + 12
+
+
+PROBE_X = _probe_x()          # in pixels
 TOLERANCE = 6               # per channel, 0..255
 # The display filter bar's backgrounds (valid, invalid, deprecated filter).
 FILTER_BAR = ((175, 255, 175), (255, 175, 175), (255, 255, 175))

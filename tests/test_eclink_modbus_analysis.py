@@ -37,7 +37,8 @@ def test_bu_state_change(tshark, capture_file):
                             display_filter="eclink_modbus.bu_state_prev")
     assert list(changed) == [45]
     assert_fields(changed[45], {"eclink_modbus.bu_state_prev": "0x11", "eclink.es_relays_open": 1}, "frame 45")
-    assert changed[45]["_ws.col.Info"].endswith("BU=Blocked RU 0x1234=Initial] [relays open]")
+    assert changed[45]["_ws.col.Info"].endswith("BU=Blocked RU 0x1234=Initial]")
+    assert "Registers [relays open] [EC-Link input PCI=" in changed[45]["_ws.col.Info"]
 
 
 def test_stalls_and_late_echoes(tshark, capture_file):
@@ -96,17 +97,19 @@ def test_severities_one_voice(tshark, capture_file):
 def test_info_tags_for_stalls_and_unacked_commands(tshark, capture_file):
     info = {n: r["_ws.col.Info"] for n, r in tshark.frames(capture_file("eclink_modbus_faults.pcap"),
                                                               ["_ws.col.Info"]).items()}
-    assert info[21].endswith("BU=Armed RU 0x1234=Enabled] [PCI stalled 0.700 s]")
-    assert info[30].endswith("size=0 block=0] [PCO stalled 2.050 s]")
+    # the tags before the image summary: in view where the column cuts the long Modbus text
+    assert "Read Input Registers [PCI stalled 0.700 s] [EC-Link input PCI=2 " in info[21]
+    assert info[21].endswith("BU=Armed RU 0x1234=Enabled]")
+    assert "Write Multiple Registers [PCO stalled 2.050 s] [EC-Link output PCO=4 " in info[30]
     # [unacked] on the commands (second pass), not on the read request that saw the deadline pass
     assert info[28].endswith("Read Input Registers [poll gap 2.050 s]")
     two = {n: r["_ws.col.Info"] for n, r in tshark.frames(capture_file("eclink_modbus_faults.pcap"),
                                                            ["_ws.col.Info"], two_pass=True).items()}
-    assert two[17].endswith("BU=Armed RU 0x1234=Enabled] [unacked]")
-    assert two[18].endswith("CAO=1 size=0 block=0] [unacked]")
+    assert "Read Input Registers [unacked] [EC-Link input PCI=2 CCI=2 " in two[17]
+    assert "Write Multiple Registers [unacked] [EC-Link output PCO=2 CCO=2 " in two[18]
     assert [n for n, i in two.items() if "[unacked]" in i] == [17, 18]
     # a late echo reads [late ack], as README "How findings read" says (not [unacked])
-    assert info[34].endswith("[late ack]")
+    assert "Write Multiple Registers [late ack] [EC-Link output " in info[34]
     assert "stalled" not in info[25] and "stalled" not in info[17]
     assert not any("?" in i for i in info.values())
 

@@ -63,7 +63,7 @@ def test_installed_plugins_decode(installed_home):
 
 def test_install_profile(installed_home):
     profile = installed_home / ".config" / "wireshark" / "profiles" / "vrshark"
-    assert sorted(p.name for p in profile.iterdir()) == ["colorfilters", "dfilter_buttons", "preferences"]
+    assert sorted(p.name for p in profile.iterdir()) == ["colorfilters", "dfilter_buttons", "preferences", "recent"]
     colours = (profile / "colorfilters").read_text()
     # ours first, then Wireshark's own default rules
     assert colours.index("@vrshark: ES-Link relays open@") < colours.index("@TCP@")

@@ -222,3 +222,21 @@ def test_device_column_on_a_second_controller_of_a_shared_group(profile_conf, ts
     assert one[4] == {"eglink.analysis.device": "BU not known", "eglink.analysis.bu_origin": ""}
     assert one[22] == {"eglink.analysis.device": "0x2002", "eglink.analysis.bu_origin": "0x2002"}
     assert not [n for n, r in one.items() if not r["eglink.analysis.device"]]
+
+
+def test_every_column_has_a_width():
+    """profile/vrshark/recent gives each column of the profile a width, keyed
+    as Wireshark keys it (a custom column by its fields), wide enough for the
+    longest texts the columns hold at 1680 px."""
+    prefs = re.findall(r'^\t"([^"]+)", "([^"]+)"', (PROFILE / "preferences").read_text(), re.M)
+    recent = (PROFILE / "recent").read_text()
+    body = recent[recent.index("column.width:"):]
+    pairs = re.findall(r'^\t("[^"]+"|%\w+), (\d+)', body, re.M)
+    keys = ['"%s"' % fmt.rsplit(":", 2)[0] if fmt.startswith("%Cus:") else fmt for _, fmt in prefs]
+    assert [k for k, _ in pairs] == keys
+    width = dict(zip([t for t, _ in prefs], [int(w) for _, w in pairs]))
+    # at about 7 px a character (DejaVu Sans 9 pt) plus the cell margins
+    for title, text in [("Protocol", "Modbus/TCP"), ("Device", "192.168.2.41:502"),
+                        ("BU state", "External link error"), ("Watchdog ms", "Watchdog ms")]:
+        assert width[title] >= 7 * len(text) + 10, title
+    assert sum(width.values()) - width["Info"] <= 1680 - 800    # room for the Info tags
