@@ -668,12 +668,12 @@ EG-Link base units                      60                                      
    Failed (not acknowledged in time)    0                                                       0.0000        0.00%         -             -            
    Acknowledged                         2                                                       0.0007        100.00%       0.0100        1.310        
     Acknowledgement time (ms)           2             80.00         50            110           0.0007        100.00%       0.0100        1.310        
-Time in BU states (ms)                  2875                                                    0.9779        100%          -             -            
- BU 0x1001 (192.168.32.10)              2875                                                    0.9779        100.00%       -             -            
-  0x11 Armed                            1375                                                    0.4677        47.83%        -             -            
-  0x10 Disarmed                         500                                                     0.1701        17.39%        -             -            
-  0x01 Stopped                          500                                                     0.1701        17.39%        -             -            
-  0x00 Initial                          500                                                     0.1701        17.39%        -             -            
+BU state periods (length in ms)         4                                                       0.0014        100%          0.0100        0.500        
+ BU 0x1001 (192.168.32.10)              4                                                       0.0014        100.00%       0.0100        0.500        
+  0x11 Armed                            1             1000.00       1000          1000          0.0003        25.00%        0.0100        2.000        
+  0x10 Disarmed                         1             500.00        500           500           0.0003        25.00%        0.0100        1.000        
+  0x01 Stopped                          1             500.00        500           500           0.0003        25.00%        0.0100        2.500        
+  0x00 Initial                          1             500.00        500           500           0.0003        25.00%        0.0100        0.500        
 
 -------------------------------------------------------------------------------------------------------------------------------------------------------
 """
@@ -753,20 +753,27 @@ def test_statistics_rows_in_fixed_order(tshark, cap):
         "Acknowledgement time (ms)",
         "BU 0x1001 (192.168.32.10)", "0x11 Armed", "0x10 Disarmed", "0x01 Stopped", "0x00 Initial"]
     top = [line.split("  ")[0] for line in text.splitlines() if line[:1].isalpha()]
-    assert top[-2:] == ["EG-Link base units", "Time in BU states (ms)"]
+    assert top[-2:] == ["EG-Link base units", "BU state periods (length in ms)"]
 
 
-def test_statistics_state_time_reads_right(tshark, cap):
-    """Time in a state is a share of the BU's time: no 4791 % against packets,
-    and no burst rate of milliseconds."""
+def test_statistics_state_periods_read_right(tshark, cap):
+    """A state's row counts the periods the BU spent in it; their length in
+    ms sits in Average, Min and Max, as every time of the tree (never in
+    Count). The session: Initial 0-0.5 s, Disarmed 0.5-1 s, Armed 1-2 s,
+    Stopped 2-2.5 s, Armed again from 2.5 s to the end (still running: not
+    counted)."""
     text = stats(tshark, cap("session"))
     assert _columns(text, "0x11 Armed") == {
-        "Topic / Item": "0x11 Armed", "Count": "1375", "Average": "", "Min Val": "",
-        "Max Val": "", "Rate (ms)": "0.4677", "Percent": "47.83%", "Burst Rate": "-",
-        "Burst Start": "-"}
-    assert _columns(text, "Time in BU states (ms)")["Percent"] == "100%"
+        "Topic / Item": "0x11 Armed", "Count": "1", "Average": "1000.00", "Min Val": "1000",
+        "Max Val": "1000", "Rate (ms)": "0.0003", "Percent": "25.00%", "Burst Rate": "0.0100",
+        "Burst Start": "2.000"}
+    assert _columns(text, "0x01 Stopped")["Average"] == "500.00"
     percents = [float(p[:-1]) for p in re.findall(r"(\d+\.\d+)%", text)]
     assert max(percents) <= 100.0
+    # the state rows are the only ones under their tree, each an average of ms
+    rows = _rows(text)
+    assert {k[1]: v for k, v in rows.items() if k[0] == "BU 0x1001 (192.168.32.10)" and k[1].startswith("0x")} \
+        == {"0x11 Armed": 1, "0x10 Disarmed": 1, "0x01 Stopped": 1, "0x00 Initial": 1}
 
 
 def test_statistics_failures_bursts_two_bus(tshark, cap):
@@ -791,15 +798,14 @@ def test_statistics_row_per_bu_on_a_shared_group(tshark, cap):
     assert {k[1]: v for k, v in rows.items() if k[0] == "EG-Link base units"} == {
         "BU 0x1001 (10.0.0.1)": 30, "BU 0x2002 (10.0.0.2)": 29,
         "Controller 10.0.0.11 (BU not known)": 3, "Controller 10.0.0.12 (BU not known)": 4}
-    assert {k[1]: v for k, v in rows.items() if k[0] == "Time in BU states (ms)"} == {
-        "BU 0x1001 (10.0.0.1)": 1375, "BU 0x2002 (10.0.0.2)": 1375}
+    # the BUs stay Armed all along: no period ends
+    assert "BU state periods (length in ms)" not in text
     assert not [k for k, v in rows.items() if k[1] in ("Lost", "Repeated") and v]
     # The BUs on top, then the controllers not joined yet.
     order = [line.strip().split("  ")[0] for line in text.splitlines() if line.startswith(" ") and
              not line.startswith("  ")]
     assert order == ["BU 0x2002 (10.0.0.2)", "BU 0x1001 (10.0.0.1)",
-                     "Controller 10.0.0.12 (BU not known)", "Controller 10.0.0.11 (BU not known)",
-                     "BU 0x2002 (10.0.0.2)", "BU 0x1001 (10.0.0.1)"]
+                     "Controller 10.0.0.12 (BU not known)", "Controller 10.0.0.11 (BU not known)"]
 
 
 # --- one pass and two passes -----------------------------------------------------

@@ -195,6 +195,7 @@ struct eglink_bu {
     gboolean origin_known;      /* origin is from a valid packet (not one with a bad CRC) */
     gboolean have_bu_state;
     guint8 bu_state;
+    nstime_t state_since;       /* the VRPI that first reported bu_state */
     eglink_bu_t *next;          /* in chan->bus */
 };
 
@@ -964,8 +965,14 @@ track_vrpi(eglink_bu_t *bu, eglink_frame_t *fd, packet_info *pinfo, const eglink
         if (bu->have_bu_state) {
             fd->prev_bu_state = bu->bu_state;
             fd->flags |= FF_PREV_STATE;
-            if (bu->bu_state != info->bu_state)
-                add_finding(fd, FND_BU_STATE, 0, bu->bu_state, 0);
+            /* The finding carries the length of the period that ends here
+             * (for Statistics > EG-Link). */
+            if (bu->bu_state != info->bu_state) {
+                add_finding(fd, FND_BU_STATE, 0, bu->bu_state, ns_between(&pinfo->abs_ts, &bu->state_since));
+                bu->state_since = pinfo->abs_ts;
+            }
+        } else {
+            bu->state_since = pinfo->abs_ts;
         }
         bu->have_bu_state = TRUE;
         bu->bu_state = info->bu_state;
@@ -1408,11 +1415,6 @@ queue_tap(packet_info *pinfo, const eglink_info_t *info, const eglink_frame_t *f
         t->first_ack = TRUE;
         t->ack_ns = fd->delta_ns;
     }
-    if ((fd->flags & FF_PREV_STATE) && (fd->flags & FF_DELTA)) {
-        t->has_state_time = TRUE;
-        t->prev_state = fd->prev_bu_state;
-        t->state_ns = fd->delta_ns;
-    }
     if (fd->flags & FF_BURST_LAST)
         t->burst_complete = TRUE;
     for (f = fd->findings; f; f = f->next) {
@@ -1422,6 +1424,11 @@ queue_tap(packet_info *pinfo, const eglink_info_t *info, const eglink_frame_t *f
             t->failed[EGLINK_DIR_OUT]++;
         else if (f->kind == FND_BURST_DONE)
             t->burst_complete = TRUE;
+        else if (f->kind == FND_BU_STATE) {
+            t->has_state_period = TRUE;
+            t->prev_state = (guint8)f->value;
+            t->state_ns = f->ns;
+        }
         else if (f->kind == FND_BURST_INCOMPLETE)
             t->burst_incomplete = TRUE;
     }

@@ -30,9 +30,9 @@ typedef struct {
     gint64 ack_ns;              /* ... and its delay after the first transmission */
     guint failed[2];            /* commands (per EGLINK_DIR_*) that failed at this packet */
 
-    gboolean has_state_time;    /* VRPI: time the BU spent in prev_state */
+    gboolean has_state_period;  /* VRPI with a new BU state: the period in prev_state ended */
     guint8 prev_state;
-    gint64 state_ns;
+    gint64 state_ns;            /* ... its length, from the VRPI that first reported it */
 
     gboolean burst_complete;    /* a split VRPO burst ended complete here */
     gboolean burst_incomplete;  /* a split VRPO burst ended incomplete here */

@@ -21,10 +21,11 @@
  *   states by their code, Armed and Disarmed first, then the states with
  *   the relays open.
  * - Every row's Percent is a part of its parent: packet types of the BU's
- *   packets, acknowledged of the commands, a state's time of the BU's time.
- *   Times in a state are in their own top-level tree ("Time in BU states
- *   (ms)"), set (not added) to the running total, so they have no burst
- *   rate, and their Rate is the share of the capture's time.
+ *   packets, acknowledged of the commands. The periods a BU spent in each
+ *   state are in their own top-level tree ("BU state periods (length in
+ *   ms)"): Count is the number of periods that ended in the capture,
+ *   Average, Min and Max their length in ms, like every time in the tree
+ *   (no milliseconds in Count).
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -37,7 +38,7 @@
 #include <epan/tap.h>
 
 #define ST_ROOT_NAME "EG-Link base units"
-#define ST_TIME_NAME "Time in BU states (ms)"
+#define ST_TIME_NAME "BU state periods (length in ms)"
 
 static const char *const type_names[] = { "VRPI", "VRPO", "VRCI", "VRCO", "VRAI", "VRAO" };
 
@@ -53,71 +54,10 @@ ms_of(gint64 ns)
     return (int)((ns + 500000) / 1000000);
 }
 
-/* The running totals of time in each state, per statistics tree: a node
- * set to its total has no burst rate (an added amount would count as a
- * burst of milliseconds). A tap starts again at a lower frame number when
- * the packets are tapped again (GUI retap): the totals start again too. */
-typedef struct {
-    guint32 last_frame;
-    GHashTable *totals;         /* node name ("<BU>\t<state>", "<BU>", "") -> gint64 ms */
-} eglink_state_times_t;
-
-static GHashTable *state_times;  /* stats_tree * -> eglink_state_times_t */
-
-static void
-state_times_free(gpointer p)
-{
-    eglink_state_times_t *t = (eglink_state_times_t *)p;
-
-    g_hash_table_destroy(t->totals);
-    g_free(t);
-}
-
-static gint64
-add_total(eglink_state_times_t *t, const char *key, int ms)
-{
-    gint64 *total = (gint64 *)g_hash_table_lookup(t->totals, key);
-
-    if (!total) {
-        total = g_new0(gint64, 1);
-        g_hash_table_insert(t->totals, g_strdup(key), total);
-    }
-    *total += ms;
-    return *total;
-}
-
-static eglink_state_times_t *
-state_times_of(stats_tree *st, guint32 frame)
-{
-    eglink_state_times_t *t;
-
-    if (!state_times)
-        state_times = g_hash_table_new_full(g_direct_hash, g_direct_equal, NULL, state_times_free);
-    t = (eglink_state_times_t *)g_hash_table_lookup(state_times, st);
-    if (!t) {
-        t = g_new0(eglink_state_times_t, 1);
-        t->totals = g_hash_table_new_full(g_str_hash, g_str_equal, g_free, g_free);
-        g_hash_table_insert(state_times, st, t);
-    } else if (frame < t->last_frame) {
-        g_hash_table_remove_all(t->totals);
-    }
-    t->last_frame = frame;
-    return t;
-}
-
 static void
 eglink_stats_init(stats_tree *st)
 {
     stats_tree_create_node(st, ST_ROOT_NAME, 0, STAT_DT_INT, TRUE);
-    if (state_times)
-        g_hash_table_remove(state_times, st);
-}
-
-static void
-eglink_stats_cleanup(stats_tree *st)
-{
-    if (state_times)
-        g_hash_table_remove(state_times, st);
 }
 
 /* Keeps a row above its siblings. A reset of the tree clears the flags of
@@ -144,25 +84,26 @@ command_stats(stats_tree *st, int bu_node, const char *name, const eglink_tap_in
         avg_stat_node_add_value_int(st, "Acknowledgement time (ms)", acked, FALSE, ms_of(t->ack_ns));
 }
 
+/* One period the BU spent in a state, ended by this VRPI (the first with
+ * another state): a sample of the state's row (Count: periods,
+ * Average/Min/Max: their length in ms), as Wireshark's own trees show
+ * times. A period still running at the end of the capture has no end, and
+ * is not counted. */
 static void
-state_time_stats(stats_tree *st, packet_info *pinfo, const eglink_tap_info_t *t)
+state_time_stats(stats_tree *st, const eglink_tap_info_t *t)
 {
-    eglink_state_times_t *times = state_times_of(st, pinfo->num);
-    int ms = ms_of(t->state_ns);
-    char state[64], key[256];
+    char state[64];
     int root, bu;
 
     /* "0x11 Armed": by code, as the dialog sorts them. */
     snprintf(state, sizeof state, "0x%02x %s", t->prev_state, eglink_bu_state_name(t->prev_state));
-    snprintf(key, sizeof key, "%s\t%s", t->bu_name, state);
-    root = stats_tree_manip_node_int(MN_SET, st, ST_TIME_NAME, 0, TRUE, (int)add_total(times, "", ms));
-    bu = stats_tree_manip_node_int(MN_SET, st, t->bu_name, root, TRUE,
-                                   (int)add_total(times, t->bu_name, ms));
-    stats_tree_manip_node_int(MN_SET, st, state, bu, FALSE, (int)add_total(times, key, ms));
+    root = tick_stat_node(st, ST_TIME_NAME, 0, TRUE);
+    bu = tick_stat_node(st, t->bu_name, root, TRUE);
+    avg_stat_node_add_value_int(st, state, bu, FALSE, ms_of(t->state_ns));
 }
 
 static tap_packet_status
-eglink_stats_packet(stats_tree *st, packet_info *pinfo, epan_dissect_t *edt _U_,
+eglink_stats_packet(stats_tree *st, packet_info *pinfo _U_, epan_dissect_t *edt _U_,
                     const void *p, tap_flags_t flags _U_)
 {
     const eglink_tap_info_t *t = (const eglink_tap_info_t *)p;
@@ -202,8 +143,8 @@ eglink_stats_packet(stats_tree *st, packet_info *pinfo, epan_dissect_t *edt _U_,
         increase_stat_node(st, "Incomplete", node, FALSE, t->burst_incomplete ? 1 : 0);
     }
 
-    if (t->has_state_time)
-        state_time_stats(st, pinfo, t);
+    if (t->has_state_period)
+        state_time_stats(st, t);
     return TAP_PACKET_REDRAW;
 }
 
@@ -233,6 +174,6 @@ eglink_stats_register(void)
 
     stats_tree_register_plugin("eglink", "eglink", "EG-Link",
                                (ST_SORT_COL_NAME << ST_FLG_SRTCOL_SHIFT) | ST_FLG_SORT_DESC,
-                               eglink_stats_packet, eglink_stats_init, eglink_stats_cleanup);
+                               eglink_stats_packet, eglink_stats_init, NULL);
     register_stat_tap_ui(&stat_ui, NULL);
 }
