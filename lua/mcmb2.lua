@@ -295,6 +295,7 @@ local function analyse_duplex(rec, d, ba, t, frame)
                 "Fieldbus update failure (E010): no valid terminal data, the IO controller must keep the "
                 .. "system in a safe state")
         elseif st ~= 1 then
+            rec.no_valid = true
             add_finding(rec, "status", ef.not_valid, string.format(
                 "%s: no valid terminal data, the IO controller must keep the system in a safe state",
                 STATUS[st]))
@@ -544,11 +545,13 @@ local function show_down(rec, tvb, root, hr, wr, pinfo) -- vrshark_io hook: pinf
 end
 
 -- The Info column tags of the findings that matter in the packet list
--- (README "How findings read"): [E010], [watchdog stalled 1.2 s], [undefined].
+-- (README "How findings read"): [E010], [no valid data], [watchdog stalled
+-- 1.200 s], [undefined].
 local function info_tags(rec)
     local tags = ""
     if rec.e010 then tags = tags .. " [E010]" end
-    if rec.wd_since then tags = tags .. string.format(" [watchdog stalled %.1f s]", rec.wd_age) end
+    if rec.no_valid then tags = tags .. " [no valid data]" end
+    if rec.wd_since then tags = tags .. string.format(" [watchdog stalled %.3f s]", rec.wd_age) end
     if rec.undefined then tags = tags .. " [undefined]" end
     return tags
 end

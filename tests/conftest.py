@@ -156,6 +156,33 @@ class Tshark:
         return self.run(["-n", "-r", str(capture)] + self._opts(**kw) + ["-V"]).stdout
 
 
+def expert_infos(packets):
+    """The expert infos of -T json packets (Tshark.json()), in tree order:
+    [(frame, expert field name, severity, group, message, the field it hangs
+    on or None)]; severity and group as the numbers tshark prints."""
+    out = []
+
+    def walk(node, frame, parent):
+        if isinstance(node, list):
+            for item in node:
+                walk(item, frame, parent)
+        elif isinstance(node, dict):
+            for key, value in node.items():
+                if key == "_ws.expert":
+                    for e in value if isinstance(value, list) else [value]:
+                        names = [k for k in e if not k.startswith("_ws.expert")]
+                        if names:
+                            out.append((frame, names[0], e["_ws.expert.severity"], e["_ws.expert.group"],
+                                        e["_ws.expert.message"], parent))
+                else:
+                    walk(value, frame, key[:-5] if key.endswith("_tree") else parent)
+
+    for pkt in packets:
+        layers = pkt["_source"]["layers"]
+        walk(layers, int(layers["frame"]["frame.number"]), None)
+    return out
+
+
 def same_value(text, want):
     """Does a -T fields cell match an expected value?
     None: the field is absent; True/False: 1/0; int: the number, whatever the

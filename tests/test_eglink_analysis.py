@@ -11,7 +11,7 @@ import re
 
 import pytest
 
-from conftest import assert_fields
+from conftest import assert_fields, expert_infos
 
 CHAT = "2097152"    # _ws.expert.severity of PI_CHAT
 FINDING_NAMES = ("serial_gap", "serial_repeat", "serial_restart", "vrpi_gap", "vrpo_gap",
@@ -24,26 +24,9 @@ def _experts(tshark, capture, chat=False, **kw):
     """{frame: [(expert name, message, field it hangs on or None)]} of the
     eglink.analysis.* expert infos (chat level only when chat)."""
     out = {}
-
-    def walk(node, frame, parent):
-        if isinstance(node, list):
-            for item in node:
-                walk(item, frame, parent)
-        elif isinstance(node, dict):
-            for key, value in node.items():
-                if key == "_ws.expert":
-                    for e in value if isinstance(value, list) else [value]:
-                        names = [k for k in e if not k.startswith("_ws.expert")]
-                        if names and names[0].startswith("eglink.analysis.") and \
-                                (chat or e["_ws.expert.severity"] != CHAT):
-                            out.setdefault(frame, []).append((names[0], e["_ws.expert.message"],
-                                                              parent))
-                else:
-                    walk(value, frame, key[:-5] if key.endswith("_tree") else parent)
-
-    for pkt in tshark.json(capture, **kw):
-        layers = pkt["_source"]["layers"]
-        walk(layers.get("eglink", {}), int(layers["frame"]["frame.number"]), None)
+    for frame, name, severity, _, message, parent in expert_infos(tshark.json(capture, **kw)):
+        if name.startswith("eglink.analysis.") and (chat or severity != CHAT):
+            out.setdefault(frame, []).append((name, message, parent))
     return out
 
 

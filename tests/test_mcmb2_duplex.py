@@ -63,7 +63,7 @@ def test_not_present_status_and_data(tshark, capture_file):
                       "Status Active stop is not 'Terminal present' but the uplink data is not all 0"]
     tshark.expect(capture_file(DUPLEX), 3, {"mcmb2.no_valid_data": True, "_ws.expert.severity": WARNING,
                                             "_ws.expert.group": RESPONSE_CODE,
-                                            "_ws.col.Info": "Uplink duplex: Terminal absent, terminal 0, watchdog 1"})
+                                            "_ws.col.Info": "Uplink duplex: Terminal absent, terminal 0, watchdog 1 [no valid data]"})
     assert 7 not in ex and 8 not in ex
 
 
@@ -99,14 +99,14 @@ def test_watchdog_stalls(tshark, capture_file):
                             "mcmb2.uplink_watchdog.stalled": True, "_ws.expert.severity": ERROR,
                             "_ws.expert.group": SEQUENCE,
                             "_ws.col.Info": "Uplink duplex: Terminal present, terminal 1, watchdog 5 "
-                                            "[watchdog stalled 1.2 s]"})
+                                            "[watchdog stalled 1.200 s]"})
     tshark.expect(cap, 25, {"mcmb2.watchdog_age": "1.400000000", "mcmb2.watchdog_since": 11,
                             "_ws.expert.message": None,
                             "_ws.col.Info": "Uplink duplex: Terminal present, terminal 1, watchdog 5 "
-                                            "[watchdog stalled 1.4 s]"})
+                                            "[watchdog stalled 1.400 s]"})
     tshark.expect(cap, 27, {"mcmb2.watchdog_age": "0.000000000", "mcmb2.watchdog_since": None})
     tshark.expect(cap, 34, {"mcmb2.watchdog_since": 12, "mcmb2.downlink_watchdog.stalled": True,
-                            "_ws.col.Info": "Downlink duplex: base unit 0, watchdog 5 [watchdog stalled 2.2 s]"})
+                            "_ws.col.Info": "Downlink duplex: base unit 0, watchdog 5 [watchdog stalled 2.200 s]"})
     ages = tshark.field(cap, "mcmb2.watchdog_age")
     assert ages and all(a == "" or a.endswith("000000") for a in ages)  # whole milliseconds
 

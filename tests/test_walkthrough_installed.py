@@ -115,9 +115,9 @@ def test_step5_e010_and_watchdog(user):
     stalled = frames(user, "mcmb2_duplex_watchdog.pcap", profile_rule("vrshark: watchdog stalled"),
                      ("_ws.col.Info", "mcmb2.watchdog_since"))
     first = stalled[0]
-    assert "[watchdog stalled 1.2 s]" in first[0] and first[1] == "11"
+    assert "[watchdog stalled 1.200 s]" in first[0] and first[1] == "11"
     n = frames(user, "mcmb2_duplex_watchdog.pcap", "frame.number == 23", ("_ws.col.Info",))
-    assert "[watchdog stalled 1.2 s]" in n[0][0]
+    assert "[watchdog stalled 1.200 s]" in n[0][0]
 
 
 def test_step6_machine_data(user):

@@ -1,0 +1,133 @@
+"""Where each fault of the project's captures happened, by the schedule the
+capture generator (tools/capgen/) follows, not by what the dissectors say:
+{expert field: (capture, [frames that carry the fact])}.
+
+The README's "How findings read" table names, per kind of finding, the
+expert fields of each protocol; tests/test_findings_table.py checks that
+each field sits on exactly these frames. Frame numbers count from 1; a
+Modbus/TCP cycle of eclink_modbus.py is 4 frames (read query, response,
+write query, response) after the 3-frame TCP handshake; a PROFINET capture
+with its Connect starts with the 2 Connect frames.
+"""
+
+FAULTS = {
+    # --- safety state the device reports
+    # eglink_states.py: one VRPI per BU state, Initial, Stopped, External link
+    # error, Blocked, Failed first (below 0x10: relays open)
+    "eglink.bu_state.relays_open": ("eglink_states.pcap", [1, 2, 3, 4, 5]),
+    # ... the VRPI whose RU state is Stopped
+    "eglink.ru_state.stopped": ("eglink_states.pcap", [2]),
+    # eclink_modbus_basic: the BU goes Blocked at the 12th cycle's response
+    # and stays so in the next one
+    "eclink.relays_open": ("eclink_modbus_basic.pcap", [45, 49]),
+    # eclink_modbus_segments: the armed RU Stopped in the input images read
+    "eclink.ru_stopped": ("eclink_modbus_segments.pcap", [10, 12, 16, 20]),
+    # mcmb2_duplex_connect: uplink status Terminal absent (3), blocked (5),
+    # active stop (11)
+    "mcmb2.no_valid_data": ("mcmb2_duplex_connect.pcap", [3, 5, 11]),
+    # --- E010 and the downlink watchdog
+    "mcmb2.status.e010": ("mcmb2_duplex_connect.pcap", [13]),
+    # mcmb2_duplex_watchdog: the downlink watchdog keeps 5 from frame 12 (t
+    # 0.2 s); 2 s later (t 2.2 s) is frame 34
+    "mcmb2.downlink_watchdog.stalled": ("mcmb2_duplex_watchdog.pcap", [34]),
+    # --- stalls: first frame past the limit that carries the counter
+    # ... the uplink watchdog keeps 5 from frame 11 (t 0.2 s): past 1 s at 1.2 s
+    "mcmb2.uplink_watchdog.stalled": ("mcmb2_duplex_watchdog.pcap", [23]),
+    # eclink_modbus_faults: PCI 2 read at 17 and again 700 ms later at 21
+    "eclink_modbus.pci_stalled": ("eclink_modbus_faults.pcap", [21]),
+    # ... PCO 4 written at 26, again 2.05 s later at 30
+    "eclink_modbus.pco_stalled": ("eclink_modbus_faults.pcap", [30]),
+    # eclink_pnio_connect: PCI kept from frame 23 for 625 ms; PCO from 38 for 2125 ms
+    "eclink_pnio.pci_stalled": ("eclink_pnio_connect.pcap", [31]),
+    "eclink_pnio.pco_stalled": ("eclink_pnio_connect.pcap", [72]),
+    # --- EG-Link periodic gaps (eglink_analysis.py)
+    # vrpi_gap: VRPI every 125 ms, none from frame 10 (t 0.5 s) to frame 20
+    # (t 1.375 s); the first BU packet past 500 ms is the VRPO at 16
+    "eglink.analysis.vrpi_missing": ("eglink_analysis_vrpi_gap.pcap", [16]),
+    "eglink.analysis.vrpi_gap": ("eglink_analysis_vrpi_gap.pcap", [20]),
+    # vrpo_gap: no VRPO from frame 18 for 2.6 s; the VRPI at 35 is the first
+    # packet past 2 s, the VRPO at 40 ends it
+    "eglink.analysis.vrpo_missing": ("eglink_analysis_vrpo_gap.pcap", [35]),
+    "eglink.analysis.vrpo_gap": ("eglink_analysis_vrpo_gap.pcap", [40]),
+    # --- poll gap: the input image not read from frame 16 (t 0.475) to 20
+    # (t 1.175: 700 ms), and from 24 (t 1.3) to 28 (t 3.35: 2.05 s)
+    "eclink_modbus.poll_gap": ("eclink_modbus_faults.pcap", [20, 28]),
+    # --- undefined states and statuses (eglink_range: one VRPI per breach)
+    # BU state 0x05 (8: also below 0x10) and 0x20 (9)
+    "eglink.bu_state.unknown": ("eglink_range.pcap", [8, 9]),
+    "eglink.ru_state.unknown": ("eglink_range.pcap", [11]),
+    "eglink.link_status.unknown": ("eglink_range.pcap", [10]),
+    "eglink.ru_disabled.unknown": ("eglink_range.pcap", [4]),
+    # eclink_modbus_faults: the image of frame 37 (RU state 5, EG-Link status
+    # 7, ...) and of 39 (BU state 0x42)
+    "eclink.bu_state.unknown": ("eclink_modbus_faults.pcap", [39]),
+    "eclink.ru_state.range": ("eclink_modbus_faults.pcap", [37]),
+    "eclink.link_status.range": ("eclink_modbus_faults.pcap", [37]),
+    # mcmb2_duplex_connect: status 0x3 from frame 17 on, every uplink frame
+    "mcmb2.status.undefined": ("mcmb2_duplex_connect.pcap", [17, 19, 21, 23, 25, 27, 29, 31, 33, 35, 37]),
+    # --- out-of-range values
+    "eglink.joystick.range": ("eglink_range.pcap", [1]),
+    "eglink.ru_battery.range": ("eglink_range.pcap", [2]),
+    "eglink.vlaps.range": ("eglink_range.pcap", [3]),
+    "eglink.flag.invalid": ("eglink_range.pcap", [5]),
+    "eglink.armed_ru.unarmed_data": ("eglink_range.pcap", [6, 12]),
+    "eclink.joystick.range": ("eclink_modbus_faults.pcap", [37]),
+    "eclink.percent.range": ("eclink_modbus_faults.pcap", [37]),
+    "eclink.vlaps.range": ("eclink_modbus_faults.pcap", [37]),
+    "eclink.unarmed_not_zero": ("eclink_modbus_faults.pcap", [39]),
+    "eclink.periodic_size.range": ("eclink_modbus_faults.pcap", [40]),
+    # mcmb2_polled_connect: the uplink of frame 15 says Y=20, the Connect 24
+    "mcmb2.layout_mismatch": ("mcmb2_polled_connect.pcap", [15]),
+    # --- checksum and size (eglink.py)
+    "eglink.crc.bad": ("eglink_bad_crc.pcap", [1, 2, 3, 4, 5, 6]),
+    "eglink.size.invalid": ("eglink_wrong_size.pcap", [2, 3, 4, 5, 6, 7, 8, 9]),
+    "eglink.too_short": ("eglink_wrong_size.pcap", [10, 11, 12]),
+    # --- contract deviations
+    "eglink.payload_spare.nonzero": ("eglink_range.pcap", [7]),
+    "eclink.spare.not_zero": ("eclink_modbus_faults.pcap", [37, 40]),
+    "mcmb2.iops.bad": ("mcmb2_duplex_connect.pcap", [9]),
+    "mcmb2.iocs.bad": ("mcmb2_duplex_connect.pcap", [16]),
+    "mcmb2.reserved.not_zero": ("mcmb2_polled_connect.pcap", [18]),
+    # --- lost and repeated (eglink_analysis.py): serials skip before 13 and 15;
+    # frames 9 and 15 repeat earlier serials
+    "eglink.analysis.serial_gap": ("eglink_analysis_lost.pcap", [13, 15]),
+    "eglink.analysis.serial_repeat": ("eglink_analysis_repeated.pcap", [9, 15]),
+    # --- commands not acknowledged in time: the command's own frame
+    # vrci_unacked: VRCI Cmd=8 first sent in frame 5, never acknowledged
+    "eglink.analysis.vrci_unacked": ("eglink_analysis_vrci_unacked.pcap", [5]),
+    # vrco_unacked: VRCO 4 (frame 5) never acknowledged, VRCO 5 (frame 52)
+    # acknowledged 2.3 s later (frame 94)
+    "eglink.analysis.vrco_unacked": ("eglink_analysis_vrco_unacked.pcap", [5, 52]),
+    "eglink.analysis.late_ack": ("eglink_analysis_vrco_unacked.pcap", [94]),
+    # eclink_modbus_faults: CCI 2 read in frame 17 and CCO 2 written in 18,
+    # neither echoed within 2 s; CAO echoes CCI 2 in frame 34 (3.0 s)
+    "eclink_modbus.cmd_from_ru.late": ("eclink_modbus_faults.pcap", [17]),
+    "eclink_modbus.cmd_to_ru.late": ("eclink_modbus_faults.pcap", [18]),
+    "eclink_modbus.cmd_from_ru.late_ack": ("eclink_modbus_faults.pcap", [34]),
+    # eclink_pnio_connect: CCI 2 from the input frame 43, never echoed
+    "eclink_pnio.cmd_from_ru.late": ("eclink_pnio_connect.pcap", [43]),
+    # --- the first frame after a missed deadline (the notes naming the command)
+    "eglink.analysis.vrci_deadline": ("eglink_analysis_vrci_unacked.pcap", [61]),
+    "eglink.analysis.vrco_deadline": ("eglink_analysis_vrco_unacked.pcap", [46, 89]),
+    # the read query of the cycle 2.6 s after the commands
+    "eclink_modbus.cmd_from_ru.deadline": ("eclink_modbus_faults.pcap", [28]),
+    "eclink_modbus.cmd_to_ru.deadline": ("eclink_modbus_faults.pcap", [28]),
+    "eclink_pnio.cmd_from_ru.deadline": ("eclink_pnio_connect.pcap", [76]),
+    # --- shared group: the first packet of each BU and controller once two share it
+    "eglink.analysis.shared_group": ("eglink_analysis_shared_group.pcap", [2, 3, 4, 5]),
+    # --- state changes, retransmissions, inferred layouts
+    # session: Initial -> Disarmed (10) -> Armed (19) -> Stopped (41) -> Armed (52)
+    "eglink.analysis.bu_state_changed": ("eglink_analysis_session.pcap", [10, 19, 41, 52]),
+    "eglink.analysis.retransmission": ("eglink_analysis_vrci_retransmission.pcap", [10, 13]),
+    "eclink_modbus.bu_state_change": ("eclink_modbus_basic.pcap", [45]),
+    "eclink_pnio.bu_state_change": ("eclink_pnio_connect.pcap", [7]),
+    "eclink_pnio.layout.inferred": ("eclink_pnio_noconnect.pcap", [6]),
+    "mcmb2.layout.inferred": ("mcmb2_duplex_noconnect.pcap", [6]),
+    # --- commands and acknowledgements in time
+    "eglink.analysis.command": ("eglink_analysis_vrci_retransmission.pcap", [7]),
+    "eglink.analysis.ack": ("eglink_analysis_vrci_retransmission.pcap", [14]),
+    "eclink_modbus.cmd_from_ru": ("eclink_modbus_basic.pcap", [17]),
+    "eclink_pnio.cmd_from_ru": ("eclink_pnio_connect.pcap", [9, 43]),
+    "eclink_modbus.cmd_to_ru.ack": ("eclink_modbus_basic.pcap", [37]),
+    "eclink_pnio.cmd_to_ru.ack": ("eclink_pnio_connect.pcap", [21]),
+}
