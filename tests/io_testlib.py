@@ -68,3 +68,8 @@ def described(conf_dir, folder, name, rows):
     """A tshark with one description file made of rows (CSV lines, the header first)."""
     write(folder, name, "\n".join(rows) + "\n")
     return io_tshark(conf_dir, folder)
+
+
+def problems(proc):
+    """The description problems a tshark run printed (stderr lines 'vrshark-io: ...'), prefix cut."""
+    return [ln[len("vrshark-io: "):] for ln in proc.stderr.splitlines() if ln.startswith("vrshark-io: ")]

@@ -5,7 +5,7 @@ and decodes. Never a Lua error."""
 import pytest
 
 from conftest import CAPTURES
-from io_testlib import io_tshark, write
+from io_testlib import io_tshark, problems, write
 
 CAP = CAPTURES / "crane_eglink.pcap"
 
@@ -39,7 +39,8 @@ MESSAGES = [
     "repeat the same field in another area with the same bit, type, label, unit, scale, offset and values",
     "broken.csv line 7: bad number 'abc' in column byte; fix: write the byte offset in the area as a "
     "whole number such as 4 or 0x04",
-    "broken.csv line 8: bad number '0,01' in column scale; fix: write the decimal point as a point: 0.01",
+    "broken.csv line 8: bad number '0,01' in column scale; fix: write the decimal point as a point: 0.01, "
+    "or separate the columns with ';' (a decimal comma is read in a ';' file)",
     "broken.csv line 9: unknown area 'hoist.up'; fix: write one of mcmb2.up, mcmb2.down, cmd.from_ru, "
     "cmd.to_ru, periodic.to_ru",
     "broken.csv line 13: bit '2-9' is outside the u8 (bits 0-7); fix: use a bit in range, or a wider type",
@@ -65,8 +66,7 @@ def broken(conf_dir, work_dir):
 @pytest.mark.parametrize("two_pass", [False, True])
 def test_each_problem_reported_once_on_stderr(broken, two_pass):
     proc = broken.run(["-n", "-r", str(CAP)] + (["-2"] if two_pass else []))
-    lines = [line for line in proc.stderr.splitlines() if line.startswith("vrshark-io: ")]
-    assert lines == ["vrshark-io: " + m for m in MESSAGES]
+    assert problems(proc) == MESSAGES
 
 
 @pytest.mark.parametrize("two_pass", [False, True])
@@ -102,11 +102,11 @@ def test_duplicate_across_files_and_empty_file(conf_dir, work_dir):
     write(work_dir, "c.csv", "")
     t = io_tshark(conf_dir, work_dir)
     proc = t.run(["-n", "-r", str(CAP)])
-    assert [line for line in proc.stderr.splitlines() if line.startswith("vrshark-io: ")] == [
-        "vrshark-io: b.csv line 2: duplicate name 'op' (first in a.csv line 2); fix: give every field "
+    assert problems(proc) == [
+        "b.csv line 2: duplicate name 'op' (first in a.csv line 2); fix: give every field "
         "of all description files its own name, or repeat the same field in another area with the same "
         "bit, type, label, unit, scale, offset and values",
-        "vrshark-io: c.csv line 1: the file has no header row; fix: put the column names in the first row: "
+        "c.csv line 1: the file has no header row; fix: put the column names in the first row: "
         "area,byte,bit,type,name,label,unit,scale,offset,values,fault,severity,device",
     ]
     # b.csv is separated by ";" (as spreadsheets of many locales export it) and still loads.
