@@ -454,13 +454,15 @@ local function add_watchdog(root, rec, field, range)
     attach(rec, "wd", wd)
 end
 
--- The Info column text (without the tags) from the header bytes hb (a list,
--- hb[1] the first header byte).
-local function info_text(rec, hb)
+-- The Info column text from the header bytes hb (a list, hb[1] the first
+-- header byte) and the tags (info_tags()). The long polled uplink text has
+-- them right after its watchdog, before the layout and the slots, so that
+-- they stay in view where the packet list cuts the line.
+local function info_text(rec, hb, tags)
     local plan = rec.plan
     if plan.dir == "up" and plan.system == "duplex" then
         return string.format("Uplink duplex: %s, terminal %d, watchdog %d",
-            name_of(STATUS, DUPLEX_OK, bit.band(hb[1], 0x0F)), bit.rshift(hb[1], 4), hb[2])
+            name_of(STATUS, DUPLEX_OK, bit.band(hb[1], 0x0F)), bit.rshift(hb[1], 4), hb[2]) .. tags
     elseif plan.dir == "up" then
         local parts = {}
         for k = 1, 4 do
@@ -471,13 +473,13 @@ local function info_text(rec, hb)
                     SLOT_SHORT[sst] or name_of(SLOT_STATUS, SLOT_OK, sst))
             end
         end
-        return string.format("Uplink polled: %s, watchdog %d, Y=%d Z=%d, slots %s",
-            name_of(STATUS, POLLED_OK, bit.band(hb[1], 0x0F)), hb[2], hb[3], hb[4],
+        return string.format("Uplink polled: %s, watchdog %d%s, Y=%d Z=%d, slots %s",
+            name_of(STATUS, POLLED_OK, bit.band(hb[1], 0x0F)), hb[2], tags, hb[3], hb[4],
             (#parts > 0) and table.concat(parts, ", ") or "none")
     elseif plan.system == "duplex" then
-        return string.format("Downlink duplex: base unit %d, watchdog %d", hb[1], hb[2])
+        return string.format("Downlink duplex: base unit %d, watchdog %d", hb[1], hb[2]) .. tags
     end
-    return string.format("Downlink polled: watchdog %d, %d slot(s)", hb[2], #(rec.groups or {}))
+    return string.format("Downlink polled: watchdog %d, %d slot(s)", hb[2], #(rec.groups or {})) .. tags
 end
 
 local function show_duplex_up(rec, tvb, root, hr, wr, pinfo) -- vrshark_io hook: pinfo
@@ -591,7 +593,7 @@ local function show(rec, tvb, pinfo, tree)
     end
     record.add_ioxs(root, rec, tvb, pf.iops, pf.iocs)
     record.finish(rec, root)
-    pinfo.cols.info = info_text(rec, { tvb:raw(h, plan.header.len):byte(1, -1) }) .. info_tags(rec)
+    pinfo.cols.info = info_text(rec, { tvb:raw(h, plan.header.len):byte(1, -1) }, info_tags(rec))
 end
 
 ------------------------------------------------------------------------
@@ -697,7 +699,7 @@ local function sparse(rec, tvb, pinfo, tree, view)
     if p.experts then record.finish(rec, tree) end
     if p.cols then
         pinfo.cols.protocol = "MC-MB2"
-        pinfo.cols.info = info_text(rec, { tvb:raw(h, plan.header.len):byte(1, -1) }) .. info_tags(rec)
+        pinfo.cols.info = info_text(rec, { tvb:raw(h, plan.header.len):byte(1, -1) }, info_tags(rec))
     end
     return true
 end

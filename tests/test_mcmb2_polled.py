@@ -41,22 +41,23 @@ def test_polled_experts(tshark, capture_file):
 
 
 def test_info_names_statuses_and_tags_findings(tshark, capture_file):
-    """Names as on the duplex side, never "status 0xA"; [E010] and [undefined] tags."""
+    """Names as on the duplex side, never "status 0xA"; [E010] and [undefined] tags right after
+    the watchdog, in view where the packet list cuts the long slot list."""
     cap = capture_file(CONNECT)
     tshark.expect(cap, 7, {"_ws.col.Info": "Uplink polled: Polled system normal mode, watchdog 3, Y=24 Z=10, "
                                            "slots 1:T1 present, 2:T5 present, 3:T3 present"})
     tshark.expect(cap, 9, {"mcmb2.slot.status.undefined": True, "_ws.expert.severity": ERROR,
                            "_ws.expert.group": PROTOCOL,
-                           "_ws.col.Info": "Uplink polled: Polled system normal mode, watchdog 4, Y=24 Z=10, "
-                                           "slots 1:T1 present, 2:T5 present, 3:T3 Unknown (0x3) [undefined]"})
+                           "_ws.col.Info": "Uplink polled: Polled system normal mode, watchdog 4 [undefined], Y=24 Z=10, "
+                                           "slots 1:T1 present, 2:T5 present, 3:T3 Unknown (0x3)"})
     tshark.expect(cap, 11, {"mcmb2.status.undefined": True, "_ws.expert.severity": ERROR,
                             "_ws.expert.group": PROTOCOL,
-                            "_ws.col.Info": "Uplink polled: Unknown (0x1), watchdog 5, Y=24 Z=10, "
-                                            "slots 1:T1 present, 2:T5 present, 3:T3 present [undefined]"})
+                            "_ws.col.Info": "Uplink polled: Unknown (0x1), watchdog 5 [undefined], Y=24 Z=10, "
+                                            "slots 1:T1 present, 2:T5 present, 3:T3 present"})
     tshark.expect(cap, 13, {"mcmb2.status": 0xA, "mcmb2.status.e010": True, "mcmb2.no_valid_data": None,
                             "_ws.expert.severity": ERROR, "_ws.expert.group": SEQUENCE,
-                            "_ws.col.Info": "Uplink polled: Fieldbus update failure (E010), watchdog 6, Y=24 Z=10, "
-                                            "slots 1:T1 absent, 2:T5 absent, 3:T3 absent [E010]"})
+                            "_ws.col.Info": "Uplink polled: Fieldbus update failure (E010), watchdog 6 [E010], Y=24 Z=10, "
+                                            "slots 1:T1 absent, 2:T5 absent, 3:T3 absent"})
     tshark.expect(cap, 17, {"_ws.col.Info": "Uplink polled: Polled system normal mode, watchdog 8, Y=24 Z=10, "
                                             "slots 1:T1 present, 2:T5 active stop, 3:T3 present"})
     infos = tshark.field(cap, "_ws.col.Info", display_filter="mcmb2")

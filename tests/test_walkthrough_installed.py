@@ -150,7 +150,7 @@ def test_profinet_worked_example(user):
     assert "`%s`" % rows[7][0] in doc
     assert '"Slot 2 now serves terminal 5 (was terminal 2): dynamic polling"' in doc
     assert rows[7][1] == "Slot 2 now serves terminal 5 (was terminal 2): dynamic polling"
-    assert rows[13][0].startswith("Uplink polled: Fieldbus update failure (E010), ") and rows[13][0].endswith("[E010]")
+    assert rows[13][0].startswith("Uplink polled: Fieldbus update failure (E010), watchdog 6 [E010], ")
     assert "Y=20" in rows[15][0] and "differ from the configured layout (Y=24" in rows[15][1]
     tree = user.tshark(["-n", "-2", "-r", str(CAPTURES / "mcmb2_polled_connect.pcap"), "-T", "fields",
                         "-e", "mcmb2.slot.status", "-e", "mcmb2.slot.terminal", "-Y", "frame.number == 7"]).stdout
