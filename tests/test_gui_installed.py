@@ -26,7 +26,10 @@ MAX_ROWS = 20       # rows the packet list shows at 1600 x 1000 with room to spa
 # capture -> the danger colour rules that must show in it
 CASES = {
     "eglink_analysis_session.pcap": ["vrshark: ES-Link relays open"],
-    "eclink_modbus_faults.pcap": ["vrshark: watchdog stalled"],
+    # the unacknowledged commands (17, 18) coloured on their own frames: known
+    # from a later frame, drawn once the file is read
+    "eclink_modbus_faults.pcap": ["vrshark: watchdog stalled", "vrshark: command not acknowledged"],
+    "eglink_analysis_vrci_unacked.pcap": ["vrshark: command not acknowledged"],
     "eclink_pnio_connect.pcap": ["vrshark: watchdog stalled"],
     "mcmb2_duplex_watchdog.pcap": ["vrshark: watchdog stalled"],
     # no Connect: the layout is inferred in frame 6; the GUI shows frames 1-5 decoded too
