@@ -340,6 +340,10 @@ def test_vrco_late_ack_is_the_first_packet_after_the_deadline(tshark, cap):
     assert exp[94] == ["eglink.analysis.late_ack"]
     tshark.expect(cap("vrco_unacked"), 52, {"eglink.analysis.deadline_in": 94}, two_pass=True,
                   prefs=prefs)
+    # both commands failed (Statistics > EG-Link), the second at its late acknowledgement
+    text = tshark.run(["-q", "-n", "-r", str(cap("vrco_unacked")), "-z", "eglink,stat",
+                       "-o", "eglink.vrco_ack_timeout_ms:2250"]).stdout
+    assert _rows(text)[("VRCO commands (controller to BU)", "Failed (not acknowledged in time)")] == 2
 
 
 def test_vrco_timeout_preference(tshark, cap):

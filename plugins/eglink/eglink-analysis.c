@@ -1422,6 +1422,10 @@ queue_tap(packet_info *pinfo, const eglink_info_t *info, const eglink_frame_t *f
             t->failed[EGLINK_DIR_IN]++;
         else if (f->kind == FND_FAILED_VRCO)
             t->failed[EGLINK_DIR_OUT]++;
+        /* A late acknowledgement that is itself the first packet past the
+         * deadline: the command failed here too. */
+        else if (f->kind == FND_LATE_ACK && fd->cmd && fd->cmd->deadline_frame == pinfo->num)
+            t->failed[fd->cmd->dir]++;
         else if (f->kind == FND_BURST_DONE)
             t->burst_complete = TRUE;
         else if (f->kind == FND_BU_STATE) {
