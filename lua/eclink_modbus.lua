@@ -748,6 +748,14 @@ local function rec_value(field, key, as_time)
     end
 end
 
+-- a time of the record in whole milliseconds (the hidden *_age_ms fields)
+local function rec_ms(field, key)
+    return function(c)
+        local v = c.rec[key]
+        if v then c.tree:add(field, record.whole_ms(v)) end
+    end
+end
+
 local function link_value(field, name, as_time)
     return function(c)
         local v = (c.rec.links or NONE)[name]
@@ -764,12 +772,8 @@ local SPARSE_ADDERS = {
     ["eclink_modbus.response_in"] = rec_value(pf.response_in, R_RESPONSE),
     ["eclink_modbus.pci_age"] = rec_value(pf.pci_age, R_PCI_AGE, true),
     ["eclink_modbus.pco_age"] = rec_value(pf.pco_age, R_PCO_AGE, true),
-    ["eclink_modbus.pci_age_ms"] = function(c)
-        if c.rec[R_PCI_AGE] then c.tree:add(pf.pci_age_ms, record.ms(c.rec[R_PCI_AGE])) end
-    end,
-    ["eclink_modbus.pco_age_ms"] = function(c)
-        if c.rec[R_PCO_AGE] then c.tree:add(pf.pco_age_ms, record.ms(c.rec[R_PCO_AGE])) end
-    end,
+    ["eclink_modbus.pci_age_ms"] = rec_ms(pf.pci_age_ms, R_PCI_AGE),
+    ["eclink_modbus.pco_age_ms"] = rec_ms(pf.pco_age_ms, R_PCO_AGE),
     ["eclink_modbus.poll_gap_time"] = rec_value(pf.poll_gap_time, "poll_gap", true),
     ["eclink_modbus.poll_gap_from"] = function(c)
         if c.rec.poll_gap then c.tree:add(pf.poll_gap_from, c.rec.poll_gap_from) end

@@ -624,7 +624,7 @@ local ADDERS = {
         if c.rec.wd_age then c.tree:add(pf.watchdog_age, nstime(c.rec.wd_age)) end
     end,
     ["mcmb2.watchdog_ms"] = function(c)
-        if c.rec.wd_age then c.tree:add(pf.watchdog_ms, record.ms(c.rec.wd_age)) end
+        if c.rec.wd_age then c.tree:add(pf.watchdog_ms, record.whole_ms(c.rec.wd_age)) end
     end,
     ["mcmb2.watchdog_since"] = function(c)
         if c.rec.wd_since then c.tree:add(pf.watchdog_since, c.rec.wd_since) end

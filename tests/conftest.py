@@ -8,6 +8,7 @@ their arguments: many tests look at the same capture.
 """
 import json
 import os
+import re
 import shutil
 import subprocess
 import tempfile
@@ -181,6 +182,27 @@ def expert_infos(packets):
         layers = pkt["_source"]["layers"]
         walk(layers, int(layers["frame"]["frame.number"]), None)
     return out
+
+
+PROFILE_DIR = ROOT / "profile" / "vrshark"
+
+
+def profile_rules():
+    """[(rule name, display filter)] of the vrshark profile's colouring rules, in
+    order (the first that matches colours a row)."""
+    return [tuple(line[1:].split("@", 2)[:2]) for line in (PROFILE_DIR / "colorfilters").read_text().splitlines()
+            if line.startswith("@")]
+
+
+def profile_buttons():
+    """[(label, display filter)] of the vrshark profile's filter buttons, in order."""
+    return re.findall(r'^"TRUE","([^"]+)","([^"]+)"', (PROFILE_DIR / "dfilter_buttons").read_text(), re.M)
+
+
+def profile_column_widths():
+    """[(column key as Wireshark writes it, width in pixels)] of profile/vrshark/recent."""
+    recent = (PROFILE_DIR / "recent").read_text()
+    return [(k, int(w)) for k, w in re.findall(r'^\t("[^"]+"|%\w+), (\d+)', recent, re.M)]
 
 
 def same_value(text, want):

@@ -8,12 +8,12 @@ Rows are read along one column of pixels in the left part of the
 background bare. Runs of one colour are rows of that colour; the height of one row is
 that of the shortest run (the selected first row is one)."""
 import os
-import re
 import shutil
 import subprocess
 import time
 from pathlib import Path
 
+from conftest import profile_column_widths
 from installed_testlib import IS_ROOT, RUN_UID
 
 WIDTH, HEIGHT = 1600, 1000
@@ -22,9 +22,7 @@ WIDTH, HEIGHT = 1600, 1000
 def _probe_x():
     """The blank left part of the "Watchdog ms" column (its numbers sit on the
     right), from the column widths of the profile (profile/vrshark/recent)."""
-    recent = (Path(__file__).resolve().parents[1] / "profile" / "vrshark" / "recent").read_text()
-    widths = [int(w) for w in re.findall(r'^\t(?:"[^"]+"|%\w+), (\d+)', recent, re.M)]
-    return sum(widths[:8]) + 12
+    return sum(w for _, w in profile_column_widths()[:8]) + 12
 
 
 PROBE_X = _probe_x()          # in pixels

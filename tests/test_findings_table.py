@@ -12,14 +12,13 @@ import re
 
 import pytest
 
-from conftest import ROOT, expert_infos
+from conftest import ROOT, expert_infos, profile_buttons, profile_rules
 from findings_faults import FAULTS
 
 SEVERITY = {"2097152": "chat", "4194304": "note", "6291456": "warning", "8388608": "error"}
 GROUP = {"16777216": "Checksum", "33554432": "Sequence", "50331648": "Response code",
          "117440512": "Malformed", "150994944": "Protocol"}
 PROTOCOLS = ["EG-Link", "EC-Link", "MC-MB2-PN"]
-PROFILE = ROOT / "profile" / "vrshark"
 
 
 def readme_rows():
@@ -40,7 +39,9 @@ def readme_rows():
         rows.append({"finding": cells["finding"], "severity": cells["severity, group"].split(", ")[0],
                      "group": cells["severity, group"].split(", ")[1],
                      "tags": re.findall(r"`(\[[^`]+\])`", cells["Info tag"]),
-                     "colour": cells["colour rule"], "button": cells["button"], "fields": fields})
+                     # the profile names its rules "vrshark: <the name the table gives>"
+                     "colour": cells["colour rule"] and "vrshark: " + cells["colour rule"],
+                     "button": cells["button"], "fields": fields})
     return rows
 
 
@@ -52,24 +53,10 @@ def tag_pattern(tag):
     return re.compile(re.sub(r"\d+(?:\.\d+)?", r"\\d+(?:\\.\\d+)?", re.escape(tag).replace("\\ ", " ")))
 
 
-def colour_rules():
-    """[(name, filter)] of the profile's rules, in order (the first match colours)."""
-    rules = []
-    for line in (PROFILE / "colorfilters").read_text().splitlines():
-        m = re.match(r"@vrshark: ([^@]+)@([^@]+)@", line)
-        if m:
-            rules.append((m.group(1), m.group(2)))
-    return rules
-
-
-def buttons():
-    return dict(re.findall(r'^"TRUE","([^"]+)","([^"]+)"', (PROFILE / "dfilter_buttons").read_text(), re.M))
-
-
 def test_table_is_complete():
     """Every row names at least one expert field; every field has its fault
     in the independent list; colour rules and buttons exist."""
-    rules = dict(colour_rules())
+    rules = dict(profile_rules())
     assert len(ROWS) >= 15
     for row in ROWS:
         names = [n for proto in PROTOCOLS for n in row["fields"][proto]]
@@ -77,7 +64,7 @@ def test_table_is_complete():
         assert [n for n in names if n not in FAULTS] == [], row["finding"]
         assert row["severity"] in SEVERITY.values() and row["group"] in GROUP.values(), row["finding"]
         assert not row["colour"] or row["colour"] in rules, row["finding"]
-        assert not row["button"] or row["button"] in buttons(), row["finding"]
+        assert not row["button"] or row["button"] in dict(profile_buttons()), row["finding"]
     # the kinds every protocol has read alike on all three
     for finding in ("Uplink watchdog, PCI or PCO stalled", "Undefined state or status",
                     "Contract deviation that does not force the safe state (spare not 0, IOPS/IOCS not GOOD)"):
@@ -136,11 +123,11 @@ def test_finding_reads_as_the_table_says(tshark, experts, matching, row, name):
         for f in frames:
             assert any(p.search(info[f]["_ws.col.Info"]) for p in patterns), (name, f, info[f])
     if row["colour"]:
-        rules = colour_rules()
+        rules = profile_rules()
         rank = [n for n, _ in rules].index(row["colour"])
         for f in frames:
             first = next((i for i, (_, flt) in enumerate(rules) if f in matching(capture, flt)), None)
             assert first is not None and first <= rank, (name, f, first is not None and rules[first][0])
     if row["button"]:
-        shown = matching(capture, buttons()[row["button"]])
+        shown = matching(capture, dict(profile_buttons())[row["button"]])
         assert [f for f in frames if f not in shown] == [], (name, row["button"])

@@ -13,7 +13,7 @@ import shutil
 
 import pytest
 
-from conftest import BUILD, CAPTURES, ROOT, Tshark, _world_dir
+from conftest import BUILD, CAPTURES, ROOT, Tshark, _world_dir, profile_rules
 from gui_testlib import Gui, have_gui, rows_of, rule_colours
 from installed_testlib import Installed
 
@@ -41,12 +41,7 @@ CASES = {
 def rules():
     """[(name, filter, background)] of the profile, in order."""
     colours = rule_colours(PROFILE)
-    out = []
-    for line in PROFILE.read_text().splitlines():
-        if line.startswith("@"):
-            name, filt, _ = line[1:].split("@", 2)
-            out.append((name, filt, colours[name]))
-    return out
+    return [(name, filt, colours[name]) for name, filt in profile_rules()]
 
 
 @pytest.fixture(scope="module")

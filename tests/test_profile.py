@@ -8,9 +8,8 @@ import subprocess
 
 import pytest
 
-from conftest import ROOT, _world_dir
-
-PROFILE = ROOT / "profile" / "vrshark"
+from conftest import PROFILE_DIR as PROFILE
+from conftest import ROOT, _world_dir, profile_buttons, profile_column_widths
 
 
 @pytest.fixture(scope="module")
@@ -98,7 +97,7 @@ def test_colours_eglink_undefined_statuses(profile_conf):
 
 
 def test_filter_buttons_compile(profile_conf):
-    buttons = re.findall(r'^"TRUE","([^"]+)","([^"]+)"', (PROFILE / "dfilter_buttons").read_text(), re.M)
+    buttons = profile_buttons()
     assert [b[0] for b in buttons] == ["Safety", "Faults", "Commands", "EG-Link", "EC-Link", "MC-MB2"]
     for label, expr in buttons:
         proc = run(profile_conf, ["-n", "-r", str(ROOT / "captures" / "eglink_armed.pcap"), "-c", "1",
@@ -126,8 +125,7 @@ def test_colours_eglink_gaps_have_their_own_rule(profile_conf):
 
 
 def _button(label):
-    buttons = dict(re.findall(r'^"TRUE","([^"]+)","([^"]+)"', (PROFILE / "dfilter_buttons").read_text(), re.M))
-    return buttons[label]
+    return dict(profile_buttons())[label]
 
 
 def _matching(conf, capture, expr):
@@ -229,12 +227,10 @@ def test_every_column_has_a_width():
     as Wireshark keys it (a custom column by its fields), wide enough for the
     longest texts the columns hold at 1680 px."""
     prefs = re.findall(r'^\t"([^"]+)", "([^"]+)"', (PROFILE / "preferences").read_text(), re.M)
-    recent = (PROFILE / "recent").read_text()
-    body = recent[recent.index("column.width:"):]
-    pairs = re.findall(r'^\t("[^"]+"|%\w+), (\d+)', body, re.M)
+    pairs = profile_column_widths()
     keys = ['"%s"' % fmt.rsplit(":", 2)[0] if fmt.startswith("%Cus:") else fmt for _, fmt in prefs]
     assert [k for k, _ in pairs] == keys
-    width = dict(zip([t for t, _ in prefs], [int(w) for _, w in pairs]))
+    width = dict(zip([t for t, _ in prefs], [w for _, w in pairs]))
     # at about 8 px a character (DejaVu Sans 9 pt, measured on the screenshots) plus the cell margins
     for title, text in [("Protocol", "Modbus/TCP"), ("Device", "192.168.2.41:502"), ("Source", "192.168.32.10"),
                         ("BU state", "External link error"), ("Watchdog ms", "Watchdog ms")]:

@@ -1202,6 +1202,8 @@ show_device(proto_tree *at, proto_item *aitem, tvbuff_t *tvb, packet_info *pinfo
     const char *device;
     proto_item *ti;
 
+    if (!at)                    /* no tree: nothing to show, no text to format */
+        return;
     if (fd->flags & FF_ORIGIN) {
         add_generated_uint(at, hf_bu_origin, tvb, fd->bu_origin);
         device = wmem_strdup_printf(pinfo->pool, "0x%04x", fd->bu_origin);
