@@ -3,7 +3,7 @@ the generator makes."""
 import re
 import subprocess
 
-from conftest import BUILD, ROOT
+from conftest import BUILD, ROOT, _world_dir
 
 
 def test_eglink_plugin_listed(tshark):
@@ -50,3 +50,27 @@ def test_helper_modules_are_not_plugins(tshark):
     assert modules and all(m.endswith(".luam") for m in modules), modules
     assert not [m for m in modules if m in listed or m.replace(".luam", ".lua") in listed]
     assert set(listed) <= {p.name for p in (ROOT / "lua").glob("*.lua")} | {"selftest.lua"}
+
+
+def test_a_checkout_in_a_private_folder_is_reachable():
+    """git clone . "$(mktemp -d)/p" as root puts the checkout in a mode-700
+    folder the test user (uid 65534) cannot enter: tools/reachable (run by
+    tools/tshark, tools/test, tools/screenshots) gives it search permission,
+    so the plugins load and the captures open, and says so."""
+    import os
+    import shutil
+    if os.getuid() != 0:
+        return      # only root drops to another user
+    base = _world_dir("vrshark-private-")    # reachable itself: only the private folder is not
+    private = base / "private"
+    (private / "p" / "tools").mkdir(parents=True)
+    private.chmod(0o700)
+    shutil.copy(ROOT / "tools" / "reachable", private / "p" / "tools" / "reachable")
+    proc = subprocess.run([str(private / "p" / "tools" / "reachable")], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    assert private.stat().st_mode & 0o777 == 0o701
+    assert proc.stderr == ("tools/reachable: %s: search permission for others added (the test user must "
+                           "reach the checkout)\n" % private)
+    again = subprocess.run([str(private / "p" / "tools" / "reachable")], capture_output=True, text=True)
+    assert again.stderr == ""
+    shutil.rmtree(base)
