@@ -1,23 +1,47 @@
 """vrshark-report CAPTURE...: the command line.
 
-Exit status: 0 clean (or no --fail-on), 1 a finding at or above --fail-on,
-2 a usage error or a capture that could not be read (this wins over 1).
+Exit status: 0 clean (or no --fail-on), 1 a finding at or above --fail-on or
+an --expect protocol not found, 2 a usage error or a capture that could not
+be read (this wins over 1); 128 + the signal when stopped by SIGTERM, SIGINT
+or SIGHUP. Everything that can be checked before tshark runs is (output
+folders, plotly, -j, the tshark and its -o/-d options): one line, exit 2.
 """
 import argparse
 import concurrent.futures
 import multiprocessing
 import os
+import subprocess
 import sys
 import time
 
-from . import catalog, jsonout, junit, model, text
-from .rows import CaptureError, Rows, tshark_command
+from . import catalog, expect, filetype, jsonout, junit, model, stop, text
+from .rows import COL, CaptureError, Rows, first_line, tshark_command
 
 GATES = {"note": catalog.NOTE, "warn": catalog.WARNING, "warning": catalog.WARNING,
          "error": catalog.ERROR}
 PROGRESS_AFTER = 1.0  # s: the bar appears only for captures that take longer
+ENCAP = COL["frame.encap_type"]
+# A pcap file header without packets: what the tshark check reads.
+EMPTY_PCAP = bytes.fromhex("d4c3b2a1020004000000000000000000ffff000001000000")
 
 _progress = None  # shared array of per-capture fractions, in the worker processes
+
+
+def positive(text):
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError("%r is not a number of captures (1 or more)" % text)
+    return value
+
+
+def protocols(text):
+    try:
+        return expect.names(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc))
 
 
 def parse_args(argv):
@@ -27,22 +51,30 @@ def parse_args(argv):
                     "safety timeline of each: state changes, relays, stalls, findings.",
         epilog="Exit status: 0 clean, 1 a finding at or above --fail-on, 2 usage error or "
                "unreadable capture. See docs/report.md.")
-    ap.add_argument("captures", nargs="+", metavar="CAPTURE", help="pcap or pcapng file")
+    ap.add_argument("captures", nargs="+", metavar="CAPTURE",
+                    help="capture file (pcap, pcapng, ...), a pipe, or - for standard input")
     ap.add_argument("--json", action="store_true", help="write JSON to standard output instead of text")
     ap.add_argument("--html", metavar="FILE", help="write a self-contained HTML report with plots")
     ap.add_argument("--junit", metavar="FILE", help="write JUnit XML (one test case per device)")
     ap.add_argument("--fail-on", choices=sorted(GATES), metavar="{note,warn,error}",
                     help="exit 1 when a finding of this severity or higher is present")
+    ap.add_argument("--expect", type=protocols, action="extend", default=[],
+                    metavar="eglink,eclink,mcmb2",
+                    help="exit 1 when a capture holds none of these protocols' devices")
     ap.add_argument("--tshark", metavar="CMD",
                     help="tshark to run (default: tools/tshark in a checkout, else $TSHARK or tshark)")
     ap.add_argument("-o", dest="prefs", action="append", default=[], metavar="NAME:VALUE",
                     help="tshark preference, e.g. -o eglink.vrpi_gap_ms:300 (repeatable)")
     ap.add_argument("-d", dest="decode_as", action="append", default=[], metavar="RULE",
                     help="tshark Decode As rule, e.g. -d tcp.port==5020,eclink_modbus (repeatable)")
-    ap.add_argument("-j", "--jobs", type=int, default=os.cpu_count() or 1,
+    ap.add_argument("-j", "--jobs", type=positive, default=os.cpu_count() or 1,
                     help="captures processed in parallel (default: one per core)")
     ap.add_argument("--no-progress", action="store_true", help="never show the progress bar")
-    return ap.parse_args(argv)
+    args = ap.parse_args(argv)
+    args.expect = list(dict.fromkeys(args.expect))
+    if args.captures.count("-") > 1:
+        ap.error("standard input (-) can be read only once")
+    return args
 
 
 def _init_worker(progress):
@@ -51,29 +83,39 @@ def _init_worker(progress):
 
 
 def report_one(index, path, tshark, extra, limits, keep_series):
-    """Run tshark on one capture and build its report dict (in a worker process)."""
+    """Run tshark on one capture and build its report dict (in a worker
+    process); returns (the report, the seconds it took)."""
+    start = time.monotonic()
     rows = Rows(path, tshark[0], extra, tshark[1])
     cap = model.Capture(path, limits)
+    error = None
     try:
         rows.open()
         n = 0
         for cols in rows:
+            if n == 0:
+                error = filetype.refusal(cols[ENCAP]) if len(cols) > ENCAP else None
+                if error:
+                    break  # (tshark ends on the closed pipe)
             cap.add(cols)
             n += 1
             if n & 0x1FFF == 0 and _progress is not None:
                 _progress[index] = rows.fraction()
-        error = rows.error
+        error = error or rows.error
     except CaptureError as exc:
         error = str(exc)
+    if error and error.startswith("not a network capture"):
+        cap = model.Capture(path, limits)
     rep = cap.finish(error)
     if not keep_series:
         for dev in rep["devices"]:
             dev.pop("series", None)
-    return rep
+    return rep, time.monotonic() - start
 
 
 class ProgressBar:
-    """One line on stderr while captures are read; only on a terminal."""
+    """One line on stderr for the whole run, only on a terminal: the captures
+    as tshark reads them, then the HTML report as its plots are built."""
 
     def __init__(self, progress, names, enabled):
         self.progress, self.names, self.enabled = progress, names, enabled
@@ -81,13 +123,14 @@ class ProgressBar:
         self.shown = False
 
     def draw(self, done):
+        total = sum(1.0 if i in done else self.progress[i] for i in range(len(self.names)))
+        self.show(total / len(self.names), "%d/%d captures" % (len(done), len(self.names)))
+
+    def show(self, frac, what):
         if not self.enabled or time.monotonic() - self.start < PROGRESS_AFTER:
             return
-        total = sum(1.0 if i in done else self.progress[i] for i in range(len(self.names)))
-        frac = total / len(self.names)
-        bar = "#" * int(frac * 30)
-        sys.stderr.write("\rvrshark-report [%-30s] %3d%%  %d/%d captures" % (
-            bar, frac * 100, len(done), len(self.names)))
+        line = "vrshark-report [%-30s] %3d%%  %s" % ("#" * int(frac * 30), frac * 100, what)
+        sys.stderr.write("\r" + line[:79].ljust(79))
         sys.stderr.flush()
         self.shown = True
 
@@ -97,17 +140,21 @@ class ProgressBar:
             sys.stderr.flush()
 
 
-def run_all(args, tshark):
+def tshark_options(args):
     extra = []
     for pref in args.prefs:
         extra += ["-o", pref]
     for rule in args.decode_as:
         extra += ["-d", rule]
+    return extra
+
+
+def run_all(args, tshark, bar, progress):
+    """[(report, seconds)] of every capture, in the order of the command line."""
+    extra = tshark_options(args)
     limits = model.limits_from_prefs(args.prefs)
     ctx = multiprocessing.get_context("fork")
-    progress = ctx.Array("d", len(args.captures), lock=False)
-    bar = ProgressBar(progress, args.captures, sys.stderr.isatty() and not args.no_progress)
-    reports = [None] * len(args.captures)
+    results = [None] * len(args.captures)
     jobs = max(1, min(args.jobs, len(args.captures)))
     with concurrent.futures.ProcessPoolExecutor(jobs, mp_context=ctx, initializer=_init_worker,
                                                 initargs=(progress,)) as pool:
@@ -118,16 +165,46 @@ def run_all(args, tshark):
         while pending:
             finished, pending = concurrent.futures.wait(pending, timeout=0.2)
             for fut in finished:
-                reports[futures[fut]] = fut.result()
+                results[futures[fut]] = fut.result()
                 done.add(futures[fut])
             bar.draw(done)
-    bar.clear()
-    return reports
+    return results
 
 
 def _die(message):
     sys.stderr.write("vrshark-report: %s\n" % message)
     sys.exit(2)
+
+
+def check_output(option, path):
+    """The file an option writes must be creatable: else one line, exit 2."""
+    folder = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(folder):
+        _die("%s %s: no such folder %s" % (option, path, folder))
+    if os.path.isdir(path):
+        _die("%s %s: is a folder, not a file" % (option, path))
+    if not os.access(folder, os.W_OK | os.X_OK) or (os.path.exists(path)
+                                                    and not os.access(path, os.W_OK)):
+        _die("%s %s: not writable" % (option, path))
+
+
+def check_tshark(tshark, extra):
+    """Run the tshark once on an empty capture with the -o and -d options: a
+    tshark that does not run, or refuses an option, is one usage error (exit
+    2) instead of the same error on every capture."""
+    cmd, env = tshark
+    argv = cmd + ["-n", "-r", "-"] + extra
+    try:
+        proc = subprocess.run(argv, input=EMPTY_PCAP, capture_output=True, env=env)
+    except OSError as exc:
+        _die("cannot run %s: %s" % (cmd[0], exc.strerror))
+    if proc.returncode == 0:
+        return
+    said = proc.stderr.decode("utf-8", "replace")
+    if said.strip():
+        _die("%s: %s" % (os.path.basename(cmd[0]), first_line(said).replace("tshark: ", "")))
+    _die("%s ended with exit status %d and no message on an empty capture: is it tshark?"
+         % (" ".join(cmd), proc.returncode))
 
 
 def gate(reports, threshold):
@@ -144,28 +221,47 @@ def gate(reports, threshold):
 
 def main(argv=None):
     args = parse_args(sys.argv[1:] if argv is None else argv)
-    reports = run_all(args, tshark_command(args.tshark))
-
-    threshold = GATES[args.fail_on] if args.fail_on else None
-    count, first = gate(reports, threshold) if threshold else (0, None)
-    status = 2 if any(rep["error"] for rep in reports) else 1 if count else 0
-
-    if args.json:
-        jsonout.write(reports, sys.stdout, threshold, status)
-    else:
-        text.write(reports, sys.stdout)
-    sys.stdout.flush()
-    if args.junit:
-        junit.write(reports, args.junit, threshold or catalog.WARNING)
+    stop.install()
+    # What can fail before any tshark runs, fails first.
+    for option, path in (("--html", args.html), ("--junit", args.junit)):
+        if path:
+            check_output(option, path)
     if args.html:
         try:
             from . import html  # plotly is needed for this output only
         except ImportError as exc:
             _die("the HTML report needs plotly (%s): pip install -r requirements.txt" % exc)
-        html.write(reports, args.html)
+    tshark = tshark_command(args.tshark)
+    check_tshark(tshark, tshark_options(args))
+
+    progress = multiprocessing.get_context("fork").Array("d", len(args.captures), lock=False)
+    bar = ProgressBar(progress, args.captures, sys.stderr.isatty() and not args.no_progress)
+    results = run_all(args, tshark, bar, progress)
+    reports = [rep for rep, _ in results]
+    for rep in reports:
+        rep["missing"] = expect.missing(rep, args.expect)
+
+    threshold = GATES[args.fail_on] if args.fail_on else None
+    count, first = gate(reports, threshold) if threshold else (0, None)
+    absent = [rep for rep in reports if rep["missing"]]
+    status = 2 if any(rep["error"] for rep in reports) else 1 if count or absent else 0
+
+    if args.html:
+        html.write(reports, args.html,
+                   lambda done, total: bar.show(done / total, "HTML: plots %d/%d" % (done, total)))
+    bar.clear()
+    if args.json:
+        jsonout.write(reports, sys.stdout, threshold, status, args.expect)
+    else:
+        text.write(reports, sys.stdout)
+    sys.stdout.flush()
+    if args.junit:
+        junit.write(results, args.junit, threshold or catalog.WARNING)
     for rep in reports:
         if rep["error"]:
             sys.stderr.write("vrshark-report: %s: %s\n" % (rep["capture"], rep["error"]))
+    for rep in absent:
+        sys.stderr.write("vrshark-report: %s\n" % expect.line(rep))
     if count:
         sys.stderr.write("vrshark-report: FAIL (--fail-on %s): %d finding(s) at %s or above; "
                          "first: %s frame %d: %s\n" % (args.fail_on, count, threshold, first[0],

@@ -114,7 +114,7 @@ def figure(dev, timeline, t_end):
     return fig
 
 
-def capture_section(index, rep):
+def capture_section(index, rep, plotted=lambda: None):
     out = ['<h2>%s</h2>' % H.escape(rep["capture"])]
     if rep["error"]:
         out.append('<p class="error-line">%s</p>' % H.escape(rep["error"]))
@@ -145,6 +145,7 @@ def capture_section(index, rep):
             out.append(fig.to_html(full_html=False, include_plotlyjs=False,
                                    div_id="plot-%d-%d" % (index, d["id"]),
                                    config={"displaylogo": False, "responsive": True}))
+        plotted()
     out.append("<h3>Timeline</h3>")
     if not rep["timeline"]:
         out.append("<p>No state change and no finding.</p>")
@@ -162,8 +163,16 @@ def capture_section(index, rep):
     return "\n".join(out)
 
 
-def document(reports):
-    body = "\n".join(capture_section(i, rep) for i, rep in enumerate(reports, start=1))
+def document(reports, progress=None):
+    """The page; progress(done, total) after each device's figure (the slow part)."""
+    total = sum(len(rep["devices"]) for rep in reports if rep["frames"]) or 1
+    done = [0]
+
+    def plotted():
+        done[0] += 1
+        if progress:
+            progress(done[0], total)
+    body = "\n".join(capture_section(i, rep, plotted) for i, rep in enumerate(reports, start=1))
     names = ", ".join(H.escape(rep["capture"]) for rep in reports)
     return ("<!DOCTYPE html>\n<html lang=en><head><meta charset=utf-8>"
             "<title>vrshark report: %s</title><style>%s</style>"
@@ -173,6 +182,6 @@ def document(reports):
             % (names, CSS, get_plotlyjs(), body))
 
 
-def write(reports, path):
+def write(reports, path, progress=None):
     with open(path, "w", encoding="utf-8") as f:
-        f.write(document(reports))
+        f.write(document(reports, progress))

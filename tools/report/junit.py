@@ -2,17 +2,49 @@
 
 A device's test case fails when it has a timeline entry at or above the gate
 severity (--fail-on, warning when not given); an unreadable capture is a test
-case with an <error>. Each failure lists the entries with their frame numbers.
+case with an <error>; an --expect protocol the capture does not hold is a
+failing test case of its own. Each failure lists the entries with their frame
+numbers. A suite's `time` is how long the report took for the capture (what
+JUnit readers take it for); a device's traffic span is in its properties.
 """
 import xml.etree.ElementTree as ET
 
 from .catalog import severity_at_least
+from .expect import title
 
 
-def document(reports, threshold):
+def properties(case, values):
+    props = ET.SubElement(case, "properties")
+    for name, value in values:
+        ET.SubElement(props, "property", name=name, value=str(value))
+
+
+def device_case(suite, rep, dev, threshold):
+    """The device's test case; True when it fails."""
+    case = ET.SubElement(suite, "testcase", name=dev["name"], classname=rep["capture"])
+    properties(case, [("kind", dev["kind"]), ("frames", dev["frames"]),
+                      ("first_frame", dev["first_frame"]), ("last_frame", dev["last_frame"]),
+                      ("traffic_start_s", "%.3f" % dev["start"]),
+                      ("traffic_end_s", "%.3f" % dev["end"]),
+                      ("traffic_span_s", "%.3f" % max(0.0, dev["end"] - dev["start"]))])
+    bad = [e for e in rep["timeline"]
+           if e["device"] == dev["id"] and severity_at_least(e["severity"], threshold)]
+    if not bad:
+        return False
+    first = bad[0]
+    message = "%d finding(s) at or above %s; first in frame %d: %s" % (
+        len(bad), threshold, first["frame"], first["text"])
+    failure = ET.SubElement(case, "failure", message=message, type=first["severity"])
+    failure.text = "\n".join("frame %d  %.3f s  %s  %s" % (
+        e["frame"], e["time"], e["severity"], e["text"]) for e in bad)
+    return True
+
+
+def document(results, threshold):
+    """results: [(report, seconds the report took)]."""
     root = ET.Element("testsuites", name="vrshark-report")
     totals = {"tests": 0, "failures": 0, "errors": 0}
-    for rep in reports:
+    for rep, seconds in results:
         suite = ET.SubElement(root, "testsuite", name=rep["capture"])
         counts = {"tests": 0, "failures": 0, "errors": 0}
         if rep["error"]:
@@ -21,31 +53,28 @@ def document(reports, threshold):
             counts["tests"] += 1
             counts["errors"] += 1
         for dev in rep["devices"]:
-            case = ET.SubElement(suite, "testcase", name=dev["name"], classname=rep["capture"],
-                                 time="%.3f" % max(0.0, dev["end"] - dev["start"]))
             counts["tests"] += 1
-            bad = [e for e in rep["timeline"]
-                   if e["device"] == dev["id"] and severity_at_least(e["severity"], threshold)]
-            if bad:
-                counts["failures"] += 1
-                first = bad[0]
-                message = "%d finding(s) at or above %s; first in frame %d: %s" % (
-                    len(bad), threshold, first["frame"], first["text"])
-                failure = ET.SubElement(case, "failure", message=message, type=first["severity"])
-                failure.text = "\n".join("frame %d  %.3f s  %s  %s" % (
-                    e["frame"], e["time"], e["severity"], e["text"]) for e in bad)
-        if not rep["devices"] and not rep["error"]:
+            counts["failures"] += device_case(suite, rep, dev, threshold)
+        for name in rep.get("missing", []):
+            case = ET.SubElement(suite, "testcase", name="expected " + title(name),
+                                 classname=rep["capture"])
+            message = "expected %s, none found (%d frames read)" % (title(name), rep["frames"])
+            ET.SubElement(case, "failure", message=message, type="expect").text = message
+            counts["tests"] += 1
+            counts["failures"] += 1
+        if not rep["devices"] and not rep["error"] and not rep.get("missing"):
             ET.SubElement(suite, "testcase", name="no vrshark traffic", classname=rep["capture"])
             counts["tests"] += 1
         for key, value in counts.items():
             suite.set(key, str(value))
             totals[key] += value
+        suite.set("time", "%.3f" % seconds)
     for key, value in totals.items():
         root.set(key, str(value))
     return ET.ElementTree(root)
 
 
-def write(reports, path, threshold):
-    tree = document(reports, threshold)
+def write(results, path, threshold):
+    tree = document(results, threshold)
     ET.indent(tree)
     tree.write(path, encoding="utf-8", xml_declaration=True)

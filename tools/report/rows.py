@@ -3,9 +3,12 @@
 tshark reads the capture from its standard input, an open file of ours: a
 tshark that runs as another user (tools/tshark as root) still reads it, and
 the file offset it shares with us tells how far it has got (the progress bar).
+"-" is our own standard input; a pipe or FIFO is passed on as it is (no
+progress: its size is unknown).
 Rows are read line by line, so memory does not grow with the capture.
 """
 import os
+import stat
 import subprocess
 import tempfile
 from pathlib import Path
@@ -16,7 +19,7 @@ PACKAGE_DIR = Path(__file__).resolve().parent
 
 # Protocol and address fields, in column order; the expert fields follow.
 FIELDS = [
-    "frame.number", "frame.time_epoch",
+    "frame.number", "frame.time_epoch", "frame.encap_type",
     "eth.src", "eth.dst", "ip.src", "ip.dst", "udp.dstport", "tcp.srcport", "tcp.dstport",
     # EG-Link
     "eglink.type", "eglink.origin", "eglink.crc.status",
@@ -113,6 +116,9 @@ class Rows:
 
     def open(self):
         p = self.path
+        if str(p) == "-":
+            self._file = os.fdopen(os.dup(0), "rb")
+            return
         if not p.exists():
             raise CaptureError("no such file")
         if p.is_dir():
@@ -121,13 +127,18 @@ class Rows:
             self._file = open(p, "rb")
         except OSError as exc:
             raise CaptureError("cannot open: %s" % exc.strerror)
-        self.size = os.fstat(self._file.fileno()).st_size
+        st = os.fstat(self._file.fileno())
+        if not stat.S_ISREG(st.st_mode):
+            return  # a pipe, FIFO or device: read as it comes, size unknown
+        self.size = st.st_size
         if self.size == 0:
             self._file.close()
             raise CaptureError("empty file, not a capture")
 
     def fraction(self):
-        """How much of the file tshark has read, 0..1."""
+        """How much of the file tshark has read, 0..1 (0 for a pipe)."""
+        if not self.size:
+            return 0.0
         try:
             return min(1.0, os.lseek(self._file.fileno(), 0, os.SEEK_CUR) / self.size)
         except (OSError, ValueError, AttributeError):
@@ -148,7 +159,8 @@ class Rows:
                         "vrshark plugins (cmake --install) or choose a tshark with --tshark"
                         % " ".join(self.cmd))
                 self.unknown += unknown
-                self._file.seek(0)
+                if self._file.seekable():  # (tshark checks its fields before it reads)
+                    self._file.seek(0)
         if self.returncode != 0 or "cut short" in stderr:
             self.error = explain(stderr, last)
 

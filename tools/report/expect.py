@@ -1,0 +1,44 @@
+"""--expect eglink,eclink,mcmb2: protocols a capture must hold.
+
+A gate that passes on a capture it cannot read (a BU on another port, a base
+whose layout is unknown) passes on exactly the captures that need a look:
+with --expect such a capture fails the run (exit 1) with one line naming the
+protocol and the setting that usually brings its devices back.
+"""
+
+# name: (what the line calls it, the device kinds that are it, where to look when absent)
+PROTOCOLS = {
+    "eglink": ("EG-Link", {"eglink"}, "EG-Link on another UDP port: -o eglink.input_port:PORT"),
+    "eclink": ("EC-Link", {"eclink_modbus", "eclink_pnio"},
+               "a Modbus/TCP BU on another port: -d tcp.port==PORT,eclink_modbus"),
+    "mcmb2": ("MC-MB2-PN", {"mcmb2"},
+              "a base whose Connect is not in the capture: -o mcmb2.layouts, docs/profinet.md"),
+}
+
+
+def names(text):
+    """The protocols of an --expect value; ValueError for an unknown one."""
+    found = [n.strip() for n in text.split(",") if n.strip()]
+    if not found or any(n not in PROTOCOLS for n in found):
+        raise ValueError("%r: a list of %s" % (text, ", ".join(PROTOCOLS)))
+    return found
+
+
+def title(name):
+    return PROTOCOLS[name][0]
+
+
+def missing(rep, expect):
+    """The expected protocols of which a readable capture holds no device."""
+    if rep["error"]:
+        return []
+    kinds = {dev["kind"] for dev in rep["devices"]}
+    return [name for name in expect if not kinds & PROTOCOLS[name][1]]
+
+
+def line(rep):
+    """The one line for a capture without some expected protocol."""
+    absent = rep["missing"]
+    return "%s: expected %s, none found (%d frames read; %s)" % (
+        rep["capture"], " and ".join(map(title, absent)), rep["frames"],
+        "; ".join(PROTOCOLS[n][2] for n in absent))
