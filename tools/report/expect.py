@@ -36,9 +36,13 @@ def missing(rep, expect):
     return [name for name in expect if not kinds & PROTOCOLS[name][1]]
 
 
+def listed(words):
+    return ", ".join(words[:-1]) + " and " + words[-1] if len(words) > 1 else words[0]
+
+
 def line(rep):
     """The one line for a capture without some expected protocol."""
     absent = rep["missing"]
     return "%s: expected %s, none found (%d frames read; %s)" % (
-        rep["capture"], " and ".join(map(title, absent)), rep["frames"],
+        rep["capture"], listed([title(n) for n in absent]), rep["frames"],
         "; ".join(PROTOCOLS[n][2] for n in absent))

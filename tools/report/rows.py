@@ -8,6 +8,7 @@ progress: its size is unknown).
 Rows are read line by line, so memory does not grow with the capture.
 """
 import os
+import re
 import stat
 import subprocess
 import tempfile
@@ -86,6 +87,22 @@ def explain(stderr, last_frame):
     return first_line(stderr).replace("tshark: ", "")
 
 
+def inherited_fd(name):
+    """The open descriptor a name stands for: "-" standard input, /dev/fd/N
+    (the shell's <(...)) N itself, used as it is rather than opened again
+    (a pipe of another user cannot be); else None."""
+    if name == "-":
+        return 0
+    match = re.fullmatch(r"/(?:dev|proc/self)/fd/(\d+)", name)
+    if match:
+        try:
+            os.fstat(int(match.group(1)))
+            return int(match.group(1))
+        except OSError:
+            return None
+    return None
+
+
 class Rows:
     """The rows (lists of column strings, see COL) of one capture.
 
@@ -116,17 +133,18 @@ class Rows:
 
     def open(self):
         p = self.path
-        if str(p) == "-":
-            self._file = os.fdopen(os.dup(0), "rb")
-            return
-        if not p.exists():
+        fd = inherited_fd(str(p))
+        if fd is not None:
+            self._file = os.fdopen(os.dup(fd), "rb")
+        elif not p.exists():
             raise CaptureError("no such file")
-        if p.is_dir():
+        elif p.is_dir():
             raise CaptureError("is a directory, not a capture file")
-        try:
-            self._file = open(p, "rb")
-        except OSError as exc:
-            raise CaptureError("cannot open: %s" % exc.strerror)
+        else:
+            try:
+                self._file = open(p, "rb")
+            except OSError as exc:
+                raise CaptureError("cannot open: %s" % exc.strerror)
         st = os.fstat(self._file.fileno())
         if not stat.S_ISREG(st.st_mode):
             return  # a pipe, FIFO or device: read as it comes, size unknown

@@ -1,0 +1,497 @@
+"""vrshark-report as a command: --expect, what is no network capture, standard
+input and pipes, output folders and plotly checked before tshark runs, the
+tshark and its options checked once, SIGTERM, JUnit times.
+
+Every test runs twice: through the checkout's tools/vrshark-report (and so
+tools/tshark) and through the command `cmake --install` puts into a fresh
+HOME, run as that unprivileged user with the tshark on PATH (installed_testlib).
+Paths are absolute and temporary files sit in a folder that user can reach,
+so both give the same lines.
+"""
+import json
+import os
+import pty
+import select
+import signal
+import subprocess
+import threading
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import pytest
+
+from conftest import CAPTURES, ROOT
+from installed_testlib import Installed
+
+PUBLIC = ROOT.parent / "shared" / "captures" / "public"
+PORT5020 = str(CAPTURES / "eclink_modbus_port5020.pcap")
+VRPO_GAP = str(CAPTURES / "eglink_analysis_vrpo_gap.pcap")
+BAD_CRC = str(CAPTURES / "eglink_bad_crc.pcap")
+MCMB2 = str(CAPTURES / "mcmb2_duplex_watchdog.pcap")
+HINT_ECLINK = "a Modbus/TCP BU on another port: -d tcp.port==PORT,eclink_modbus"
+
+
+class Checkout:
+    """tools/vrshark-report of this checkout."""
+    name = "checkout"
+
+    def __init__(self, conf_dir):
+        self.conf_dir = conf_dir
+
+    def argv(self, args):
+        return [str(ROOT / "tools" / "vrshark-report")] + [str(a) for a in args]
+
+    def env(self, **extra):
+        env = dict(os.environ, TZ="UTC", LC_ALL="C.UTF-8", WIRESHARK_CONFIG_DIR=str(self.conf_dir))
+        env.update(extra)
+        return env
+
+    cwd = ROOT
+
+
+class InstalledCommand:
+    """~/.local/bin/vrshark-report of a personal install, as its user."""
+    name = "installed"
+
+    def __init__(self, inst):
+        self.inst = inst
+        self.path = inst.home / ".local" / "bin" / "vrshark-report"
+        assert self.path.is_file()
+
+    def argv(self, args):
+        return self.inst.command(str(self.path), [str(a) for a in args])
+
+    def env(self, **extra):
+        return self.inst.env(**extra)
+
+    @property
+    def cwd(self):
+        return self.inst.home
+
+
+@pytest.fixture(scope="module")
+def installed():
+    inst = Installed("personal")
+    yield InstalledCommand(inst)
+    inst.remove()
+
+
+@pytest.fixture(params=["checkout", "installed"])
+def cmd(request, conf_dir):
+    if request.param == "checkout":
+        return Checkout(conf_dir)
+    return request.getfixturevalue("installed")
+
+
+def run(cmd, *args, env=None, **kw):
+    kw.setdefault("stdin", subprocess.DEVNULL)
+    return subprocess.run(cmd.argv(args), env=cmd.env(**(env or {})), cwd=str(cmd.cwd),
+                          capture_output=True, text=True, timeout=300, **kw)
+
+
+def start(cmd, *args):
+    return subprocess.Popen(cmd.argv(args), env=cmd.env(), cwd=str(cmd.cwd), stdin=subprocess.DEVNULL,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+@pytest.fixture
+def work(work_dir):
+    """A folder the installed command's user can read and write."""
+    return Path(work_dir)
+
+
+def put(folder, name, data):
+    path = folder / name
+    path.write_bytes(data)
+    path.chmod(0o666)
+    return path
+
+
+def fifo(folder, name="fifo"):
+    path = folder / name
+    os.mkfifo(path)
+    path.chmod(0o666)
+    return path
+
+
+def captures(proc):
+    return json.loads(proc.stdout)["captures"]
+
+
+def summary(cap):
+    """What a capture's report says, without its name."""
+    return (cap["frames"], cap["error"], [(d["kind"], d["name"], d["frames"]) for d in cap["devices"]],
+            [(e["frame"], e["severity"], e["text"]) for e in cap["timeline"]])
+
+
+# --- --expect ------------------------------------------------------------------------
+
+def test_expect_missing_protocol(cmd):
+    """The plant on port 5020: without the rule no EC-Link device, exit 1, one line."""
+    proc = run(cmd, "--json", "--expect", "eclink", PORT5020)
+    assert proc.returncode == 1
+    assert proc.stderr.splitlines() == [
+        "vrshark-report: %s: expected EC-Link, none found (19 frames read; %s)" % (PORT5020, HINT_ECLINK)]
+    cap = captures(proc)[0]
+    assert (cap["devices"], cap["missing"]) == ([], ["eclink"])
+    assert json.loads(proc.stdout)["expect"] == ["eclink"]
+    # With the rule the BU is there: one device, clean.
+    proc = run(cmd, "--json", "--expect", "eclink", "-d", "tcp.port==5020,eclink_modbus", PORT5020)
+    assert (proc.returncode, proc.stderr) == (0, "")
+    assert [d["name"] for d in captures(proc)[0]["devices"]] == [
+        "EC-Link BU, Modbus/TCP server 192.168.2.41:5020"]
+
+
+def test_expect_excerpt_and_subsets(cmd, work):
+    """A Modbus excerpt that ends before the BU is recognised, and several
+    protocols: each capture names the ones it lacks; EC-Link over PROFINET
+    counts as EC-Link."""
+    excerpt = work / "excerpt.pcap"
+    subprocess.run(["editcap", "-r", str(CAPTURES / "eclink_modbus_faults.pcap"), str(excerpt), "1-8"],
+                   check=True)
+    excerpt.chmod(0o666)
+    pnio = str(CAPTURES / "eclink_pnio_connect.pcap")
+    proc = run(cmd, "--expect", "eglink,eclink", "--expect", "mcmb2", excerpt, pnio, MCMB2)
+    assert proc.returncode == 1
+    assert proc.stderr.splitlines() == [
+        "vrshark-report: %s: expected EG-Link, EC-Link and MC-MB2-PN, none found (8 frames read; "
+        "EG-Link on another UDP port: -o eglink.input_port:PORT; %s; a base whose Connect is not in "
+        "the capture: -o mcmb2.layouts, docs/profinet.md)" % (excerpt, HINT_ECLINK),
+        "vrshark-report: %s: expected EG-Link and MC-MB2-PN, none found (82 frames read; EG-Link on "
+        "another UDP port: -o eglink.input_port:PORT; a base whose Connect is not in the capture: "
+        "-o mcmb2.layouts, docs/profinet.md)" % pnio,
+        "vrshark-report: %s: expected EG-Link and EC-Link, none found (52 frames read; EG-Link on "
+        "another UDP port: -o eglink.input_port:PORT; %s)" % (MCMB2, HINT_ECLINK)]
+    proc = run(cmd, "--expect", "eclink", pnio)
+    assert (proc.returncode, proc.stderr) == (0, "")
+
+
+@pytest.mark.parametrize("args, status, lines", [
+    (["--fail-on", "error", "--expect", "eglink", VRPO_GAP], 1, 1),       # the gate fails, expect holds
+    (["--fail-on", "error", "--expect", "eclink", BAD_CRC], 1, 2),        # both fail
+    (["--fail-on", "error", "--expect", "eglink", MCMB2], 1, 2),          # both fail, other protocol
+    (["--expect", "eglink", "MISSING", BAD_CRC], 2, 1),                   # unreadable wins
+    (["--expect", "eglink", "--fail-on", "error", PORT5020], 1, 1),       # expect alone fails
+])
+def test_expect_with_gate(cmd, args, status, lines):
+    args = [str(CAPTURES / "no-such.pcap") if a == "MISSING" else a for a in args]
+    proc = run(cmd, *args)
+    assert proc.returncode == status, proc.stderr
+    assert len(proc.stderr.splitlines()) == lines, proc.stderr
+
+
+def test_expect_junit(cmd, work):
+    out = work / "expect.xml"
+    proc = run(cmd, "--junit", out, "--expect", "eclink", PORT5020, BAD_CRC)
+    assert proc.returncode == 1
+    suites = ET.parse(out).getroot().findall("testsuite")
+    for suite, capture in zip(suites, (PORT5020, BAD_CRC)):
+        assert suite.get("name") == capture
+        case = suite.find("testcase[@name='expected EC-Link']")
+        assert case.find("failure").get("message").startswith("expected EC-Link, none found (")
+    assert [c.get("name") for c in suites[0].findall("testcase")] == ["expected EC-Link"]
+    assert [(s.get("tests"), s.get("failures")) for s in suites] == [("1", "1"), ("2", "2")]
+
+
+def test_expect_usage(cmd):
+    proc = run(cmd, "--expect", "eglink,profibus", BAD_CRC)
+    assert proc.returncode == 2 and proc.stdout == ""
+    assert proc.stderr.splitlines()[-1] == ("vrshark-report: error: argument --expect: "
+                                            "'eglink,profibus': a list of eglink, eclink, mcmb2")
+
+
+# --- what is a network capture ---------------------------------------------------------
+
+def test_text_file_is_no_capture(cmd, work):
+    six = put(work, "notes.txt", b"hello\n")   # tshark: "MP4 media", one frame
+    proc = run(cmd, "--fail-on", "note", six, BAD_CRC)
+    assert proc.returncode == 2
+    assert proc.stderr.splitlines() == [
+        "vrshark-report: %s: not a network capture: tshark reads it as MP4 media" % six,
+        "vrshark-report: FAIL (--fail-on note): 1 finding(s) at note or above; first: %s frame 1: "
+        "bad CRC (6x, frames 1-6 over 0.050 s)" % BAD_CRC]
+    assert proc.stdout.startswith("== %s\n  not a network capture: tshark reads it as MP4 media\n\n"
+                                  % six)
+    # The same bytes on standard input.
+    proc = run(cmd, "--json", "-", input="hello\n", stdin=None)
+    assert proc.returncode == 2
+    assert proc.stderr == "vrshark-report: -: not a network capture: tshark reads it as MP4 media\n"
+    assert captures(proc)[0]["frames"] == 0 and captures(proc)[0]["devices"] == []
+
+
+@pytest.mark.parametrize("kind", ["image", "executable"])
+def test_other_files_are_no_capture(cmd, work, kind):
+    data = {"image": bytes.fromhex("89504e470d0a1a0a0000000d49484452") + bytes(64),
+            "executable": Path("/bin/true").read_bytes()}[kind]
+    path = put(work, kind, data)
+    proc = run(cmd, path)
+    assert proc.returncode == 2
+    assert proc.stderr == ("vrshark-report: %s: not a network capture: tshark reads it as MIME File "
+                           "Format (an image, an executable, ...)\n" % path)
+
+
+@pytest.mark.parametrize("fmt", ["pcap", "pcapng", "snoop", "nettl", "5views"])
+def test_capture_formats_are_read(cmd, work, fmt):
+    """Every format whose records are packets gives the same report."""
+    path = work / ("crc." + fmt)
+    subprocess.run(["editcap", "-F", fmt, BAD_CRC, str(path)], check=True)
+    path.chmod(0o666)
+    proc = run(cmd, "--json", path)
+    assert (proc.returncode, proc.stderr) == (0, "")
+    frames, error, devices, timeline = summary(captures(proc)[0])
+    assert (frames, error, [d[0] for d in devices], timeline) == (
+        7, None, ["eglink"], [(1, "error", "bad CRC (6x, frames 1-6 over 0.050 s)")])
+
+
+def test_public_pcapng(cmd):
+    path = PUBLIC / "pnio_connect_many.pcapng"
+    if not path.is_file():
+        pytest.skip("the public captures (../shared) are absent")
+    proc = run(cmd, "--json", path)
+    assert (proc.returncode, proc.stderr) == (0, "")
+    cap = captures(proc)[0]
+    assert (cap["frames"], cap["error"], cap["devices"]) == (328, None, [])
+
+
+# --- standard input and pipes ------------------------------------------------------------
+
+def test_stdin_pipe_and_fifo(cmd, work):
+    """`-`, a FIFO and `<(cat x)` read as tshark reads them: the file's report."""
+    want = summary(captures(run(cmd, "--json", VRPO_GAP))[0])
+    assert want[0] == 56 and len(want[2]) == 1
+    with open(VRPO_GAP, "rb") as f:
+        proc = run(cmd, "--json", "-", stdin=f)
+    assert proc.returncode == 0, proc.stderr
+    assert [c["capture"] for c in captures(proc)] == ["-"]
+    assert summary(captures(proc)[0]) == want
+    path = fifo(work)
+
+    def writer():
+        with open(path, "wb") as w:
+            w.write(Path(VRPO_GAP).read_bytes())
+    thread = threading.Thread(target=writer)
+    thread.start()
+    proc = run(cmd, "--json", path)
+    thread.join()
+    assert proc.returncode == 0, proc.stderr
+    assert summary(captures(proc)[0]) == want
+    # Process substitution: a pipe named /dev/fd/N, given by the shell.
+    script = 'exec "$@" <(cat %s)' % VRPO_GAP
+    proc = subprocess.run(["bash", "-c", script, "bash"] + cmd.argv(["--json"]), env=cmd.env(),
+                          cwd=str(cmd.cwd), capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert captures(proc)[0]["capture"].startswith("/dev/fd/")
+    assert summary(captures(proc)[0]) == want
+
+
+def test_stdin_once(cmd):
+    proc = run(cmd, "-", "-")
+    assert proc.returncode == 2
+    assert proc.stderr.splitlines()[-1] == "vrshark-report: error: standard input (-) can be read only once"
+
+
+# --- checked before tshark runs -------------------------------------------------------------
+
+@pytest.mark.parametrize("option", ["--html", "--junit"])
+def test_output_into_missing_folder(cmd, work, option):
+    """One line, exit 2, before any capture is opened (a FIFO without a writer
+    would block)."""
+    if option == "--html":
+        pytest.importorskip("plotly", reason="plotly is not installed (tools/setup installs it)")
+    target = work / "no-such-folder" / "out"
+    proc = run(cmd, option, target, fifo(work))
+    assert (proc.returncode, proc.stdout) == (2, "")
+    assert proc.stderr == "vrshark-report: %s %s: no such folder %s\n" % (option, target, target.parent)
+    proc = run(cmd, option, work, fifo(work, "fifo2"))
+    assert proc.returncode == 2
+    assert proc.stderr == "vrshark-report: %s %s: is a folder, not a file\n" % (option, work)
+
+
+def test_plotly_checked_first(cmd, work):
+    blocker = work / "plotly"
+    blocker.mkdir()
+    (blocker / "__init__.py").write_text("raise ImportError('plotly is blocked in this test')\n")
+    os.chmod(blocker, 0o755)
+    os.chmod(blocker / "__init__.py", 0o644)
+    proc = run(cmd, "--html", work / "x.html", fifo(work), env={"PYTHONPATH": str(work)})
+    assert proc.returncode == 2
+    assert proc.stderr == ("vrshark-report: the HTML report needs plotly (plotly is blocked in "
+                           "this test): pip install -r requirements.txt\n")
+    assert not (work / "x.html").exists()
+
+
+@pytest.mark.parametrize("args, line", [
+    (["--tshark", "/bin/false"], "/bin/false ended with exit status 1 and no message on an empty "
+     "capture: is it tshark?"),
+    (["--tshark", "/no/such/tshark"], "cannot run /no/such/tshark: No such file or directory"),
+    (["-o", "eglink.no_such_pref:1"], 'tshark: -o flag "eglink.no_such_pref:1" specifies unknown '
+     'preference'),
+    (["-o", "eglink.vrpi_gap_ms:soon"], 'tshark: Invalid -o flag "eglink.vrpi_gap_ms:soon"'),
+    (["-d", "tcp.port==x,eclink_modbus"], 'tshark: Invalid selector number "x"'),
+])
+def test_tshark_and_options_checked_once(cmd, work, args, line):
+    """Said once as a usage error, not once per capture; no capture is opened."""
+    proc = run(cmd, *args, BAD_CRC, VRPO_GAP, fifo(work))
+    assert (proc.returncode, proc.stdout, proc.stderr) == (2, "", "vrshark-report: %s\n" % line)
+
+
+@pytest.mark.parametrize("jobs", ["0", "-3", "two"])
+def test_jobs_must_be_positive(cmd, jobs):
+    proc = run(cmd, "-j", jobs, BAD_CRC)
+    assert proc.returncode == 2 and proc.stdout == ""
+    assert proc.stderr.splitlines()[-1] == ("vrshark-report: error: argument -j/--jobs: %r is not a "
+                                            "number of captures (1 or more)" % jobs)
+
+
+def read_until(fd, text, seen):
+    """Bytes from a pty master until text appears (or the other side closes)."""
+    while text not in seen:
+        ready, _, _ = select.select([fd], [], [], 120)
+        assert ready, "nothing on the terminal: %r" % seen[-300:]
+        try:
+            chunk = os.read(fd, 4096)
+        except OSError:   # EIO: every slave side closed
+            return seen
+        if not chunk:
+            return seen
+        seen += chunk
+    return seen
+
+
+def test_progress_through_html(cmd, work):
+    """On a terminal the bar shows the capture being read, then the plots
+    being built: nothing silent between 100 % and the end. The capture comes
+    through a FIFO held open until the bar is up (it shows after a second)."""
+    pytest.importorskip("plotly", reason="plotly is not installed (tools/setup installs it)")
+    path = fifo(work)
+    data = Path(VRPO_GAP).read_bytes()
+    master, slave = pty.openpty()
+    proc = subprocess.Popen(cmd.argv(["--html", work / "p.html", path]), env=cmd.env(),
+                            cwd=str(cmd.cwd), stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                            stderr=slave)
+    os.close(slave)
+    hold = os.open(path, os.O_RDWR)
+    try:
+        os.write(hold, data[:1000])
+        seen = read_until(master, b"0/1 captures", b"")
+        os.write(hold, data[1000:])
+        os.close(hold)
+        hold = None
+        seen = read_until(master, b"\0", seen)   # (to the end)
+        proc.wait(timeout=120)
+    finally:
+        if hold is not None:
+            os.close(hold)
+        os.close(master)
+        if proc.poll() is None:
+            proc.kill()
+    if b"needs plotly" in seen:   # (the Python the installed command's user runs)
+        pytest.skip("no plotly for this Python: %r" % seen)
+    assert proc.returncode == 0, seen
+    assert b"vrshark-report [" in seen and b"0/1 captures" in seen
+    assert b"HTML: plots 1/1" in seen
+    assert seen.endswith(b"\r" + b" " * 79 + b"\r")   # the line is cleared at the end
+    assert (work / "p.html").stat().st_size > 0
+
+
+# --- SIGTERM ---------------------------------------------------------------------------------
+
+def processes():
+    """{pid: (ppid, command name)} of every process, from ps (not the code under test)."""
+    out = subprocess.run(["ps", "-e", "-o", "pid=,ppid=,comm="], capture_output=True, text=True,
+                         check=True).stdout
+    table = {}
+    for line in out.splitlines():
+        pid, ppid, name = line.split(None, 2)
+        table[int(pid)] = (int(ppid), name.strip())
+    return table
+
+
+def tree(root):
+    table = processes()
+    found, todo = {}, [root]
+    while todo:
+        parent = todo.pop()
+        for pid, (ppid, name) in table.items():
+            if ppid == parent:
+                found[pid] = name
+                todo.append(pid)
+    return found
+
+
+def living(pids):
+    table = processes()
+    left = []
+    for pid in pids:
+        try:
+            with open("/proc/%d/stat" % pid) as f:
+                state = f.read().rsplit(")", 1)[1].split()[0]
+        except OSError:
+            continue
+        if pid in table and state != "Z":
+            left.append(pid)
+    return left
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+@pytest.mark.parametrize("writer", [True, False])
+def test_signal_ends_everything(cmd, work, signum, writer):
+    """A capture that never ends (a FIFO whose writer stays, after half a
+    capture; or no writer at all): the signal to the report alone ends the
+    report, its workers and their tshark."""
+    path = fifo(work)
+    proc = start(cmd, path, BAD_CRC)
+    hold = None
+    if writer:
+        hold = os.open(path, os.O_RDWR)   # a writer that never closes
+        os.write(hold, Path(VRPO_GAP).read_bytes()[:1000])
+    try:
+        # Wait until what must be stopped runs: the worker's tshark reading the
+        # FIFO, or the worker blocked opening it.
+        for _ in range(600):
+            found = tree(proc.pid)
+            if writer and "tshark" in found.values():
+                break
+            if not writer and any(_blocked_on_fifo(pid) for pid in found):
+                break
+            assert proc.poll() is None, proc.communicate()
+            threading.Event().wait(0.05)
+        else:
+            pytest.fail("never started: %s" % found)
+        proc.send_signal(signum)
+        out, err = proc.communicate(timeout=30)
+        assert proc.returncode == 128 + signum, err
+        assert living(found) == [], found
+    finally:
+        if hold is not None:
+            os.close(hold)
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+
+
+def _blocked_on_fifo(pid):
+    """A process of ours waiting in open() on a FIFO (Linux names it in wchan)."""
+    try:
+        with open("/proc/%d/wchan" % pid) as f:
+            return f.read() in ("wait_for_partner", "fifo_open")
+    except OSError:
+        return False
+
+
+# --- JUnit -------------------------------------------------------------------------------------
+
+def test_junit_time_and_span(cmd, work):
+    """A suite's time is the report's own run time; the device's traffic span
+    (4.440 s here) is a property, not a time."""
+    out = work / "times.xml"
+    proc = run(cmd, "--junit", out, VRPO_GAP)
+    assert proc.returncode == 0, proc.stderr
+    suite = ET.parse(out).getroot().find("testsuite")
+    assert float(suite.get("time")) > 0
+    case = suite.find("testcase")
+    assert case.get("time") is None
+    props = {p.get("name"): p.get("value") for p in case.findall("properties/property")}
+    assert props == {"kind": "eglink", "frames": "56", "first_frame": "1", "last_frame": "56",
+                     "traffic_start_s": "0.000", "traffic_end_s": "4.440", "traffic_span_s": "4.440"}
+
