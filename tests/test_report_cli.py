@@ -14,6 +14,7 @@ import pty
 import select
 import signal
 import subprocess
+import sys
 import threading
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -392,6 +393,27 @@ def test_progress_through_html(cmd, work):
     assert b"HTML: plots 1/1" in seen
     assert seen.endswith(b"\r" + b" " * 79 + b"\r")   # the line is cleared at the end
     assert (work / "p.html").stat().st_size > 0
+
+
+def test_html_basic_bundle(cmd, work, monkeypatch):
+    """The page inlines plotly.js's basic bundle, the version plotly writes
+    for (Chromium renders it: tests/test_report_html.py); another plotly
+    version gets plotly's own full bundle."""
+    offline = pytest.importorskip("plotly.offline", reason="plotly is not installed")
+    if cmd.name == "installed":  # cmake --install copies the bundle beside the package
+        lib = cmd.inst.home / ".local" / "lib" / "vrshark" / "report"
+        assert (lib / "plotly-basic.min.js.gz").is_file() and (lib / "plotly-basic.LICENSE").is_file()
+    proc = run(cmd, "--html", work / "b.html", VRPO_GAP)
+    if "needs plotly" in proc.stderr:
+        pytest.skip("no plotly for the Python of this command")
+    assert proc.returncode == 0, proc.stderr
+    page = (work / "b.html").read_text()
+    assert "plotly.js (basic - minified) v%s" % offline.get_plotlyjs_version() in page
+    assert len(page) < 1.5e6 and "Plotly.newPlot" in page
+    sys.path.insert(0, str(ROOT / "tools"))
+    from report import html
+    monkeypatch.setattr(html, "get_plotlyjs_version", lambda: "0.0.1")
+    assert html.plotly_js() == offline.get_plotlyjs()
 
 
 # --- SIGTERM ---------------------------------------------------------------------------------

@@ -5,11 +5,20 @@ the time axis: the states (BU/RU state, MC-MB2-PN status per slot) as steps,
 the findings as coloured markers, the watchdog ages against their limits, and
 the joysticks where present. Only this output needs plotly.
 """
+import gzip
 import html as H
+import re
+from pathlib import Path
 
 import plotly.graph_objects as go
-from plotly.offline import get_plotlyjs
+from plotly.offline import get_plotlyjs, get_plotlyjs_version
 from plotly.subplots import make_subplots
+
+# plotly.js's "basic" bundle (scatter, bar, pie; npm plotly.js-basic-dist-min,
+# MIT, plotly-basic.LICENSE): every plot here is a scatter trace with shapes,
+# and the page is a quarter of the size with it. Used when it is the
+# plotly.js version the installed plotly writes figures for.
+BASIC_BUNDLE = Path(__file__).resolve().with_name("plotly-basic.min.js.gz")
 
 COLOURS = {"note": "#3b78b0", "warning": "#e08a00", "error": "#c62828"}
 SHADED = ("relays", "stall", "gap", "poll_gap")  # shaded over their span in the plots
@@ -163,6 +172,19 @@ def capture_section(index, rep, plotted=lambda: None):
     return "\n".join(out)
 
 
+def plotly_js():
+    """The plotly.js to inline: the basic bundle, else plotly's full one."""
+    try:
+        with gzip.open(BASIC_BUNDLE, "rt", encoding="utf-8") as f:
+            js = f.read()
+    except OSError:
+        return get_plotlyjs()
+    version = re.search(r"plotly\.js \(basic - minified\) v(\S+)", js[:500])
+    if version and version.group(1) == get_plotlyjs_version():
+        return js
+    return get_plotlyjs()
+
+
 def document(reports, progress=None):
     """The page; progress(done, total) after each device's figure (the slow part)."""
     total = sum(len(rep["devices"]) for rep in reports if rep["frames"]) or 1
@@ -179,7 +201,7 @@ def document(reports, progress=None):
             "<script>%s</script></head><body>"
             "<h1>vrshark report</h1><p class=muted>Frame numbers open in Wireshark with "
             "<code>wireshark -r CAPTURE -g FRAME</code>.</p>\n%s\n</body></html>\n"
-            % (names, CSS, get_plotlyjs(), body))
+            % (names, CSS, plotly_js(), body))
 
 
 def write(reports, path, progress=None):
