@@ -90,9 +90,9 @@ def run(cmd, *args, env=None, **kw):
                           capture_output=True, text=True, timeout=300, **kw)
 
 
-def start(cmd, *args):
+def start(cmd, *args, **kw):
     return subprocess.Popen(cmd.argv(args), env=cmd.env(), cwd=str(cmd.cwd), stdin=subprocess.DEVNULL,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **kw)
 
 
 @pytest.fixture
@@ -455,14 +455,17 @@ def living(pids):
     return left
 
 
-@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+@pytest.mark.parametrize("signum, group", [(signal.SIGTERM, False), (signal.SIGINT, False),
+                                           (signal.SIGINT, True), (signal.SIGHUP, True)])
 @pytest.mark.parametrize("writer", [True, False])
-def test_signal_ends_everything(cmd, work, signum, writer):
+def test_signal_ends_everything(cmd, work, signum, group, writer):
     """A capture that never ends (a FIFO whose writer stays, after half a
-    capture; or no writer at all): the signal to the report alone ends the
-    report, its workers and their tshark."""
+    capture; or no writer at all): the signal to the report alone (a CI
+    timeout), or to its whole process group (Ctrl-C, a hangup: the terminal
+    signals every process of the group) ends the report, its workers and
+    their tshark, with 128 + the signal and no traceback."""
     path = fifo(work)
-    proc = start(cmd, path, BAD_CRC)
+    proc = start(cmd, path, BAD_CRC, start_new_session=group)
     hold = None
     if writer:
         hold = os.open(path, os.O_RDWR)   # a writer that never closes
@@ -480,9 +483,12 @@ def test_signal_ends_everything(cmd, work, signum, writer):
             threading.Event().wait(0.05)
         else:
             pytest.fail("never started: %s" % found)
-        proc.send_signal(signum)
+        if group:
+            os.killpg(proc.pid, signum)
+        else:
+            proc.send_signal(signum)
         out, err = proc.communicate(timeout=30)
-        assert proc.returncode == 128 + signum, err
+        assert (proc.returncode, err) == (128 + signum, "")
         assert living(found) == [], found
     finally:
         if hold is not None:

@@ -80,6 +80,7 @@ def parse_args(argv):
 def _init_worker(progress):
     global _progress
     _progress = progress
+    stop.leave_to_parent()
 
 
 def report_one(index, path, tshark, extra, limits, keep_series):

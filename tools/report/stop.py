@@ -21,6 +21,19 @@ def install():
         signal.signal(signum, _stop)
 
 
+def leave_to_parent():
+    """In a worker: Ctrl-C and a hangup reach the whole terminal group at once;
+    the parent ends the worker (SIGTERM) and this worker its tshark. A worker
+    that ended on its own first would look like a broken pool to the parent.
+    (A no-op handler rather than SIG_IGN, which tshark would inherit.)"""
+    for signum in (signal.SIGINT, signal.SIGHUP):
+        signal.signal(signum, _ignore)
+
+
+def _ignore(signum, frame):
+    pass
+
+
 def descendants(root):
     """Every process below root (pids), from /proc/*/stat."""
     children = {}
