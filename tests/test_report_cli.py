@@ -410,6 +410,10 @@ def test_html_basic_bundle(cmd, work, monkeypatch):
     page = (work / "b.html").read_text()
     assert "plotly.js (basic - minified) v%s" % offline.get_plotlyjs_version() in page
     assert len(page) < 1.5e6 and "Plotly.newPlot" in page
+    proc = run(cmd, "--html", work / "e.html", "--expect", "eclink,mcmb2", VRPO_GAP)
+    assert proc.returncode == 1
+    assert '<p class="error-line">expected EC-Link and MC-MB2-PN, none found</p>' in \
+        (work / "e.html").read_text()
     sys.path.insert(0, str(ROOT / "tools"))
     from report import html
     monkeypatch.setattr(html, "get_plotlyjs_version", lambda: "0.0.1")

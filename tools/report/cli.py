@@ -49,8 +49,9 @@ def parse_args(argv):
         prog="vrshark-report",
         description="What devices an EG-Link, EC-Link or MC-MB2-PN capture holds, and the "
                     "safety timeline of each: state changes, relays, stalls, findings.",
-        epilog="Exit status: 0 clean, 1 a finding at or above --fail-on, 2 usage error or "
-               "unreadable capture. See docs/report.md.")
+        epilog="Exit status: 0 clean, 1 a finding at or above --fail-on or an --expect "
+               "protocol not found, 2 usage error or unreadable capture (wins over 1), 128+N "
+               "ended by signal N. See docs/report.md.")
     ap.add_argument("captures", nargs="+", metavar="CAPTURE",
                     help="capture file (pcap, pcapng, ...), a pipe, or - for standard input")
     ap.add_argument("--json", action="store_true", help="write JSON to standard output instead of text")
@@ -60,7 +61,7 @@ def parse_args(argv):
                     help="exit 1 when a finding of this severity or higher is present")
     ap.add_argument("--expect", type=protocols, action="extend", default=[],
                     metavar="eglink,eclink,mcmb2",
-                    help="exit 1 when a capture holds none of these protocols' devices")
+                    help="exit 1 when a capture holds no device of one of these protocols")
     ap.add_argument("--tshark", metavar="CMD",
                     help="tshark to run (default: tools/tshark in a checkout, else $TSHARK or tshark)")
     ap.add_argument("-o", dest="prefs", action="append", default=[], metavar="NAME:VALUE",

@@ -14,6 +14,8 @@ import plotly.graph_objects as go
 from plotly.offline import get_plotlyjs, get_plotlyjs_version
 from plotly.subplots import make_subplots
 
+from .expect import listed, title
+
 # plotly.js's "basic" bundle (scatter, bar, pie; npm plotly.js-basic-dist-min,
 # MIT, plotly-basic.LICENSE): every plot here is a scatter trace with shapes,
 # and the page is a quarter of the size with it. Used when it is the
@@ -127,6 +129,9 @@ def capture_section(index, rep, plotted=lambda: None):
     out = ['<h2>%s</h2>' % H.escape(rep["capture"])]
     if rep["error"]:
         out.append('<p class="error-line">%s</p>' % H.escape(rep["error"]))
+    if rep.get("missing"):
+        out.append('<p class="error-line">expected %s, none found</p>'
+                   % H.escape(listed([title(n) for n in rep["missing"]])))
     if rep["frames"] == 0:
         return "\n".join(out)
     out.append("<p>%d frames, %.3f s from %s</p>" % (rep["frames"], rep["duration"],
