@@ -377,12 +377,19 @@ def test_docs_text_example_is_the_output(vrshark_report):
     assert "".join("    " + ln + "\n" for ln in proc.stdout.splitlines()) == example
 
 
-def test_html_device_table_has_the_last_state(tmp_path, conf_dir):
+def test_generated_capture_controller_first(vrshark_report, tmp_path):
+    """crane_eglink.pcap starts with the controller's VRPO too: one BU, one test case."""
+    junit = tmp_path / "r.xml"
+    proc = vrshark_report("--json", "--junit", junit, "captures/crane_eglink.pcap")
+    assert [(d["name"], d["frames"], d["first_frame"]) for d in devices(proc)] == [
+        ("EG-Link BU 0x1001 (192.168.32.10 to 239.255.42.20:5825)", 17, 1)]
+    assert len(list(ET.parse(junit).getroot().iter("testcase"))) == 1
+
+
+def test_html_device_table_has_the_last_state(vrshark_report, tmp_path):
     pytest.importorskip("plotly", reason="plotly is not installed (tools/setup installs it)")
     page = tmp_path / "r.html"
-    proc = subprocess.run([str(REPORT), "--html", str(page), "captures/mcmb2_polled_connect.pcap",
-                           "captures/eglink_armed.pcap"], cwd=str(ROOT), capture_output=True, text=True,
-                          env=dict(os.environ, WIRESHARK_CONFIG_DIR=str(conf_dir)))
+    proc = vrshark_report("--html", page, "captures/mcmb2_polled_connect.pcap", "captures/eglink_armed.pcap")
     assert proc.returncode == 0, proc.stderr
     html = page.read_text()
     assert "<th>first state</th><th>last state</th>" in html
