@@ -76,7 +76,7 @@ TIMELINES = {
         (10, 'note', 1, 'BU state Initial -> Disarmed (after 0.500 s or more)'),
         (19, 'note', 1, 'BU state Disarmed -> Armed (after 0.500 s)'),
         (19, 'note', 1, 'RU state Initial (no RU armed) -> Enabled (RU 0xbeef) (after 1.000 s or more)'),
-        (26, 'note', 1, 'command retransmitted'),
+        (26, 'note', 1, 'command retransmitted: first sent in frame 23'),
         (32, 'warning', 1, '1 packet lost'),
         (41, 'note', 1, 'BU state Armed -> Stopped (after 1.000 s)'),
         (41, 'note', 1, 'RU 0xbeef state Enabled -> Stopped (after 1.000 s)'),
@@ -112,12 +112,12 @@ TIMELINES = {
         (9, 'warning', 1, 'repeated packet (2x, frames 9-15 over 0.325 s)'),
     ],
     "eglink_analysis_vrci_unacked.pcap": [
-        (8, 'note', 1, 'command retransmitted (19x, frames 8-58 over 1.800 s)'),
+        (8, 'note', 1, 'command retransmitted: first sent in frame 5 (19x, frames 8-58 over 1.800 s)'),
         failed(61, 'VRCI of frame 5 not acknowledged in time: the command failed',
                'deadline of the VRCI of frame 5 passed'),
     ],
     "eglink_analysis_vrco_unacked.pcap": [
-        (8, 'note', 1, 'command retransmitted (4x, frames 8-16 over 0.300 s)'),
+        (8, 'note', 1, 'command retransmitted: first sent in frame 5 (4x, frames 8-16 over 0.300 s)'),
         failed(46, 'VRCO of frame 5 not acknowledged in time: the command failed',
                'deadline of the VRCO of frame 5 passed'),
         failed(89, 'VRCO of frame 52 not acknowledged in time: the command failed',
@@ -182,7 +182,7 @@ TIMELINES = {
         (15, 'note', 1, 'slot 1 terminal 1 absent -> terminal 1 present (after 0.100 s)'),
         (15, 'note', 1, 'slot 2 terminal 5 absent -> terminal 5 present (after 0.100 s)'),
         (15, 'note', 1, 'slot 3 terminal 3 absent -> terminal 3 present (after 0.100 s)'),
-        (15, 'error', 1, 'Y, Z or slots differ from the configured layout'),
+        (15, 'error', 1, 'Y, Z or slots differ from the configured layout: the frame has Y=20, Z=10'),
         (17, 'note', 1, 'slot 2 terminal 5 present -> terminal 5 active stop (after 0.100 s)'),
         (17, 'warning', 1, 'terminal bits set in a polled status: terminal 2'),
         (17, 'warning', 1, 'data not 0 while the terminal is not present'),
@@ -221,7 +221,8 @@ TIMELINES = {
         (2, 'warning', 1, 'origin not 0 in a controller packet: 0x1001 and 2 other values '
          '(3x, frames 2-4 over 0.020 s)'),
         (5, 'warning', 1, 'origin 0 in a BU packet (2x, frames 5-6 over 0.010 s)'),
-        (5, 'warning', 1, 'another origin at the same BU address (2x, frames 5-7 over 0.020 s)'),
+        (5, 'warning', 1, 'another origin at the same BU address: 0x0000 and 1 other value '
+         '(2x, frames 5-7 over 0.020 s)'),
         (7, 'warning', 1, 'header spare not 0: 0x00000100'),
         (8, 'warning', 1, 'payload spare not 0: bytes 00ff0000 and 1 other value (2x, frames 8-9 over 0.010 s)'),
     ],

@@ -194,6 +194,8 @@ def test_every_finding_with_a_value_names_it():
     joy = row(1, eclink__joystick1=10, eclink__joystick2=-1200)
     assert DETAILS["eclink.joystick.range"](joy) == ": joystick 2 at -1200"
     assert DETAILS["eglink.link_status.unknown"](row(1, eglink__c_link_status=9)) == ": C-Link status 0x09"
+    assert DETAILS["mcmb2.layout_mismatch"](row(1, mcmb2__uplink_size=20, mcmb2__downlink_size=10)) == \
+        ": the frame has Y=20, Z=10"
     assert DETAILS["eglink.bu_state.unknown"](row(1)) == ""  # value not in the row: no detail
 
 

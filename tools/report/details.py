@@ -92,6 +92,11 @@ def size_invalid(c):
     return ": %s with a %s-byte payload" % (typ[-1], size[-1]) if typ and size else ""
 
 
+def layout_seen(c):
+    y, z = values(c, "mcmb2.uplink_size"), values(c, "mcmb2.downlink_size")
+    return ": the frame has Y=%s, Z=%s" % (y[-1], z[-1]) if y and z else ""
+
+
 def percent(proto):
     return bad_of([("%s.ru_battery" % proto, "RU battery"), ("%s.ru_rssi" % proto, "RU RSSI")],
                   lambda v: v > 100, ": %s %d %%")
@@ -131,9 +136,13 @@ DETAILS = {
     "eglink.flag.invalid": bad_of(flags("eglink"), above(1), ": %s 0x%02X"),
     "eglink.ru_disabled.unknown": lambda c: hexed(c, "eglink.ru_disabled"),
     "eglink.joystick.range": bad_of(joysticks("eglink"), out_of_joystick_range, ": %s at %d"),
+    "eglink.analysis.retransmission": lambda c: raw(c, "eglink.analysis.retransmission_of",
+                                                    ": first sent in frame %s"),
+    "eglink.analysis.origin_changed": lambda c: raw(c, "eglink.origin", ": %s"),
     "mcmb2.status.undefined": lambda c: hexed(c, "mcmb2.status"),
     "mcmb2.slot.status.undefined": slot_status,
     "mcmb2.terminal.not_zero": lambda c: raw(c, "mcmb2.terminal", ": terminal %s"),
+    "mcmb2.layout_mismatch": layout_seen,
     "mcmb2.iops.bad": bad_of([("mcmb2.iops", "")], lambda v: v != 0x80, ":%s 0x%02X"),
     "mcmb2.iocs.bad": bad_of([("mcmb2.iocs", "")], lambda v: v != 0x80, ":%s 0x%02X"),
     "mcmb2.reserved.not_zero": bad_of([("mcmb2.reserved", "")], above(0), ":%s 0x%02X"),
