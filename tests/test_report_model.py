@@ -95,6 +95,16 @@ def test_modbus_candidate_after_the_bu_was_dropped_is_listed():
             if e["field"] == "eclink_modbus.candidate"] == [(5, 2, "eclink_modbus.candidate")]
 
 
+@pytest.mark.parametrize("prefs, layout", [
+    ((), "detection always"),
+    (("eclink_modbus.servers:192.168.2.7,192.168.2.41",), "listed in eclink_modbus.servers"),
+    (("eclink_modbus.servers:192.168.2.41:502",), "listed in eclink_modbus.servers"),
+])
+def test_modbus_layout_says_how_it_was_found(prefs, layout):
+    rep = run_model([modbus_image(1)], prefs)
+    assert [d["layout"] for d in rep["devices"]] == [layout]
+
+
 def test_modbus_candidate_on_another_port():
     setting = "eclink_modbus.servers:192.168.2.41:5020"
     rep = run_model([row(1, eclink_modbus__candidate=1, eclink_modbus__candidate_setting=setting,

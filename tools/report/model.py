@@ -31,6 +31,8 @@ DEFAULT_LIMITS = {
     # not a limit: the EG-Link input ports (each + 2 is an output port), to
     # tell a device found on its ports from one found by the heuristic
     "eglink.input_port": "5825",
+    # nor this: the Modbus/TCP servers decoded as BUs without evidence
+    "eclink_modbus.servers": "",
 }
 
 EXPERT_START = len(COL) - len(EXPERT_FIELDS)
@@ -60,7 +62,7 @@ def limits_from_prefs(prefs):
     limits = dict(DEFAULT_LIMITS)
     for pref in prefs:
         name, _, value = pref.partition(":")
-        if name == "eglink.input_port":
+        if name in ("eglink.input_port", "eclink_modbus.servers"):
             limits[name] = value
         elif name in limits:
             try:
@@ -467,7 +469,10 @@ class Capture:
             dev.address = {"server": server[0], "port": server[1]}
         accepted = c[C["eclink_modbus_accepted_in"]]
         if not dev.layout and c[C["eclink_image"]]:
+            listed = self.limits.get("eclink_modbus.servers", "").replace(" ", "").split(",")
             dev.layout = ("heuristic, recognised in frame %s" % last(accepted) if accepted
+                          else "listed in eclink_modbus.servers"
+                          if server[0] in listed or "%s:%d" % server in listed
                           else "detection always")
         self._eclink_image(dev, c, frame, t, "eclink_modbus")
 
