@@ -40,6 +40,17 @@ def ordinal(values, labels):
     return pos, list(range(len(order))), text
 
 
+def states(values):
+    return ", ".join("%s %s" % kv for kv in values.items())
+
+
+def last_states(dev):
+    """The states at the end, as the text's "last:" line gives them."""
+    if dev["final"] == dev["initial"]:
+        return "as first" if dev["final"] else ""
+    return states(dev["final"])
+
+
 def plot_rows(dev, timeline):
     """The figure's rows: (title, kind, traces), top to bottom."""
     rows, states = [], {}
@@ -112,17 +123,6 @@ def figure(dev, timeline, t_end):
     fig.update_layout(height=110 + 170 * sum(heights), margin=dict(l=60, r=20, t=40, b=40),
                       template="plotly_white", legend=dict(orientation="v"))
     return fig
-
-
-def states(values):
-    return ", ".join("%s %s" % kv for kv in values.items())
-
-
-def last_states(dev):
-    """The states at the end, as the text's "last:" line gives them."""
-    if dev["final"] == dev["initial"]:
-        return "as first" if dev["final"] else ""
-    return states(dev["final"])
 
 
 def capture_section(index, rep):
