@@ -2,8 +2,7 @@
 
 tshark -T fields prints an expert field (FT_NONE) as 1 on the frames that
 carry it, so the report asks for each one by name and never reads message
-texts. The severities are those the dissectors give (README's expert tables;
-tests/test_report_catalog.py checks them against the captures).
+texts; details.py adds the value a finding names from the value fields.
 
 Roles:
   finding   listed in the timeline; bursts of it collapse into one line
@@ -24,7 +23,8 @@ Chat-level experts (acknowledged commands, layouts learned, partial access)
 are not asked for: they are no findings.
 
 The severities are the dissectors' (README "How findings read" is their
-source; tests/test_report_catalog.py checks both against it), except
+one source; tests/test_report_catalog.py checks this list against it and
+against the captures, and docs/report.md against this list), except
 PROMOTED: a candidate the dissector notes is a warning in the report, so
 that `--fail-on warn` catches traffic vrshark could not decode.
 """
@@ -71,8 +71,10 @@ EXPERTS = {
     "eglink.analysis.vrpo_missing": (ERROR, "gap", "VRPO"),
     "eglink.analysis.vrpo_gap": (ERROR, "gap", "VRPO"),
     "eglink.analysis.retransmission": (NOTE, "finding", "command retransmitted"),
-    "eglink.analysis.vrci_unacked": (WARNING, "failed", "VRCI{of} not acknowledged in time: the command failed"),
-    "eglink.analysis.vrco_unacked": (WARNING, "failed", "VRCO{of} not acknowledged in time: the command failed"),
+    "eglink.analysis.vrci_unacked": (WARNING, "failed",
+                                     "VRCI{of} not acknowledged in time: the command failed"),
+    "eglink.analysis.vrco_unacked": (WARNING, "failed",
+                                     "VRCO{of} not acknowledged in time: the command failed"),
     "eglink.analysis.vrci_deadline": (NOTE, "deadline", "deadline of the VRCI{of} passed"),
     "eglink.analysis.vrco_deadline": (NOTE, "deadline", "deadline of the VRCO{of} passed"),
     "eglink.analysis.late_ack": (WARNING, "finding", "late acknowledgement"),
@@ -119,8 +121,10 @@ EXPERTS = {
     # EC-Link over Modbus/TCP
     "eclink_modbus.pci_stalled": (ERROR, "stall", "PCI"),
     "eclink_modbus.pco_stalled": (ERROR, "stall", "PCO"),
-    "eclink_modbus.cmd_from_ru.late": (WARNING, "failed", "command from RU{of} not echoed by CAO in time: the command failed"),
-    "eclink_modbus.cmd_to_ru.late": (WARNING, "failed", "command to RU{of} not echoed by CAI in time: the command failed"),
+    "eclink_modbus.cmd_from_ru.late": (WARNING, "failed",
+                                       "command from RU{of} not echoed by CAO in time: the command failed"),
+    "eclink_modbus.cmd_to_ru.late": (WARNING, "failed",
+                                     "command to RU{of} not echoed by CAI in time: the command failed"),
     "eclink_modbus.cmd_from_ru.deadline": (NOTE, "deadline", "deadline of the command from RU{of} passed"),
     "eclink_modbus.cmd_to_ru.deadline": (NOTE, "deadline", "deadline of the command to RU{of} passed"),
     "eclink_modbus.cmd_from_ru.late_ack": (WARNING, "finding", "command from RU echoed by CAO late"),
@@ -133,8 +137,10 @@ EXPERTS = {
     # EC-Link over PROFINET
     "eclink_pnio.pci_stalled": (ERROR, "stall", "PCI"),
     "eclink_pnio.pco_stalled": (ERROR, "stall", "PCO"),
-    "eclink_pnio.cmd_from_ru.late": (WARNING, "failed", "command from RU{of} not echoed by CAO in time: the command failed"),
-    "eclink_pnio.cmd_to_ru.late": (WARNING, "failed", "command to RU{of} not echoed by CAI in time: the command failed"),
+    "eclink_pnio.cmd_from_ru.late": (WARNING, "failed",
+                                     "command from RU{of} not echoed by CAO in time: the command failed"),
+    "eclink_pnio.cmd_to_ru.late": (WARNING, "failed",
+                                   "command to RU{of} not echoed by CAI in time: the command failed"),
     "eclink_pnio.cmd_from_ru.deadline": (NOTE, "deadline", "deadline of the command from RU{of} passed"),
     "eclink_pnio.cmd_to_ru.deadline": (NOTE, "deadline", "deadline of the command to RU{of} passed"),
     "eclink_pnio.cmd_from_ru.late_ack": (WARNING, "finding", "command from RU echoed by CAO late"),
