@@ -410,3 +410,44 @@ def test_html_device_table_has_the_last_state(vrshark_report, tmp_path):
             "<td>status normal mode, slot 1 terminal 1 present, slot 2 terminal 5 active stop, "
             "slot 3 terminal 3 present, slot 4 not used</td>") in html
     assert "<td>BU state Armed, RU state Enabled (RU 0xbeef)</td><td>as first</td>" in html
+
+
+# --- candidates through the command (plugins that give the candidate notes) ----------------
+
+EXCERPT = "captures/eclink_modbus_excerpt.pcap"
+
+
+@pytest.fixture(scope="module")
+def with_candidates(tshark):
+    fields = tshark.run(["-G", "fields"], allow_errors=True).stdout
+    if "\teclink_modbus.candidate\t" not in fields or not (ROOT / EXCERPT).is_file():
+        pytest.skip("the plugin gives no eclink_modbus.candidate note (or %s is missing)" % EXCERPT)
+
+
+def test_candidate_listed_with_its_setting(vrshark_report, with_candidates):
+    """A BU's excerpt too short for its evidence: a candidate, a warning naming the setting."""
+    proc = vrshark_report("--json", "--fail-on", "warn", EXCERPT)
+    assert proc.returncode == 1, proc.stderr
+    cap = json.loads(proc.stdout)["captures"][0]
+    assert [(d["kind"], d["name"], d["layout"]) for d in cap["devices"]] == [
+        ("candidate", "Modbus/TCP server 192.168.2.41:502, not decoded",
+         "not recognised; to decode it: -o eclink_modbus.servers:192.168.2.41")]
+    assert [(e["severity"], e["field"], e["text"]) for e in cap["timeline"]] == [
+        ("warning", "eclink_modbus.candidate", "Modbus/TCP server 192.168.2.41:502 looks like an EC-Link BU "
+         "but was not recognised; to decode it: -o eclink_modbus.servers:192.168.2.41")]
+    # the setting it names decodes it: a BU, no candidate
+    proc = vrshark_report("--json", "--fail-on", "warn", "-o", "eclink_modbus.servers:192.168.2.41", EXCERPT)
+    cap = json.loads(proc.stdout)["captures"][0]
+    assert [(d["kind"], d["name"], d["layout"]) for d in cap["devices"]] == [
+        ("eclink_modbus", "EC-Link BU, Modbus/TCP server 192.168.2.41:502", "listed in eclink_modbus.servers")]
+    assert [e for e in cap["timeline"] if e["field"] == "eclink_modbus.candidate"] == []
+
+
+def test_bu_recognised_later_is_no_candidate(vrshark_report, with_candidates):
+    """In one pass every BU's first frames carry the note: none of the BUs is a candidate."""
+    names = sorted(str(p.relative_to(ROOT)) for p in CAPTURES.glob("*eclink_modbus*.pcap")
+                   if p.name != "eclink_modbus_excerpt.pcap")
+    proc = vrshark_report("--json", *names)
+    kinds = {c["capture"]: sorted({d["kind"] for d in c["devices"]}) for c in json.loads(proc.stdout)["captures"]}
+    assert [n for n, k in kinds.items() if "candidate" in k] == []
+    assert sum(k == ["eclink_modbus"] for k in kinds.values()) >= 6
