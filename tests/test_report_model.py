@@ -398,6 +398,21 @@ def test_generated_capture_controller_first(vrshark_report, tmp_path):
     assert len(list(ET.parse(junit).getroot().iter("testcase"))) == 1
 
 
+def test_docs_gate_example_is_the_output(vrshark_report, tshark):
+    """docs/report.md's gate line is what the command says on the fault captures
+    (its count with the EC-Link failed commands as warnings, as one pass gives
+    them; a plugin that gives them only on the second pass lists their notes)."""
+    line = next(ln.strip() for ln in (ROOT / "docs" / "report.md").read_text().splitlines()
+                if ln.startswith("    vrshark-report: FAIL (--fail-on warn)"))
+    captures = sorted(str(p.relative_to(ROOT)) for p in CAPTURES.glob("*faults*.pcap"))
+    proc = vrshark_report(*captures, "--fail-on", "warn")
+    assert proc.returncode == 1
+    warnings = len(tshark.field(CAPTURES / "eclink_modbus_faults.pcap", "frame.number", display_filter=(
+        "eclink_modbus.cmd_from_ru.late || eclink_modbus.cmd_to_ru.late") + " && frame.number == 28"))
+    count = int(line.split("): ")[1].split(" ")[0])
+    assert proc.stderr == line.replace(" %d finding" % count, " %d finding" % (count - 2 + 2 * warnings)) + "\n"
+
+
 def test_html_device_table_has_the_last_state(vrshark_report, tmp_path):
     pytest.importorskip("plotly", reason="plotly is not installed (tools/setup installs it)")
     page = tmp_path / "r.html"
