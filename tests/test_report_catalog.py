@@ -1,11 +1,17 @@
-"""The report's expert catalog (tools/report/catalog.py) against the plugins:
-every name is registered, every expert field of our protocols is either in it
-or known to be chat-level, and its severities are those the dissectors raise."""
+"""The report's expert catalog (tools/report/catalog.py) against the plugins
+and the one source of severities, README "How findings read": every name is
+registered, every expert field of our protocols is either in it or known to
+be chat-level, its severities are the README table's and those the
+dissectors raise (except the documented promotion of candidates), and
+docs/report.md says the same (its severities table is the catalog's, its
+kinds and its text example are what the report gives)."""
+import re
 import sys
 
 import pytest
 
 from conftest import CAPTURES, ROOT
+from test_findings_table import PROTOCOLS as TABLE_PROTOCOLS, ROWS
 
 sys.path.insert(0, str(ROOT / "tools"))
 from report import catalog  # noqa: E402
@@ -20,22 +26,10 @@ NOT_FINDINGS = {
     "eclink_modbus.cmd_to_ru.ack", "eclink_modbus.periodic.reassembled",
     "eclink_pnio.cmd_from_ru", "eclink_pnio.cmd_from_ru.ack", "eclink_pnio.cmd_to_ru",
     "eclink_pnio.cmd_to_ru.ack", "eclink_pnio.layout.learned", "mcmb2.layout.learned",
-    # on the command's own frame, second pass only: the report (one pass) reads
-    # the deadline notes that stand for them (COMMAND_FAILED)
-    "eglink.analysis.vrci_unacked", "eglink.analysis.vrco_unacked",
-    "eclink_modbus.cmd_from_ru.late", "eclink_modbus.cmd_to_ru.late",
-    "eclink_pnio.cmd_from_ru.late", "eclink_pnio.cmd_to_ru.late",
 }
-# The note at a command's deadline stands in the report for the command's
-# failure: the report rates it as the dissector rates the command's warning.
-COMMAND_FAILED = {
-    "eglink.analysis.vrci_deadline": "eglink.analysis.vrci_unacked",
-    "eglink.analysis.vrco_deadline": "eglink.analysis.vrco_unacked",
-    "eclink_modbus.cmd_from_ru.deadline": "eclink_modbus.cmd_from_ru.late",
-    "eclink_modbus.cmd_to_ru.deadline": "eclink_modbus.cmd_to_ru.late",
-    "eclink_pnio.cmd_from_ru.deadline": "eclink_pnio.cmd_from_ru.late",
-    "eclink_pnio.cmd_to_ru.deadline": "eclink_pnio.cmd_to_ru.late",
-}
+# Candidate notes come with plugins newer than some installs: the report asks
+# for them only when the tshark knows them.
+OPTIONAL = set(catalog.CANDIDATE_SETTINGS)
 SEVERITY = {0x00200000: "chat", 0x00400000: catalog.NOTE, 0x00600000: catalog.WARNING,
             0x00800000: catalog.ERROR}
 
@@ -52,7 +46,7 @@ def registered(tshark):
 
 
 def test_names_registered(registered):
-    assert [n for n in catalog.EXPERTS if registered.get(n) != "FT_NONE"] == []
+    assert [n for n in catalog.EXPERTS if registered.get(n) != "FT_NONE" and n not in OPTIONAL] == []
 
 
 def test_every_expert_field_known(registered):
@@ -62,10 +56,15 @@ def test_every_expert_field_known(registered):
     assert new == []
 
 
-def test_severities_match_the_dissectors(tshark):
+def dissector_severity(name):
+    """The severity the dissector gives: the catalog's, but for a promoted finding."""
+    return catalog.PROMOTED.get(name, catalog.EXPERTS[name][0])
+
+
+def test_severities_match_the_dissectors(tshark, registered):
     """On frames with exactly one expert info, that one's severity is the catalog's
-    (for a deadline note: the one of the command's warning it stands for)."""
-    names = sorted(set(catalog.EXPERTS) - set(COMMAND_FAILED)) + sorted(COMMAND_FAILED.values())
+    (for a promoted candidate: the dissector's note)."""
+    names = sorted(n for n in catalog.EXPERTS if n in registered)
     seen = {}
     for cap in sorted(CAPTURES.glob("*.pcap")):
         for row in tshark.fields(cap, ["_ws.expert.severity"] + names, two_pass=True):
@@ -73,8 +72,90 @@ def test_severities_match_the_dissectors(tshark):
             present = [n for n, flag in zip(names, row[1:]) if flag]
             if len(severities) == 1 and len(present) == 1:
                 seen.setdefault(present[0], set()).add(SEVERITY[int(severities[0])])
-    rated = dict((n, catalog.EXPERTS[n][0]) for n in catalog.EXPERTS)
-    rated.update((warning, catalog.EXPERTS[note][0]) for note, warning in COMMAND_FAILED.items())
-    wrong = {n: s for n, s in seen.items() if s != {rated[n]}}
+    wrong = {n: s for n, s in seen.items() if s != {dissector_severity(n)}}
     assert wrong == {}
     assert len(seen) >= 40  # most of the catalog is checked by the captures
+
+
+# --- README "How findings read", the one source ------------------------------------
+
+def readme_severities():
+    """{expert field: severity} of the README findings table."""
+    return {name: row["severity"] for row in ROWS for proto in TABLE_PROTOCOLS
+            for name in row["fields"][proto]}
+
+
+def test_catalog_is_the_readme_table():
+    """Every catalog entry the README table names has the table's severity; the
+    only exception is the promotion of a candidate (a note in the dissector, a
+    warning in the report), which must itself be the table's severity."""
+    table = readme_severities()
+    checked = {n: (catalog.EXPERTS[n][0], table[n]) for n in catalog.EXPERTS if n in table}
+    assert {n: s for n, s in checked.items() if s[1] != dissector_severity(n)} == {}
+    assert len(checked) >= 40
+    # the entries whose severity the table fixed in issue 29
+    assert {n: catalog.EXPERTS[n][0] for n in (
+        "eglink.analysis.vrpi_gap", "eglink.analysis.vrpo_missing", "eclink_modbus.pci_stalled",
+        "eclink_pnio.pco_stalled", "eglink.analysis.vrci_unacked", "eglink.analysis.vrci_deadline",
+        "eclink_modbus.cmd_from_ru.late", "eclink_modbus.cmd_from_ru.deadline")} == {
+        "eglink.analysis.vrpi_gap": "error", "eglink.analysis.vrpo_missing": "error",
+        "eclink_modbus.pci_stalled": "error", "eclink_pnio.pco_stalled": "error",
+        "eglink.analysis.vrci_unacked": "warning", "eglink.analysis.vrci_deadline": "note",
+        "eclink_modbus.cmd_from_ru.late": "warning", "eclink_modbus.cmd_from_ru.deadline": "note"}
+
+
+def test_promotion_is_only_the_candidates():
+    assert set(catalog.PROMOTED) == {"eclink_modbus.candidate", "mcmb2.candidate"}
+    for name, severity in catalog.PROMOTED.items():
+        assert (catalog.EXPERTS[name][0], severity) == ("warning", "note")
+        assert name in catalog.CANDIDATE_SETTINGS
+
+
+def test_readme_table_against_a_wrong_catalog(monkeypatch):
+    """The check above fails on a catalog that drifts from the table."""
+    monkeypatch.setitem(catalog.EXPERTS, "eglink.analysis.vrpo_gap", ("warning", "gap", "VRPO"))
+    table = readme_severities()
+    assert table["eglink.analysis.vrpo_gap"] != dissector_severity("eglink.analysis.vrpo_gap")
+
+
+# --- docs/report.md --------------------------------------------------------------------
+
+DOCS = ROOT / "docs" / "report.md"
+
+
+def docs_section(begin, end="<!-- END"):
+    text = DOCS.read_text()
+    start = text.index(begin)
+    start = text.index("\n", start) + 1
+    return text[start:text.index(end, start)]
+
+
+def test_docs_severities_are_the_catalog():
+    """docs/report.md's severities table is generated from the catalog
+    (python3 tools/report/catalog.py prints it)."""
+    assert docs_section("<!-- BEGIN severities") == catalog.markdown()
+
+
+def kinds_table():
+    """{kind: severity cell} of docs/report.md's timeline kinds table."""
+    text = DOCS.read_text()
+    section = text[text.index("## Safety timeline"):]
+    out = {}
+    for line in section.splitlines()[1:]:
+        if line.startswith("## "):
+            break
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        if line.startswith("| `") and len(cells) == 4:
+            out[cells[0].strip("`")] = cells[2]
+    return out
+
+
+def test_docs_kinds_have_the_catalog_severities():
+    """Each kind's severity in the docs is that of the catalog entries of its role."""
+    kinds = kinds_table()
+    assert set(kinds) == {"state", "relays", "stall", "gap", "poll_gap", "finding"}
+    for kind in ("relays", "stall", "gap", "poll_gap"):
+        severities = {s for s, role, _ in catalog.EXPERTS.values() if role == kind}
+        assert set(re.findall(r"\b(note|warning|error)\b", kinds[kind])) == severities, kind
+    assert kinds["state"] == "note"
+

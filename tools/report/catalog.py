@@ -2,8 +2,7 @@
 
 tshark -T fields prints an expert field (FT_NONE) as 1 on the frames that
 carry it, so the report asks for each one by name and never reads message
-texts. The severities are those the dissectors give (README's expert tables;
-tests/test_report_catalog.py checks them against the captures).
+texts; details.py adds the value a finding names from the value fields.
 
 Roles:
   finding   listed in the timeline; bursts of it collapse into one line
@@ -14,8 +13,20 @@ Roles:
   gap       EG-Link VRPI/VRPO missing or late: the model measures the gap
   poll_gap  a controller that stopped reading: the model measures the gap
             between the frames itself (not read from the expert)
+  failed    a command not acknowledged in time: one entry per command, never
+            a burst; {of} in its text is " of frame N", the command's frame
+  deadline  the note that a command's deadline passed: listed only when its
+            command's failure is not (one entry per failed command)
+  candidate traffic that looks like a device's but was not decoded: the
+            model lists the candidate with the setting that decodes it
 Chat-level experts (acknowledged commands, layouts learned, partial access)
 are not asked for: they are no findings.
+
+The severities are the dissectors' (README "How findings read" is their
+one source; tests/test_report_catalog.py checks this list against it and
+against the captures, and docs/report.md against this list), except
+PROMOTED: a candidate the dissector notes is a warning in the report, so
+that `--fail-on warn` catches traffic vrshark could not decode.
 """
 
 NOTE, WARNING, ERROR = "note", "warning", "error"
@@ -48,9 +59,10 @@ EXPERTS = {
     "eglink.joystick.range": (ERROR, "finding", "joystick outside -1000..1000"),
     "eglink.armed_ru.unarmed_data": (ERROR, "finding", "RU fields not 0 while no RU is armed"),
     # EG-Link conversation analysis. The report reads one pass: a command
-    # that failed shows at the packet that saw its deadline pass (the note
-    # naming it), the moment the BU gives up, not on the command's own frame
-    # (a forward finding, second pass only).
+    # that failed shows at the packet that saw its deadline pass (the
+    # warning naming it), the moment the BU gives up; an older plugin gives
+    # there only the deadline note (the warning sits on the command, second
+    # pass only).
     "eglink.analysis.serial_gap": (WARNING, "finding", "packets lost"),
     "eglink.analysis.serial_repeat": (WARNING, "finding", "repeated packet"),
     "eglink.analysis.serial_restart": (NOTE, "finding", "sender restarted (serial jumped back)"),
@@ -59,8 +71,12 @@ EXPERTS = {
     "eglink.analysis.vrpo_missing": (ERROR, "gap", "VRPO"),
     "eglink.analysis.vrpo_gap": (ERROR, "gap", "VRPO"),
     "eglink.analysis.retransmission": (NOTE, "finding", "command retransmitted"),
-    "eglink.analysis.vrci_deadline": (WARNING, "finding", "VRCI not acknowledged in time: the command failed"),
-    "eglink.analysis.vrco_deadline": (WARNING, "finding", "VRCO not acknowledged in time"),
+    "eglink.analysis.vrci_unacked": (WARNING, "failed",
+                                     "VRCI{of} not acknowledged in time: the command failed"),
+    "eglink.analysis.vrco_unacked": (WARNING, "failed",
+                                     "VRCO{of} not acknowledged in time: the command failed"),
+    "eglink.analysis.vrci_deadline": (NOTE, "deadline", "deadline of the VRCI{of} passed"),
+    "eglink.analysis.vrco_deadline": (NOTE, "deadline", "deadline of the VRCO{of} passed"),
     "eglink.analysis.late_ack": (WARNING, "finding", "late acknowledgement"),
     "eglink.analysis.bu_state_changed": (NOTE, "state", "BU state changed"),
     "eglink.analysis.origin_changed": (WARNING, "finding", "another origin at the same BU address"),
@@ -84,6 +100,8 @@ EXPERTS = {
     "mcmb2.short": (ERROR, "finding", "C-SDU shorter than the layout"),
     "mcmb2.layout.inferred": (NOTE, "finding", "layout inferred from the cyclic frames (no Connect)"),
     "mcmb2.layout.ambiguous": (NOTE, "finding", "more than one layout fits the cyclic frames"),
+    "mcmb2.candidate": (WARNING, "candidate",
+                        "look like an MC-MB2-PN or EC-Link device but were not recognised"),
     # EC-Link images (both transports)
     "eclink.relays_open": (WARNING, "relays", "ES-Link relays open"),
     "eclink.ru_stopped": (WARNING, "relays", "RU stopped"),
@@ -103,19 +121,28 @@ EXPERTS = {
     # EC-Link over Modbus/TCP
     "eclink_modbus.pci_stalled": (ERROR, "stall", "PCI"),
     "eclink_modbus.pco_stalled": (ERROR, "stall", "PCO"),
-    "eclink_modbus.cmd_from_ru.deadline": (WARNING, "finding", "command from RU not echoed by CAO in time"),
-    "eclink_modbus.cmd_to_ru.deadline": (WARNING, "finding", "command to RU not echoed by CAI in time"),
+    "eclink_modbus.cmd_from_ru.late": (WARNING, "failed",
+                                       "command from RU{of} not echoed by CAO in time: the command failed"),
+    "eclink_modbus.cmd_to_ru.late": (WARNING, "failed",
+                                     "command to RU{of} not echoed by CAI in time: the command failed"),
+    "eclink_modbus.cmd_from_ru.deadline": (NOTE, "deadline", "deadline of the command from RU{of} passed"),
+    "eclink_modbus.cmd_to_ru.deadline": (NOTE, "deadline", "deadline of the command to RU{of} passed"),
     "eclink_modbus.cmd_from_ru.late_ack": (WARNING, "finding", "command from RU echoed by CAO late"),
     "eclink_modbus.cmd_to_ru.late_ack": (WARNING, "finding", "command to RU echoed by CAI late"),
     "eclink_modbus.bu_state_change": (NOTE, "state", "BU state changed"),
     "eclink_modbus.no_request": (NOTE, "finding", "response without its request"),
     "eclink_modbus.poll_gap": (WARNING, "poll_gap", "input image not read"),
     "eclink_modbus.dropped": (NOTE, "finding", "images no longer valid: not taken for a BU any more"),
+    "eclink_modbus.candidate": (WARNING, "candidate", "looks like an EC-Link BU but was not recognised"),
     # EC-Link over PROFINET
     "eclink_pnio.pci_stalled": (ERROR, "stall", "PCI"),
     "eclink_pnio.pco_stalled": (ERROR, "stall", "PCO"),
-    "eclink_pnio.cmd_from_ru.deadline": (WARNING, "finding", "command from RU not echoed by CAO in time"),
-    "eclink_pnio.cmd_to_ru.deadline": (WARNING, "finding", "command to RU not echoed by CAI in time"),
+    "eclink_pnio.cmd_from_ru.late": (WARNING, "failed",
+                                     "command from RU{of} not echoed by CAO in time: the command failed"),
+    "eclink_pnio.cmd_to_ru.late": (WARNING, "failed",
+                                   "command to RU{of} not echoed by CAI in time: the command failed"),
+    "eclink_pnio.cmd_from_ru.deadline": (NOTE, "deadline", "deadline of the command from RU{of} passed"),
+    "eclink_pnio.cmd_to_ru.deadline": (NOTE, "deadline", "deadline of the command to RU{of} passed"),
     "eclink_pnio.cmd_from_ru.late_ack": (WARNING, "finding", "command from RU echoed by CAO late"),
     "eclink_pnio.cmd_to_ru.late_ack": (WARNING, "finding", "command to RU echoed by CAI late"),
     "eclink_pnio.bu_state_change": (NOTE, "state", "BU state changed"),
@@ -124,6 +151,44 @@ EXPERTS = {
     "eclink_pnio.layout.inferred": (NOTE, "finding", "layout inferred from the cyclic frames (no Connect)"),
 }
 
+# The dissector's severity of the findings the report rates higher (see above).
+PROMOTED = {"eclink_modbus.candidate": NOTE, "mcmb2.candidate": NOTE}
+# The string field beside each candidate note: the setting that decodes it.
+CANDIDATE_SETTINGS = {"eclink_modbus.candidate": "eclink_modbus.candidate_setting",
+                      "mcmb2.candidate": "mcmb2.candidate_setting"}
+
 
 def severity_at_least(severity, threshold):
     return LEVELS[severity] >= LEVELS[threshold]
+
+
+def label(name):
+    """How a catalog entry reads in the timeline, without the parts it fills in."""
+    severity, role, what = EXPERTS[name]
+    what = what.format(of="")
+    if role == "stall":
+        return "%s stalled" % what
+    if role == "gap":
+        return "no %s (gap)" % what
+    if role == "candidate":
+        return "candidate that %s, with the setting that decodes it" % what
+    return what
+
+
+def markdown():
+    """The severities table of docs/report.md (tests/test_report_catalog.py
+    checks that the docs carry exactly this): a row per finding, errors first."""
+    rows = {}
+    for name, (severity, role, _) in EXPERTS.items():
+        if role != "state":
+            rows.setdefault((severity, label(name)), []).append(name)
+    lines = ["| severity | finding | expert fields |", "|---|---|---|"]
+    for severity in (ERROR, WARNING, NOTE):
+        for (sev, text), names in rows.items():
+            if sev == severity:
+                lines.append("| %s | %s | %s |" % (severity, text, ", ".join("`%s`" % n for n in names)))
+    return "\n".join(lines) + "\n"
+
+
+if __name__ == "__main__":
+    print(markdown(), end="")

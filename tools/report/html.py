@@ -51,6 +51,17 @@ def ordinal(values, labels):
     return pos, list(range(len(order))), text
 
 
+def states(values):
+    return ", ".join("%s %s" % kv for kv in values.items())
+
+
+def last_states(dev):
+    """The states at the end, as the text's "last:" line gives them."""
+    if dev["final"] == dev["initial"]:
+        return "as first" if dev["final"] else ""
+    return states(dev["final"])
+
+
 def plot_rows(dev, timeline):
     """The figure's rows: (title, kind, traces), top to bottom."""
     rows, states = [], {}
@@ -140,16 +151,15 @@ def capture_section(index, rep, plotted=lambda: None):
         out.append("<p>No EG-Link, EC-Link or MC-MB2-PN traffic found.</p>")
         return "\n".join(out)
     out.append("<table><tr><th>#</th><th>device</th><th>frames</th><th>time</th>"
-               "<th>layout</th><th>first state</th><th>terminals</th></tr>")
+               "<th>layout</th><th>first state</th><th>last state</th><th>terminals</th></tr>")
     for d in rep["devices"]:
         terms = ", ".join("%d (frames %d-%d)" % (t["terminal"], t["first_frame"], t["last_frame"])
                           for t in d.get("terminals", []))
         out.append("<tr><td>%d</td><td>%s</td><td class=num>%d (%d-%d)</td>"
-                   "<td class=num>%.3f-%.3f s</td><td>%s</td><td>%s</td><td>%s</td></tr>" % (
+                   "<td class=num>%.3f-%.3f s</td><td>%s</td><td>%s</td><td>%s</td><td>%s</td></tr>" % (
                        d["id"], H.escape(d["name"]), d["frames"], d["first_frame"], d["last_frame"],
                        d["start"], d["end"], H.escape(d["layout"] or ""),
-                       H.escape(", ".join("%s %s" % kv for kv in d["initial"].items())),
-                       H.escape(terms)))
+                       H.escape(states(d["initial"])), H.escape(last_states(d)), H.escape(terms)))
     out.append("</table>")
     for d in rep["devices"]:
         timeline = [e for e in rep["timeline"] if e["device"] == d["id"]]

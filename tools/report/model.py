@@ -9,6 +9,7 @@ import datetime
 
 from . import catalog
 from .catalog import ERROR, NOTE, WARNING
+from .details import DETAILS
 from .rows import COL, EXPERT_FIELDS
 
 BU_STATES = {0x00: "Initial", 0x01: "Stopped", 0x02: "External link error", 0x03: "Blocked",
@@ -27,6 +28,11 @@ DEFAULT_LIMITS = {
     "eglink.vrpi_gap_ms": 0.5, "eglink.vrpo_gap_ms": 2.0,
     "mcmb2.uplink_timeout": 1.0, "mcmb2.downlink_timeout": 2.0,
     "eclink.pci": 0.5, "eclink.pco": 2.0,
+    # not a limit: the EG-Link input ports (each + 2 is an output port), to
+    # tell a device found on its ports from one found by the heuristic
+    "eglink.input_port": "5825",
+    # nor this: the Modbus/TCP servers decoded as BUs without evidence
+    "eclink_modbus.servers": "",
 }
 
 EXPERT_START = len(COL) - len(EXPERT_FIELDS)
@@ -37,6 +43,18 @@ EG_BU, EG_RU, EG_ARMED = C["eglink_bu_state"], C["eglink_ru_state"], C["eglink_a
 EG_JOYSTICKS = [(i, C["eglink_joystick%d" % i]) for i in range(1, 5)]
 EG_INTERVALS = [("VRPI", C["eglink_analysis_time_since_prev_vrpi"], "eglink.vrpi_gap_ms"),
                 ("VRPO", C["eglink_analysis_time_since_prev_vrpo"], "eglink.vrpo_gap_ms")]
+EG_DPORT = C["udp_dstport"]
+MODBUS_CANDIDATE, PNIO_CANDIDATE = C["eclink_modbus_candidate_setting"], C["mcmb2_candidate_setting"]
+# A failed command (its warning, or the note that its deadline passed): the
+# field that links to the command's frame.
+FAILED_LINKS = {
+    "eglink.analysis.vrci": "eglink.analysis.failed_command",
+    "eglink.analysis.vrco": "eglink.analysis.failed_command",
+    "eclink_modbus.cmd_from_ru": "eclink_modbus.cmd_from_ru_in",
+    "eclink_modbus.cmd_to_ru": "eclink_modbus.cmd_to_ru_in",
+    "eclink_pnio.cmd_from_ru": "eclink_pnio.cmd_from_ru_in",
+    "eclink_pnio.cmd_to_ru": "eclink_pnio.cmd_to_ru_in",
+}
 
 
 def limits_from_prefs(prefs):
@@ -44,7 +62,9 @@ def limits_from_prefs(prefs):
     limits = dict(DEFAULT_LIMITS)
     for pref in prefs:
         name, _, value = pref.partition(":")
-        if name in limits:
+        if name in ("eglink.input_port", "eclink_modbus.servers"):
+            limits[name] = value
+        elif name in limits:
             try:
                 limits[name] = float(value) / 1000.0
             except ValueError:
@@ -61,6 +81,28 @@ def num(text):
 
 def last(text):
     return text.rsplit(",", 1)[-1]
+
+
+def port_range(text):
+    """The ports of a Wireshark range preference ("5825,6000-6010")."""
+    ports = set()
+    for part in text.split(","):
+        low, _, high = part.strip().partition("-")
+        try:
+            ports.update(range(int(low), int(high or low) + 1))
+        except ValueError:
+            pass
+    return ports
+
+
+def is_multicast(address):
+    first = address.split(".", 1)[0]
+    return first.isdigit() and 224 <= int(first) <= 239
+
+
+def command_of(field):
+    """The command a failed-command field speaks of, as in FAILED_LINKS."""
+    return field.rsplit("_", 1)[0] if field.startswith("eglink") else field.rsplit(".", 1)[0]
 
 
 def fmt_s(seconds):
@@ -174,7 +216,7 @@ class Entry:
     finding (a burst of the same finding counts its occurrences)."""
     __slots__ = ("time", "frame", "device", "severity", "kind", "field", "what", "detail",
                  "count", "last_frame", "last_time", "duration", "end_frame", "end_time", "at_least",
-                 "lost", "since")
+                 "lost", "since", "values")
 
     def __init__(self, device, frame, t, severity, kind, what, field=None, detail=""):
         self.device, self.frame, self.time = device, frame, t
@@ -185,6 +227,7 @@ class Entry:
         self.at_least = False
         self.lost = 0
         self.since = t   # when the condition began (a stall or gap: before it was flagged)
+        self.values = []  # a finding: the distinct values it named (details.py)
 
     def close(self, frame, t, duration=None):
         self.end_frame, self.end_time = frame, t
@@ -194,6 +237,10 @@ class Entry:
         what = self.what
         if self.lost:
             what = "%d packet%s lost" % (self.lost, "" if self.lost == 1 else "s")
+        if self.values:
+            what += self.values[0]
+            if len(self.values) > 1:
+                what += " and %d other value%s" % (len(self.values) - 1, "" if len(self.values) == 2 else "s")
         if self.duration is not None:
             length = fmt_s(self.duration) + (" or more" if self.at_least else "")
             what += (" (after %s)" if self.kind == "state" else " for %s") % length
@@ -238,6 +285,8 @@ class Device:
         self.series = {}
         self.terminals = {}   # MC-MB2: number: [first_frame, last_frame, first_t, last_t, frames, slots]
         self.raw_state = None   # EG-Link: the last VRPI's state columns
+        self.stream = None      # EG-Link: the analysis stream of the BU, once known
+        self.ports = set()      # EG-Link: the UDP destination ports of its packets
 
     def plot(self, name, group, t, v, limit=None, labels=None):
         s = self.series.get(name)
@@ -274,7 +323,11 @@ class Capture:
         self.last_frame = 0
         self.devices = {}
         self.entries = []
-        self._eglink_groups = {}
+        self._ids = 0
+        self._eglink_channels = {}  # EG-Link channel: its first BU (see _eglink_device)
+        self._failed = {}           # (device, command field, command frame): its entry
+        self.candidates = {}        # connection or PROFINET run: what its candidate notes say
+        self._pnio_decoded = {}     # PROFINET run (pair of MAC addresses): last frame decoded
 
     # --- rows ---------------------------------------------------------------
 
@@ -297,11 +350,18 @@ class Capture:
             self._eclink_pnio(c, frame, t)
         elif c[C["eclink_modbus_table"]] or c[C["eclink_image"]]:
             self._eclink_modbus(c, frame, t)
+        if c[MODBUS_CANDIDATE] or c[PNIO_CANDIDATE]:
+            self._candidate(c, frame, t)
+
+    def _new_device(self, key, kind, frame, t):
+        self._ids += 1
+        dev = self.devices[key] = Device(self._ids, kind, frame, t)
+        return dev
 
     def _device(self, key, kind, frame, t):
         dev = self.devices.get(key)
         if dev is None:
-            dev = self.devices[key] = Device(len(self.devices) + 1, kind, frame, t)
+            dev = self._new_device(key, kind, frame, t)
         dev.frames += 1
         dev.last_frame, dev.last_time = frame, t
         return dev
@@ -312,6 +372,7 @@ class Capture:
         dev = self.devices.get(stream) if stream else None
         if dev is None:
             dev = self._eglink_device(c, typ, stream, frame, t)
+        dev.ports.add(c[EG_DPORT])
         dev.frames += 1
         dev.last_frame, dev.last_time = frame, t
         good = c[EG_CRC] != "0"
@@ -330,42 +391,88 @@ class Capture:
         if good and (typ == "VRPI" or typ == "VRPO"):
             dev.last_seen[typ] = (frame, t)
         if "bu" not in dev.address and typ.endswith("I"):  # the BU's own packets
-            dev.address["bu"] = c[C["ip_src"]]
+            dev.address.update(bu=c[C["ip_src"]], group=c[C["ip_dst"]], port=int(c[EG_DPORT] or 0))
+        elif "controller" not in dev.address and typ.endswith("O"):
+            dev.address["controller"] = c[C["ip_src"]]
         if "origin" not in dev.address:  # the BU's, or as the analysis learned it
             origin = c[C["eglink_origin"]] if typ.endswith("I") else c[C["eglink_analysis_bu_origin"]]
             if origin and num(origin):
                 dev.address["origin"] = "0x%04x" % num(origin)
 
     def _eglink_device(self, c, typ, stream, frame, t):
-        """A BU by its analysis stream (group or address pair and input port)."""
-        port = int(c[C["udp_dstport"]] or 0)
-        port = port if typ.endswith("I") else port - 2
-        group = (c[C["ip_dst"]], port)
-        key = stream or self._eglink_groups.get(group, group)
-        self._eglink_groups.setdefault(group, key)
-        dev = self.devices.get(key)
-        if dev is None:
-            dev = self._device(key, "eglink", frame, t)
-            dev.frames -= 1
-            dev.address = {"group": group[0], "port": port}
-            dev.layout = "TS-0006, UDP port %d" % port
+        """The BU a packet belongs to: by its analysis stream (the BU's origin
+        and address on its channel). A packet without one, a controller's
+        before the analysis joined it to its BU (in one pass every packet
+        before the BU's first VRPI), goes to the first BU of its channel
+        (multicast group, or the address pair, and input port); the first
+        stream seen on a channel takes over the packets that came before it."""
+        port = int(c[EG_DPORT] or 0)
+        dst, src = c[C["ip_dst"]], c[C["ip_src"]]
+        channel = (dst if is_multicast(dst) else frozenset((src, dst)),
+                   port if typ.endswith("I") else port - 2)
+        dev = self._eglink_channels.get(channel)
+        if dev is None or (stream and dev.stream is not None):
+            dev = self._new_device(stream or ("eglink", channel), "eglink", frame, t)
+            dev.address = {"group": dst, "port": port}
+            self._eglink_channels.setdefault(channel, dev)
         if stream:
+            dev.stream = stream
             self.devices[stream] = dev
         return dev
 
-    def _eclink_modbus(self, c, frame, t):
+    def _eglink_layout(self, dev):
+        """Which ports it was seen on, and how: on the input ports of the
+        preference (or 2 above), or found by the heuristic on other ports."""
+        inputs = port_range(self.limits.get("eglink.input_port", "5825"))
+        ports = sorted(int(p) for p in dev.ports if p)
+        how = ["by port" if p in inputs or p - 2 in inputs else "heuristic" for p in ports]
+        dev.address["ports"] = ports
+        if len(set(how)) == 1:
+            listed = ", ".join(map(str, ports)) + ": " + how[0]
+        else:
+            listed = ", ".join("%d (%s)" % ph for ph in zip(ports, how))
+        return "TS-0006 on UDP port%s %s" % ("s" if len(ports) > 1 else "", listed)
+
+    def _modbus_server(self, c):
         sport, dport = int(c[C["tcp_srcport"]] or 0), int(c[C["tcp_dstport"]] or 0)
         if c[C["eclink_modbus_request_in"]] or (sport and sport < dport):
-            server = (c[C["ip_src"]], sport)
+            return c[C["ip_src"]], sport
+        return c[C["ip_dst"]], dport
+
+    def _candidate(self, c, frame, t):
+        """A frame the dissector says looks like a device's it did not decode."""
+        if c[MODBUS_CANDIDATE]:
+            server = self._modbus_server(c)
+            key, setting = ("eclink_modbus",) + server, c[MODBUS_CANDIDATE]
         else:
-            server = (c[C["ip_dst"]], dport)
+            macs = (c[C["eth_src"]], c[C["eth_dst"]])
+            key, setting = ("pnio", frozenset(macs)), c[PNIO_CANDIDATE]
+        rec = self.candidates.get(key)
+        if rec is None:
+            rec = self.candidates[key] = {"first_frame": frame, "start": t, "frames": 0,
+                                          "frame_ids": set()}
+            if key[0] == "pnio":
+                rec["macs"] = macs
+        rec.update(last_frame=frame, end=t, setting=setting)  # (a layouts entry has commas)
+        rec["frames"] += 1
+        if c[C["pn_rt_frame_id"]]:
+            rec["frame_ids"].add(num(c[C["pn_rt_frame_id"]]))
+
+    def _pnio_run(self, c, frame):
+        self._pnio_decoded[frozenset((c[C["eth_src"]], c[C["eth_dst"]]))] = frame
+
+    def _eclink_modbus(self, c, frame, t):
+        server = self._modbus_server(c)
         dev = self._device(("eclink_modbus",) + server, "eclink_modbus", frame, t)
         if not dev.name:
             dev.name = "EC-Link BU, Modbus/TCP server %s:%d" % server
             dev.address = {"server": server[0], "port": server[1]}
         accepted = c[C["eclink_modbus_accepted_in"]]
         if not dev.layout and c[C["eclink_image"]]:
+            listed = self.limits.get("eclink_modbus.servers", "").replace(" ", "").split(",")
             dev.layout = ("heuristic, recognised in frame %s" % last(accepted) if accepted
+                          else "listed in eclink_modbus.servers"
+                          if server[0] in listed or "%s:%d" % server in listed
                           else "detection always")
         self._eclink_image(dev, c, frame, t, "eclink_modbus")
 
@@ -377,6 +484,7 @@ class Capture:
             dev.name = "EC-Link BU, PROFINET device %s" % mac
             dev.address = {"mac": mac}
             dev.layout = c[C["eclink_pnio_layout"]]
+        self._pnio_run(c, frame)
         self._eclink_image(dev, c, frame, t, "eclink_pnio")
 
     def _eclink_image(self, dev, c, frame, t, transport):
@@ -410,6 +518,7 @@ class Capture:
             dev.name = "MC-MB2-PN %s base %s" % (system, mac)
             dev.address = {"mac": mac, "system": system}
             dev.layout = c[C["mcmb2_layout"]]
+        self._pnio_run(c, frame)
         age = c[C["mcmb2_watchdog_age"]]
         if uplink:
             self._poll(dev, "uplink frame", frame, t, self.limits["mcmb2.uplink_timeout"])
@@ -534,6 +643,8 @@ class Capture:
                     self._stall(dev, frame, t, field, severity, what)
                 elif role == "gap":
                     self._gap(dev, c, frame, t, field, severity, what)
+                elif role == "failed" or role == "deadline":
+                    self._command_failed(dev, c, frame, t, field, severity, what)
 
     def _finding(self, dev, c, frame, t, field, severity, what):
         entry = dev.bursts.get(field)
@@ -541,16 +652,49 @@ class Capture:
             entry.count += 1
             entry.last_frame, entry.last_time = frame, t
         else:
-            if field.endswith(("vrci_deadline", "vrco_deadline")):
-                what = "%s of frame %s %s" % (what[:4], c[C["eglink_analysis_failed_command"]],
-                                              what[5:])
-            elif field.endswith("late_ack") and c[C["eglink_analysis_ack_time"]]:
-                what = "command %s acknowledged after %s (late)" % (
-                    c[C["eglink_command_id"]], fmt_s(float(c[C["eglink_analysis_ack_time"]])))
+            if field.endswith("late_ack"):
+                what = self._late_ack(c, field, what)
             entry = dev.bursts[field] = Entry(dev, frame, t, severity, "finding", what, field)
             self.entries.append(entry)
         if field.endswith("serial_gap"):
             entry.lost += int(c[C["eglink_analysis_lost"]] or 0)
+        detail = DETAILS.get(field)
+        value = detail(c) if detail else ""
+        if value and value not in entry.values:
+            entry.values.append(value)
+
+    @staticmethod
+    def _late_ack(c, field, what):
+        """An acknowledgement after the deadline: which command, how late."""
+        if field.startswith("eglink"):
+            if not c[C["eglink_analysis_ack_time"]]:
+                return what
+            return "command %s acknowledged after %s (late)" % (
+                c[C["eglink_command_id"]], fmt_s(float(c[C["eglink_analysis_ack_time"]])))
+        cmd = command_of(field[:-len("_ack")])
+        link = c[COL[FAILED_LINKS[cmd]]]
+        latency = c[COL[cmd + "_latency"]] if cmd + "_latency" in COL else ""
+        if link:
+            what = what.replace(" echoed", " of frame %s echoed" % last(link))
+        if latency:
+            what += " (after %s)" % fmt_s(float(last(latency)))
+        return what
+
+    def _command_failed(self, dev, c, frame, t, field, severity, what):
+        """A command not acknowledged in time: one entry per command. The
+        warning stands for it; the note that its deadline passed only when
+        the warning is not there (an older plugin's one pass)."""
+        cmd = command_of(field)
+        link = c[COL[FAILED_LINKS[cmd]]]
+        command = int(last(link)) if link else frame  # the warning on the command itself
+        key = (dev.id, cmd, command)
+        entry = self._failed.get(key)
+        text = what.format(of=" of frame %d" % command)
+        if entry is None:
+            entry = self._failed[key] = Entry(dev, frame, t, severity, "finding", text, field)
+            self.entries.append(entry)
+        elif catalog.LEVELS[severity] > catalog.LEVELS[entry.severity]:
+            entry.severity, entry.what, entry.field = severity, text, field
 
     def _stall(self, dev, frame, t, field, severity, counter):
         if counter in dev.open:
@@ -589,8 +733,41 @@ class Capture:
 
     # --- the end -------------------------------------------------------------------
 
+    def _candidates(self):
+        """The candidates to list: those whose connection or run was not
+        decoded after them (in one pass, a BU's first frames are candidates
+        until it is recognised). Each is a device of its own, with a warning."""
+        for key, rec in self.candidates.items():
+            if key[0] == "eclink_modbus":
+                dev = self.devices.get(key)
+                if dev is not None and dev.last_frame > rec["last_frame"]:
+                    continue
+                field = "eclink_modbus.candidate"
+                name = "Modbus/TCP server %s:%d" % key[1:]
+                address = {"server": key[1], "port": key[2]}
+                what = "%s looks like an EC-Link BU but was not recognised" % name
+            else:
+                if self._pnio_decoded.get(key[1], 0) > rec["last_frame"]:
+                    continue
+                field = "mcmb2.candidate"
+                ids = ", ".join("0x%04x" % i for i in sorted(rec["frame_ids"]))
+                name = "PROFINET IO %s to %s%s" % (rec["macs"] + ((" (FrameID %s)" % ids) if ids else "",))
+                address = {"macs": sorted(key[1]), "frame_ids": sorted(rec["frame_ids"])}
+                what = ("cyclic frames of %s look like an MC-MB2-PN or EC-Link device but were "
+                        "not recognised" % name)
+            dev = self._new_device(("candidate",) + key, "candidate", rec["first_frame"], rec["start"])
+            dev.name = name + ", not decoded"
+            dev.address = dict(address, setting=rec["setting"])
+            dev.layout = "not recognised; to decode it: -o " + rec["setting"]
+            dev.frames, dev.last_frame, dev.last_time = rec["frames"], rec["last_frame"], rec["end"]
+            entry = Entry(dev, rec["first_frame"], rec["start"], catalog.EXPERTS[field][0], "finding",
+                          "%s; to decode it: -o %s" % (what, rec["setting"]), field)
+            entry.last_frame, entry.last_time = rec["last_frame"], rec["end"]
+            self.entries.append(entry)
+
     def finish(self, error=None):
         """Close what is still open at the end; the report as a plain dict."""
+        self._candidates()
         devices = sorted({id(d): d for d in self.devices.values()}.values(), key=lambda d: d.id)
         for dev in devices:
             for entry in dev.open.values():
@@ -601,10 +778,10 @@ class Capture:
                     series.pending = dev.last_time
             if dev.kind == "eglink":
                 a = dev.address
-                dev.name = ("EG-Link BU %s (%s to %s:%d)" % (a["origin"], a.get("bu", "?"), a["group"],
-                                                             a["port"])
-                            if "origin" in a else
-                            "EG-Link BU, origin unknown (%s:%d)" % (a["group"], a["port"]))
+                sender = a.get("bu") or "controller %s" % a.get("controller", "?")
+                dev.name = "EG-Link BU %s (%s to %s:%d)" % (
+                    a["origin"] if "origin" in a else "of unknown origin", sender, a["group"], a["port"])
+                dev.layout = self._eglink_layout(dev)
         entries = sorted(self.entries, key=lambda e: (e.frame, e.time))
         start = (datetime.datetime.fromtimestamp(self.first_epoch, datetime.timezone.utc)
                  if self.first_epoch is not None else None)

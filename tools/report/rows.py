@@ -41,6 +41,23 @@ FIELDS = [
     "mcmb2.system", "mcmb2.direction", "mcmb2.layout", "mcmb2.status", "mcmb2.terminal",
     "mcmb2.uplink_watchdog", "mcmb2.downlink_watchdog", "mcmb2.watchdog_age",
     "mcmb2.slot", "mcmb2.slot.status", "mcmb2.slot.terminal",
+    # failed commands: the command's frame
+    "eclink_modbus.cmd_from_ru_in", "eclink_modbus.cmd_to_ru_in",
+    "eclink_modbus.cmd_from_ru_latency", "eclink_modbus.cmd_to_ru_latency",
+    "eclink_pnio.cmd_from_ru_in", "eclink_pnio.cmd_to_ru_in",
+    # candidates: the setting that decodes them, the PROFINET run's FrameID
+    "eclink_modbus.candidate_setting", "mcmb2.candidate_setting", "pn_rt.frame_id",
+    # the values findings name (details.py)
+    "udp.length", "eglink.size", "eglink.revision", "eglink.spare", "eglink.payload_spare",
+    "eglink.vlaps", "eglink.eg_link_status", "eglink.ec_link_status", "eglink.c_link_status",
+    "eglink.ru_battery", "eglink.ru_rssi", "eglink.ru_cable", "eglink.ru_docked",
+    "eglink.encoder_switch", "eglink.ru_disabled",
+    "mcmb2.iops", "mcmb2.iocs", "mcmb2.reserved", "mcmb2.uplink_size", "mcmb2.downlink_size",
+    "eglink.analysis.retransmission_of",
+    "eclink.vlaps", "eclink.eg_link_status", "eclink.ec_link_status", "eclink.c_link_status",
+    "eclink.ru_battery", "eclink.ru_rssi", "eclink.ru_cable", "eclink.ru_docked",
+    "eclink.encoder_switch", "eclink.ru_disabled", "eclink.spare", "eclink.periodic_size",
+    "eclink.periodic_block", "eclink_pnio.iops",
 ]
 EXPERT_FIELDS = list(catalog.EXPERTS)
 ALL_FIELDS = FIELDS + EXPERT_FIELDS
