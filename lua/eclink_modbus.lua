@@ -495,7 +495,7 @@ local function analyse(c, rec, t, frame, touched)
     end
     local r = handshake.update(c.hs, iv, ov, t, frame, rec)
     for _, fd in ipairs(r.findings) do
-        add_finding(rec, { ef[fd[1]], fd[2] })
+        add_finding(rec, { ef[fd[1]] or false, fd[2], once = fd.once and { ef[fd.once[1]], fd.once[2] } })
         if fd[3] then set_link(rec, fd[3], fd[4]) end
     end
     for k, v in pairs(r.links) do set_link(rec, k, v) end
@@ -819,15 +819,16 @@ end
 
 -- The Info tags of an ADU after those of its images: every frame past a
 -- counter's limit says so, not only the one with the finding; [unacked] (a
--- command whose deadline passed, on the command's frame), [late ack] (an
--- echo after it).
-local function add_adu_tags(infos, rec)
+-- command whose deadline passed, on the command's frame; in one pass on the
+-- frame that saw the deadline pass), [late ack] (an echo after it).
+local function add_adu_tags(infos, rec, visited)
     local stalled = handshake.tags(rec[R_PCI_AGE], rec[R_PCO_AGE])
     if stalled ~= "" then infos.tags = (infos.tags or "") .. stalled end
     local unacked, late_ack
     for _, fd in ipairs(rec.findings or NONE) do
-        if fd[1] == ef.cmd_from_ru_late or fd[1] == ef.cmd_to_ru_late then unacked = true end
-        if fd[1] == ef.cmd_from_ru_late_ack or fd[1] == ef.cmd_to_ru_late_ack then late_ack = true end
+        local ex = handshake.shown(fd, visited)
+        if ex == ef.cmd_from_ru_late or ex == ef.cmd_to_ru_late then unacked = true end
+        if ex == ef.cmd_from_ru_late_ack or ex == ef.cmd_to_ru_late_ack then late_ack = true end
     end
     if unacked then infos.tags = (infos.tags or "") .. " [unacked]" end
     if late_ack then infos.tags = (infos.tags or "") .. " [late ack]" end
@@ -861,7 +862,7 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
                 end
             end
         end
-        add_adu_tags(infos, rec)
+        add_adu_tags(infos, rec, pinfo.visited)
         return infos, rec.poll_gap
     end
     local item = tree:add(proto, tvb(off, adu_len))
@@ -931,9 +932,10 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
         end
     end
     for _, fd in ipairs(rec.findings or NONE) do
-        item:add_proto_expert_info(fd[1], fd[2])
+        local ex, text = handshake.shown(fd, pinfo.visited)
+        if ex then item:add_proto_expert_info(ex, text) end
     end
-    add_adu_tags(infos, rec)
+    add_adu_tags(infos, rec, pinfo.visited)
     if rec.periodic then
         local ba = ByteArray.new(rec.periodic.data, true)
         local rtvb = ba:tvb("Reassembled periodic data")

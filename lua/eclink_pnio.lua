@@ -92,8 +92,14 @@ local function analyse(rec, ba, t, frame)
     local r = eclink_handshake.update(hs, inp, out, t, frame, rec)
     local links
     for _, f in ipairs(r.findings) do
-        add_finding(rec, "image", eef[f[1]], f[2])
-        if f[1]:find("_late_ack$") then rec.late_ack = true end
+        -- a finding that reads otherwise in one pass: placed when shown
+        if f.once then
+            rec.passing = rec.passing or {}
+            rec.passing[#rec.passing + 1] = { eef[f[1]] or false, f[2], once = { eef[f.once[1]], f.once[2] } }
+        else
+            add_finding(rec, "image", eef[f[1]], f[2])
+        end
+        if f[1] and f[1]:find("_late_ack$") then rec.late_ack = true end
         if f[3] then
             links = links or {}
             links[#links + 1] = { f[3], f[4] }
@@ -149,11 +155,18 @@ local function show(rec, tvb, pinfo, tree)
     end
     for _, l in ipairs(rec.links or {}) do root:add(hs_fields[l[1]], l[2]):set_generated() end
     attach(rec, "image", info and info.item or root)
+    -- a command's deadline: in one pass the command's warning, else a note
+    local unacked = rec.unacked
+    for _, f in ipairs(rec.passing or {}) do
+        local ex, text = eclink_handshake.shown(f, pinfo.visited)
+        if ex then (info and info.item or root):add_proto_expert_info(ex, text) end
+        if ex == eef.cmd_from_ru_late or ex == eef.cmd_to_ru_late then unacked = true end
+    end
     record.add_ioxs(root, rec, tvb, epf.iops, epf.iocs)
     record.finish(rec, nil)
     pinfo.cols.info = (up and "Input image " or "Output image ") .. ((info and info.summary) or "")
         .. ((info and info.tags) or "") .. eclink_handshake.tags(rec.pci_age, rec.pco_age)
-        .. (rec.unacked and " [unacked]" or "") .. (rec.late_ack and " [late ack]" or "")
+        .. (unacked and " [unacked]" or "") .. (rec.late_ack and " [late ack]" or "")
 end
 
 local function show_connect(rec, tvb, tree, text)

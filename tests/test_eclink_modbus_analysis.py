@@ -1,5 +1,7 @@
 """EC-Link over Modbus/TCP: handshake analysis, periodic output reassembly,
 one pass and two passes agree."""
+import re
+
 import pytest
 
 from conftest import assert_fields
@@ -50,14 +52,25 @@ def test_stalls_and_late_echoes(tshark, capture_file):
     assert exp[21] == ["PCI 2 has not changed for 0.700 s (limit 0.500 s)"]
     tshark.expect(cap, 21, {"eclink_modbus.pci_since": 17, "eclink_modbus.pci_age": "0.700000000",
                             "eclink_modbus.pco_since": None})
-    # the first frame after the deadline (a read request here) only notes which command ...
+    # one pass: the first frame after the deadline (a read request here) carries the
+    # failed commands' warnings, naming and linking them ...
     assert exp[28] == ["Input image not read for 2.050 s (PCI timeout 0.500 s)",
+                       "Command from RU (CCI 2 in frame 17) not acknowledged by CAO within 2.000 s",
+                       "Command to RU (CCO 2 in frame 18) not acknowledged by CAI within 2.000 s"]
+    tshark.expect(cap, 28, {"eclink_modbus.cmd_from_ru_in": 17, "eclink_modbus.cmd_to_ru_in": 18,
+                            "eclink_modbus.cmd_from_ru.late": True, "eclink_modbus.cmd_to_ru.late": True,
+                            "eclink_modbus.cmd_from_ru.deadline": None, "eclink_modbus.cmd_to_ru.deadline": None})
+    assert exp[17] == ["New command from RU: CCI 1 -> 2"]
+    # ... the second pass: there only a note naming each command ...
+    two = tshark.experts(cap, two_pass=True)
+    assert two[28] == ["Input image not read for 2.050 s (PCI timeout 0.500 s)",
                        "Deadline of the command from RU (CCI 2) passed with no CAO echo",
                        "Deadline of the command to RU (CCO 2) passed with no CAI echo"]
     tshark.expect(cap, 28, {"eclink_modbus.cmd_from_ru_in": 17, "eclink_modbus.cmd_to_ru_in": 18,
-                            "eclink_modbus.cmd_from_ru.deadline": True, "eclink_modbus.cmd_from_ru.late": None})
-    # ... the commands themselves are not acknowledged, linked forward to it (second pass)
-    two = tshark.experts(cap, two_pass=True)
+                            "eclink_modbus.cmd_from_ru.deadline": True, "eclink_modbus.cmd_to_ru.deadline": True,
+                            "eclink_modbus.cmd_from_ru.late": None, "eclink_modbus.cmd_to_ru.late": None},
+                  two_pass=True)
+    # ... and the commands themselves are not acknowledged, linked forward to it
     assert two[17] == ["New command from RU: CCI 1 -> 2",
                        "Command from RU (CCI 2) not acknowledged by CAO within 2.000 s (deadline at frame 28)"]
     assert two[18] == ["New command to RU: CCO 1 -> 2",
@@ -94,6 +107,23 @@ def test_severities_one_voice(tshark, capture_file):
     assert_fields(chat[17], {"_ws.expert.severity": "2097152", "_ws.expert.group": "33554432"}, "frame 17")
 
 
+def test_failed_commands_are_warnings_in_one_pass(tshark, capture_file):
+    """How CI runs tshark (issue 27): a severity filter and -z expert find both
+    failed commands in one pass (on frame 28, past their deadline) and with -2
+    (on the commands, 17 and 18), each once."""
+    cap = capture_file("eclink_modbus_faults.pcap")
+    late = "eclink_modbus.cmd_from_ru.late || eclink_modbus.cmd_to_ru.late"
+    warning = "_ws.expert.severity >= warning && (%s)" % late
+    assert list(tshark.frames(cap, [], display_filter=warning)) == [28]
+    assert list(tshark.frames(cap, [], display_filter=warning, two_pass=True)) == [17, 18]
+    for two_pass, where in (([], "in frame 1[78]"), (["-2"], r"deadline at frame 28")):
+        text = tshark.run(["-q", "-n", "-r", str(cap), "-z", "expert,warn"] + two_pass).stdout
+        counted = [line.split()[0] for line in text.splitlines()
+                   if "not acknowledged by CA" in line and re.search(where, line)]
+        assert counted == ["1", "1"], text
+        assert re.search(r"Warns \((\d+)\)", text).group(1) == "7"
+
+
 def test_info_tags_for_stalls_and_unacked_commands(tshark, capture_file):
     info = {n: r["_ws.col.Info"] for n, r in tshark.frames(capture_file("eclink_modbus_faults.pcap"),
                                                               ["_ws.col.Info"]).items()}
@@ -101,12 +131,15 @@ def test_info_tags_for_stalls_and_unacked_commands(tshark, capture_file):
     assert "Read Input Registers [PCI stalled 0.700 s] [EC-Link input PCI=2 " in info[21]
     assert info[21].endswith("BU=Armed RU 0x1234=Enabled]")
     assert "Write Multiple Registers [PCO stalled 2.050 s] [EC-Link output PCO=4 " in info[30]
-    # [unacked] on the commands (second pass), not on the read request that saw the deadline pass
-    assert info[28].endswith("Read Input Registers [poll gap 2.050 s]")
+    # [unacked] on the commands (second pass), on the read request that saw the deadline
+    # pass in one pass
+    assert info[28].endswith("Read Input Registers [unacked] [poll gap 2.050 s]")
+    assert [n for n, i in info.items() if "[unacked]" in i] == [28]
     two = {n: r["_ws.col.Info"] for n, r in tshark.frames(capture_file("eclink_modbus_faults.pcap"),
                                                            ["_ws.col.Info"], two_pass=True).items()}
     assert "Read Input Registers [unacked] [EC-Link input PCI=2 CCI=2 " in two[17]
     assert "Write Multiple Registers [unacked] [EC-Link output PCO=2 CCO=2 " in two[18]
+    assert two[28].endswith("Read Input Registers [poll gap 2.050 s]")
     assert [n for n, i in two.items() if "[unacked]" in i] == [17, 18]
     # a late echo reads [late ack], as README "How findings read" says (not [unacked])
     assert "Write Multiple Registers [late ack] [EC-Link output " in info[34]
@@ -158,6 +191,16 @@ def test_assembled_images(tshark, capture_file):
     assert tshark.experts(cap, prefs=prefs, two_pass=True) == tshark.experts(cap, two_pass=True)
 
 
+# One pass: the failed command's warning on the first frame past its deadline;
+# the second pass notes the deadline there.
+ONE_PASS_FAILED = re.compile(r"^Command (from|to) RU \((CC[IO]) (\d+) in frame \d+\) not acknowledged by "
+                             r"(CA[OI]) within 2\.000 s$")
+
+
+def as_second_pass(message):
+    return ONE_PASS_FAILED.sub(r"Deadline of the command \1 RU (\2 \3) passed with no \4 echo", message)
+
+
 ANALYSIS_FIELDS = ["frame.number", "eclink.image", "eclink.pci", "eclink.pco", "eclink.cci", "eclink.cao",
                    "eclink.bu_state", "eclink.cut", "eclink_modbus.request_in", "eclink_modbus.pci_age",
                    "eclink_modbus.pco_age", "eclink_modbus.cmd_from_ru_in", "eclink_modbus.cmd_to_ru_in",
@@ -172,11 +215,12 @@ def test_two_pass_agrees(tshark, capture_file, name):
     periodic.reassembled_in, deadline_in and the command's "not acknowledged"
     finding, only known once the later frame is seen) and the frames before
     the connection is recognized (decoded on the second pass only) is the
-    same in one pass and in two."""
+    same in one pass and in two; the warning of a failed command that one
+    pass puts on the frame past its deadline reads as the note there."""
     cap = capture_file(name)
 
     def without_forward(row):
-        return row[:-1] + [",".join(m for m in row[-1].split(",") if "(deadline at frame" not in m)]
+        return row[:-1] + [",".join(as_second_pass(m) for m in row[-1].split(",") if "(deadline at frame" not in m)]
     one = [without_forward(r) for r in tshark.fields(cap, ANALYSIS_FIELDS)]
     two = [without_forward(r) for r in tshark.fields(cap, ANALYSIS_FIELDS, two_pass=True)]
     accepted = ANALYSIS_FIELDS.index("eclink_modbus.accepted_in")

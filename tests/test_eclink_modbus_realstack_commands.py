@@ -10,7 +10,10 @@ logged (not by anything the project generated):
   CCI 7: "not acknowledged" with [unacked] (second pass), linked to the
   first frame of the connection after the deadline;
 - the write whose CAO first echoes 6: [late ack] with its latency;
-- no other frame tagged, above all no read request.
+- no other frame tagged, above all no read request (second pass);
+- in one pass, as CI runs tshark, the "not acknowledged" warning and
+  [unacked] on that first frame after the deadline instead, naming and
+  linking the command.
 """
 import time
 
@@ -86,3 +89,16 @@ def test_findings_on_the_frames_that_carry_them(tshark, commands_capture):
     # no read request carries a command finding
     assert not [f for f, v in got.items() if v["modbus.func_code"] == "4" and not v["eclink.image"]
                 and (v["eclink_modbus.cmd_from_ru.late"] or "[unacked]" in v["_ws.col.Info"])]
+    # one pass: each failed command's warning on the frame past its deadline, nowhere else
+    one = tshark.frames(cap, NAMES + ["_ws.expert.message"], prefs=rs.PREFS)
+    deadlines = {int(got[cmd]["eclink_modbus.deadline_in"]): cmd for cmd in (first_6, first_7)}
+    assert sorted(f for f, v in one.items() if v["eclink_modbus.cmd_from_ru.late"]) == sorted(deadlines)
+    assert sorted(f for f, v in one.items() if "[unacked]" in v["_ws.col.Info"]) == sorted(deadlines)
+    assert not [f for f, v in one.items() if v["eclink_modbus.cmd_from_ru.deadline"]]
+    for deadline, cmd in deadlines.items():
+        assert int(one[deadline]["eclink_modbus.cmd_from_ru_in"]) == cmd
+        cci = got[cmd]["eclink.cci"]
+        assert "Command from RU (CCI %s in frame %d) not acknowledged by CAO within 2.000 s" % (cci, cmd) \
+            in one[deadline]["_ws.expert.message"].split(",")
+        assert not one[cmd]["eclink_modbus.deadline_in"] and "[unacked]" not in one[cmd]["_ws.col.Info"]
+    assert "[late ack]" in one[echo]["_ws.col.Info"] and not one[echo]["eclink_modbus.cmd_from_ru.late"]

@@ -33,9 +33,13 @@ def test_handshake_experts(tshark, capture_file):
     assert "PCI 10 has not changed for 0.625 s (limit 0.500 s)" in ex[31]
     assert "New command from RU: CCI 1 -> 2" in ex[43]
     assert "PCO 18 has not changed for 2.125 s (limit 2.000 s)" in ex[72]
-    assert ex[76] == ["Deadline of the command from RU (CCI 2) passed with no CAO echo"]
+    # one pass: the first frame past the deadline carries the failed command's warning
+    assert ex[76] == ["Command from RU (CCI 2 in frame 43) not acknowledged by CAO within 2.000 s"]
+    assert "New command from RU: CCI 1 -> 2" in ex[43] and len(ex[43]) == 1
+    # the second pass: on the command, and a note at the deadline
     two = tshark.experts(capture_file(CAP), two_pass=True)
     assert "Command from RU (CCI 2) not acknowledged by CAO within 2.000 s (deadline at frame 76)" in two[43]
+    assert two[76] == ["Deadline of the command from RU (CCI 2) passed with no CAO echo"]
     stalls = [n for n, m in ex.items() if any("has not changed" in x for x in m)]
     assert stalls == [31, 72]
 
@@ -54,7 +58,10 @@ def test_handshake_frame_links(tshark, capture_file):
         expected = {name: None for name in links}
         expected.update(fields)
         assert_fields(got[n], expected, "frame %d" % n)
-    assert not any("frame" in m for ms in tshark.experts(cap).values() for m in ms if "layout" not in m)
+    # only a failed command's warning (one pass) names the other frame in its text, the one its link holds
+    assert not any("frame" in m for ms in tshark.experts(cap).values() for m in ms
+                   if "layout" not in m and "not acknowledged" not in m)
+    assert "in frame 43)" in tshark.experts(cap)[76][0]
 
 
 def test_handshake_severities_and_info_tags(tshark, capture_file):
@@ -72,6 +79,11 @@ def test_handshake_severities_and_info_tags(tshark, capture_file):
                                             "[PCO stalled 2.375 s]"}, two_pass=True)
     tshark.expect(cap, 43, {"_ws.col.Info": "Input image PCI=15 CCI=2 BU=Armed RU 0x1234=Enabled [unacked]",
                             "eclink_pnio.deadline_in": 76}, two_pass=True)
+    # ... in one pass the warning and [unacked] at 76, nothing on the command
+    tshark.expect(cap, 76, {"_ws.col.Info": "Output image PCO=18 CCO=1 CAO=1 size=10 block=0 "
+                                            "[PCO stalled 2.375 s] [unacked]"})
+    tshark.expect(cap, 43, {"_ws.col.Info": "Input image PCI=15 CCI=2 BU=Armed RU 0x1234=Enabled",
+                            "eclink_pnio.deadline_in": None})
     # ages to the millisecond
     tshark.expect(cap, 31, {"eclink_pnio.pci_age": "0.625000000"})
 
@@ -79,19 +91,36 @@ def test_handshake_severities_and_info_tags(tshark, capture_file):
 def test_filters_by_expert_field(tshark, capture_file):
     cap = capture_file(CAP)
     assert list(tshark.frames(cap, [], display_filter="eclink_pnio.cmd_from_ru.late", two_pass=True)) == [43]
-    assert list(tshark.frames(cap, [], display_filter="eclink_pnio.cmd_from_ru.deadline")) == [76]
+    assert list(tshark.frames(cap, [], display_filter="eclink_pnio.cmd_from_ru.deadline", two_pass=True)) == [76]
     tshark.expect(cap, 76, {"eclink_pnio.cmd_from_ru_in": 43, "_ws.expert.message":
-                            "Deadline of the command from RU (CCI 2) passed with no CAO echo"})
+                            "Deadline of the command from RU (CCI 2) passed with no CAO echo"}, two_pass=True)
+    # one pass (how CI runs tshark): the warning on the frame past the deadline
+    assert list(tshark.frames(cap, [], display_filter="eclink_pnio.cmd_from_ru.late")) == [76]
+    assert list(tshark.frames(cap, [], display_filter="eclink_pnio.cmd_from_ru.deadline")) == []
+    tshark.expect(cap, 76, {"eclink_pnio.cmd_from_ru_in": 43, "_ws.expert.message":
+                            "Command from RU (CCI 2 in frame 43) not acknowledged by CAO within 2.000 s"})
+    warning = "_ws.expert.severity >= warning && eclink_pnio.cmd_from_ru.late"
+    assert list(tshark.frames(cap, [], display_filter=warning)) == [76]
+    assert list(tshark.frames(cap, [], display_filter=warning, two_pass=True)) == [43]
+    for two_pass, text in (([], "Command from RU (CCI 2 in frame 43) not acknowledged by CAO within 2.000 s"),
+                           (["-2"], "Command from RU (CCI 2) not acknowledged by CAO within 2.000 s "
+                                    "(deadline at frame 76)")):
+        out = tshark.run(["-q", "-n", "-r", str(cap), "-z", "expert,warn"] + two_pass).stdout
+        assert [line.split()[0] for line in out.splitlines() if "not acknowledged" in line] == ["1"], out
+        assert text in out
 
 
 def test_two_pass_agrees(tshark, capture_file):
-    """All but the command's own "not acknowledged" finding (a forward link)."""
+    """All but the command's own "not acknowledged" finding (a forward link),
+    which one pass puts on the frame past the deadline, the note's place."""
     fields = ["eclink.pci", "eclink_pnio.pci_age", "_ws.expert.message"]
     one = tshark.frames(capture_file(CAP), fields)
     two = tshark.frames(capture_file(CAP), fields, two_pass=True)
     forward = ",Command from RU (CCI 2) not acknowledged by CAO within 2.000 s (deadline at frame 76)"
     assert forward in two[43]["_ws.expert.message"]
     two[43]["_ws.expert.message"] = two[43]["_ws.expert.message"].replace(forward, "")
+    assert one[76]["_ws.expert.message"] == "Command from RU (CCI 2 in frame 43) not acknowledged by CAO within 2.000 s"
+    one[76]["_ws.expert.message"] = "Deadline of the command from RU (CCI 2) passed with no CAO echo"
     assert one == two
     assert any(r["_ws.expert.message"] for r in one.values())
 
@@ -135,3 +164,49 @@ def test_late_echo_reads_late_ack(tshark, work_dir):
     assert late[echo]["_ws.col.Info"].endswith("[late ack]")
     assert late[echo]["_ws.expert.message"] == "CAO echoed CCI 4 after 2.505 s (limit 2.000 s)"
     tshark.expect(path, echo, {"eclink_pnio.cmd_from_ru.late_ack": True, "eclink_pnio.cmd_from_ru.late": None})
+    # one pass: the warning on the first frame past the deadline, before the echo
+    one = tshark.frames(path, ["_ws.col.Info", "eclink_pnio.cmd_from_ru_in"],
+                        display_filter="eclink_pnio.cmd_from_ru.late || eclink_pnio.cmd_from_ru.late_ack")
+    (deadline, echo_one) = sorted(one)
+    assert command < deadline < echo_one == echo
+    assert one[deadline]["_ws.col.Info"].endswith("[unacked]")
+    assert int(one[deadline]["eclink_pnio.cmd_from_ru_in"]) == command
+
+
+def test_late_echo_first_past_the_deadline(tshark, work_dir):
+    """No frame between a command and its echo 2.5 s later (scapy-built): the
+    echo is the first frame past the deadline. The second pass says on the
+    command that it was not acknowledged in time (deadline at the echo); one
+    pass puts that warning on the echo, beside its [late ack], so both count
+    the failed command once."""
+    from pnio_testlib import CaptureFile, Device, eclink_submodules, mac
+    from test_pnio_midsession import eclink_image_in, eclink_image_out
+    d = Device(eclink_submodules(4, 224), mac(22), 0x8032, 0x8033)
+    cap = CaptureFile()
+    for p in d.connect():
+        cap.add(p)
+    for i in range(4):
+        cap.add(d.cyclic("in", {1: eclink_image_in(i, cci=3)}), 0.120)
+        cap.add(d.cyclic("out", {2: eclink_image_out(i, cao=3)}), 0.005)
+    command = cap.add(d.cyclic("in", {1: eclink_image_in(4, cci=4)}), 0.120)
+    echo = cap.add(d.cyclic("out", {2: eclink_image_out(4, cao=4)}), 2.5)
+    path = cap.write(work_dir / "late_ack_first.pcap")
+    names = ["_ws.col.Info", "_ws.expert.message", "eclink_pnio.cmd_from_ru_in", "eclink_pnio.deadline_in"]
+    late = "eclink_pnio.cmd_from_ru.late || eclink_pnio.cmd_from_ru.late_ack"
+    two = tshark.frames(path, names, display_filter=late, two_pass=True)
+    assert sorted(two) == [command, echo]
+    assert two[command]["_ws.col.Info"].endswith("[unacked]")
+    assert "Command from RU (CCI 4) not acknowledged by CAO within 2.000 s (deadline at frame %d)" % echo \
+        in two[command]["_ws.expert.message"]
+    assert int(two[command]["eclink_pnio.deadline_in"]) == echo
+    assert two[echo]["_ws.col.Info"].endswith("[late ack]") and "[unacked]" not in two[echo]["_ws.col.Info"]
+    one = tshark.frames(path, names, display_filter=late)
+    assert sorted(one) == [echo]
+    assert one[echo]["_ws.col.Info"].endswith("[unacked] [late ack]")
+    assert one[echo]["_ws.expert.message"].split(",")[-2:] == [
+        "CAO echoed CCI 4 after 2.500 s (limit 2.000 s)",
+        "Command from RU (CCI 4 in frame %d) not acknowledged by CAO within 2.000 s" % command]
+    assert int(one[echo]["eclink_pnio.cmd_from_ru_in"]) == command
+    tshark.expect(path, echo, {"eclink_pnio.cmd_from_ru.late_ack": True, "eclink_pnio.cmd_from_ru.late": True})
+    tshark.expect(path, echo, {"eclink_pnio.cmd_from_ru.late_ack": True, "eclink_pnio.cmd_from_ru.late": None},
+                  two_pass=True)

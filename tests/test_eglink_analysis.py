@@ -261,19 +261,54 @@ def test_vrci_never_acknowledged(tshark, cap):
 
 
 def test_vrci_never_acknowledged_one_pass(tshark, cap):
-    """One pass cannot go back to the command: the note at the deadline is
-    all it shows (documented forward link)."""
+    """One pass cannot go back to the command: the first packet past the
+    deadline (61) carries the command's warning itself, naming and linking
+    the command, with the [unacked] tag; the command has neither."""
     exp = analysis_experts(tshark, cap("vrci_unacked"))
     assert {f: v for f, v in exp.items() if v[0][0] != "eglink.analysis.retransmission"} == {
-        61: [("eglink.analysis.vrci_deadline",
-              "Deadline of VRCI command 8 (frame 5) passed with no VRAO (2000 ms)")]}
+        61: [("eglink.analysis.vrci_unacked",
+              "VRCI command 8 (frame 5) not acknowledged by a VRAO within 2000 ms: "
+              "the BU reports to the RU application that the command failed")]}
+    assert present(tshark, cap("vrci_unacked"), ["eglink.analysis.failed_command",
+                                                 "eglink.analysis.deadline_in"]) == \
+        {61: {"eglink.analysis.failed_command": "5"}}
+    assert expert_links(tshark, cap("vrci_unacked"))[61] == \
+        {"eglink.analysis.vrci_unacked": "eglink.analysis.failed_command"}
+    assert tags(tshark, cap("vrci_unacked"), 61) == ["[unacked]"]
     assert tags(tshark, cap("vrci_unacked"), 5) == []
+
+
+SEVERITY_WARNING = "_ws.expert.severity >= warning"
+
+
+@pytest.mark.parametrize("name,command,deadline,field", [
+    ("vrci_unacked", [5], [61], "eglink.analysis.vrci_unacked"),
+    ("vrco_unacked", [5, 52], [46, 89], "eglink.analysis.vrco_unacked"),
+])
+def test_failed_commands_are_warnings_in_one_pass(tshark, cap, name, command, deadline, field):
+    """How CI runs tshark (issue 27): a severity filter and -z expert find every
+    failed command in one pass (on the packet past its deadline) and with -2 (on
+    the command itself), each once."""
+    late_ack = [94] if name == "vrco_unacked" else []
+    one = tshark.field(cap(name), "frame.number", display_filter=SEVERITY_WARNING)
+    two = tshark.field(cap(name), "frame.number", display_filter=SEVERITY_WARNING, two_pass=True)
+    assert [int(f) for f in one] == deadline + late_ack
+    assert [int(f) for f in two] == command + late_ack
+    assert [int(f) for f in tshark.field(cap(name), "frame.number", display_filter=field)] == deadline
+    assert [int(f) for f in tshark.field(cap(name), "frame.number", display_filter=field,
+                                         two_pass=True)] == command
+    for two_pass in (False, True):
+        text = tshark.run(["-q", "-n", "-r", str(cap(name)), "-z", "expert,warn"]
+                          + (["-2"] if two_pass else [])).stdout
+        assert re.search(r"Warns \((\d+)\)", text).group(1) == str(len(command) + len(late_ack))
+        counted = re.findall(r"^\s+(\d+)\s+Sequence\s+EG-Link\s+VRC[IO] command", text, re.M)
+        assert counted == ["1"] * len(command), (two_pass, text)
 
 
 def test_vrci_timeout_preference(tshark, cap):
     exp = names(analysis_experts(tshark, cap("vrci_unacked"),
                                  prefs={"eglink.vrci_ack_timeout_ms": 1000}))
-    failed = [f for f, n in exp.items() if "eglink.analysis.vrci_deadline" in n]
+    failed = [f for f, n in exp.items() if "eglink.analysis.vrci_unacked" in n]
     # The retransmission at 1.2 s is exactly 1000 ms after the first (not later): the
     # VRPO at 1.24 s is the first packet past the deadline.
     assert failed == [34]
@@ -333,23 +368,43 @@ def test_vrco_not_acknowledged_and_late_ack(tshark, cap):
 
 def test_vrco_late_ack_is_the_first_packet_after_the_deadline(tshark, cap):
     """With a 2250 ms timeout, the VRAI at 2.3 s is the first packet past the
-    deadline of command 5: the deadline was seen passing at the acknowledgement."""
+    deadline of command 5: the deadline was seen passing at the acknowledgement.
+    The second pass puts the unacknowledged warning on the command; one pass,
+    as at any first packet past a deadline, on that packet (README "How
+    findings read")."""
     prefs = {"eglink.vrco_ack_timeout_ms": 2250}
     exp = names(analysis_experts(tshark, cap("vrco_unacked"), two_pass=True, prefs=prefs))
     assert exp[52] == ["eglink.analysis.vrco_unacked"]
     assert exp[94] == ["eglink.analysis.late_ack"]
     tshark.expect(cap("vrco_unacked"), 52, {"eglink.analysis.deadline_in": 94}, two_pass=True,
                   prefs=prefs)
+    assert tags(tshark, cap("vrco_unacked"), 94, two_pass=True, prefs=prefs) == ["[late ack]"]
+    # One pass: the acknowledgement, as the first packet past the deadline,
+    # carries the failed command's warning too (the same count as with -2).
+    one = analysis_experts(tshark, cap("vrco_unacked"), prefs=prefs)
+    assert one[94] == [("eglink.analysis.late_ack",
+                        "Acknowledges VRCO command 5 2.300 s after its first transmission, later than 2250 ms"),
+                       ("eglink.analysis.vrco_unacked",
+                        "VRCO command 5 (frame 52) not acknowledged by a VRAI within 2250 ms")]
+    assert 52 not in one
+    assert expert_links(tshark, cap("vrco_unacked"), prefs=prefs)[94] == \
+        {"eglink.analysis.vrco_unacked": "eglink.analysis.failed_command",
+         "eglink.analysis.late_ack": "eglink.analysis.ack_to"}
+    tshark.expect(cap("vrco_unacked"), 94, {"eglink.analysis.failed_command": 52,
+                                            "eglink.analysis.ack_to": 52}, prefs=prefs)
+    assert tags(tshark, cap("vrco_unacked"), 94, prefs=prefs) == ["[unacked]", "[late ack]"]
     # both commands failed (Statistics > EG-Link), the second at its late acknowledgement
-    text = tshark.run(["-q", "-n", "-r", str(cap("vrco_unacked")), "-z", "eglink,stat",
-                       "-o", "eglink.vrco_ack_timeout_ms:2250"]).stdout
-    assert _rows(text)[("VRCO commands (controller to BU)", "Failed (not acknowledged in time)")] == 2
+    # once each, in one pass and with -2 (whose first pass runs no taps)
+    for two_pass in ([], ["-2"]):
+        text = tshark.run(["-q", "-n", "-r", str(cap("vrco_unacked")), "-z", "eglink,stat",
+                           "-o", "eglink.vrco_ack_timeout_ms:2250"] + two_pass).stdout
+        assert _rows(text)[("VRCO commands (controller to BU)", "Failed (not acknowledged in time)")] == 2
 
 
 def test_vrco_timeout_preference(tshark, cap):
     exp = names(analysis_experts(tshark, cap("vrco_unacked"),
                                  prefs={"eglink.vrco_ack_timeout_ms": 2500}))
-    assert [f for f, n in exp.items() if "eglink.analysis.vrco_deadline" in n] == [56]
+    assert [f for f, n in exp.items() if "eglink.analysis.vrco_unacked" in n] == [56]
     assert not [f for f, n in exp.items() if "eglink.analysis.late_ack" in n]
 
 
@@ -809,11 +864,33 @@ FORWARD = re.compile(r"^\s*\[(Acknowledged in frame|Reassembled in|"
 JOINED_LATER = re.compile(r"^\s*\[BU origin: 0x[0-9a-f]+ \(joined to this BU by a later acknowledgement\)\]")
 
 
+# One pass: the first packet past a command's deadline carries the command's
+# warning; the second pass has it on the command and a note there.
+ONE_PASS_FAILED = re.compile(r"^(\s*\[)(Expert Info \(Warning/Sequence\): )?(VRC[IO]) command (\d+) "
+                             r"\(frame (\d+)\) not acknowledged by a (VRA[IO]) within (\d+) ms(: [^\]]+)?\]$")
+
+
+def as_second_pass(line):
+    """A line of the one-pass -V text as the second pass reads it."""
+    m = ONE_PASS_FAILED.match(line)
+    if m:
+        return "%s%s%s" % (m.group(1), "Expert Info (Note/Sequence): " if m.group(2) else "",
+                           "Deadline of %s command %s (frame %s) passed with no %s (%s ms)]"
+                           % m.group(3, 4, 5, 6, 7))
+    return line
+
+
 def without_forward(lines):
     """The lines of a -V text without the forward links and what hangs on
-    them; a controller's BU known from a later frame reads as not known."""
-    out, depth, joined = [], None, False
+    them; a controller's BU known from a later frame reads as not known;
+    a failed command's warning on the packet past its deadline (one pass)
+    as the note the second pass shows there."""
+    out, depth, joined, failed = [], None, False, False
     for line in lines:
+        if ONE_PASS_FAILED.match(line):
+            line, failed = as_second_pass(line), True
+        elif failed and line.strip() == "[Severity level: Warning]":
+            line, failed = line.replace("Warning", "Note"), False
         indent = len(line) - len(line.lstrip())
         if depth is not None and indent > depth:
             continue

@@ -94,6 +94,33 @@ def test_decodes_as_the_harness(installed, harness, capture):
             capture, installed.kind, " ".join(args[3:]))
 
 
+# capture -> (the failed commands' expert fields, the frames that carry them
+# in one pass (first frame past the deadline), with -2 (the commands)).
+FAILED_COMMANDS = {
+    "eglink_analysis_vrco_unacked.pcap": ("eglink.analysis.vrci_unacked || eglink.analysis.vrco_unacked",
+                                          [46, 89], [5, 52]),
+    "eclink_modbus_faults.pcap": ("eclink_modbus.cmd_from_ru.late || eclink_modbus.cmd_to_ru.late", [28], [17, 18]),
+    "eclink_pnio_connect.pcap": ("eclink_pnio.cmd_from_ru.late || eclink_pnio.cmd_to_ru.late", [76], [43]),
+}
+
+
+@pytest.mark.parametrize("capture", sorted(FAILED_COMMANDS))
+def test_failed_commands_are_warnings_in_one_pass(installed, capture):
+    """As CI runs the system tshark on an installed vrshark (issue 27): a
+    severity filter finds every failed command in one pass, on the first
+    frame past its deadline with [unacked], and with -2 on the command."""
+    if installed.kind == "lua-only" and capture.startswith("eglink"):
+        pytest.skip("EG-Link needs the C plugin")
+    fields, one_pass, two_pass = FAILED_COMMANDS[capture]
+    for extra, frames in (([], one_pass), (["-2"], two_pass)):
+        out = run_installed(installed, ["-n", "-r", str(CAPTURES / capture), "-Y",
+                                        "_ws.expert.severity >= warning && (%s)" % fields, "-T", "fields",
+                                        "-e", "frame.number", "-e", "_ws.col.Info"] + extra).stdout
+        rows = [line.split("\t") for line in out.splitlines()]
+        assert [int(n) for n, _ in rows] == frames, (installed.kind, extra, out)
+        assert all("[unacked]" in i for _, i in rows), (installed.kind, extra, out)
+
+
 def test_installed_files(installed):
     """What each install put where Wireshark looks, and that Wireshark lists it."""
     plugins = installed.tshark(["-G", "plugins"]).stdout

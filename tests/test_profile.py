@@ -124,6 +124,20 @@ def test_colours_eglink_gaps_have_their_own_rule(profile_conf):
                             if ln.startswith("@vrshark: watchdog stalled@")][0]
 
 
+def test_colours_a_failed_command_where_the_pass_puts_it(profile_conf):
+    """README "How findings read": `tshark -C vrshark --color` reads one pass,
+    so the first packet past the deadline of VRCI 8 (frame 61) has the colour
+    of a command not acknowledged, not the command (frame 5); the Commands
+    button shows it. The GUI (second pass) colours the command
+    (test_gui_installed)."""
+    rules = rule_colours()
+    rows = coloured_rows(profile_conf, "eglink_analysis_vrci_unacked.pcap")
+    assert rows[61] == rules["vrshark: command not acknowledged"]
+    assert rows[5] != rules["vrshark: command not acknowledged"]
+    assert [n for n, c in rows.items() if c == rules["vrshark: command not acknowledged"]] == [61]
+    assert 61 in _matching(profile_conf, "eglink_analysis_vrci_unacked.pcap", _button("Commands"))
+
+
 def _button(label):
     return dict(profile_buttons())[label]
 

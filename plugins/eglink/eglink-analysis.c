@@ -5,14 +5,17 @@
  *
  * Everything is computed on the first pass, in frame order, and stored per
  * frame in file scope, so a single pass, "tshark -2" and clicking around in
- * the GUI show the same findings. Most frames need only a 16-byte record in a
+ * the GUI show the same findings (only a failed command's is placed
+ * differently, below). Most frames need only a 16-byte record in a
  * table indexed by frame number; a frame with findings, a command link or a
  * reassembly ID keeps its full record with p_add_proto_data. A finding that depends
  * on time passing (a missing VRPI/VRPO) is reported on the first packet of
  * the BU that arrives after the deadline: that is the earliest packet at
  * which a one-pass reader knows it. An unacknowledged command is reported
  * on the command itself, with a forward link to that packet (second pass and
- * GUI); the packet gets a note naming the command.
+ * GUI); the packet gets a note naming the command. In one pass the command
+ * is behind the reader already, so that packet carries the command's
+ * warning instead (show_failed()).
  *
  * Which packets belong to one BU: the BU sends VRPI/VRCI/VRAI to its input
  * port, the machine controller sends VRPO/VRCO/VRAO to the input port + 2,
@@ -1134,6 +1137,34 @@ find_finding(const eglink_frame_t *fd, eglink_finding_kind_t kind)
     return NULL;
 }
 
+/* The packet at which the deadline of a command (first sent in `frame`)
+ * was seen passing unacknowledged. On the second pass and in the GUI the
+ * warning and the [unacked] tag are on the command's frame (show_command())
+ * and this packet gets a note naming the command. In one pass (tshark
+ * without -2, as CI runs it) the command's frame is behind the reader
+ * already: this packet carries the command's warning itself, so a severity
+ * filter or "-z expert" finds every failed command. */
+static void
+show_failed(proto_tree *at, tvbuff_t *tvb, packet_info *pinfo, int dir, guint32 frame, guint32 command_id)
+{
+    proto_item *ti = add_generated_uint(at, hf_failed_command, tvb, frame);
+    gboolean vrci = dir == EGLINK_DIR_IN;
+    const char *what = vrci ? "VRCI" : "VRCO";
+    const char *ack = vrci ? "VRAO" : "VRAI";
+    guint timeout_ms = vrci ? pref_vrci_ack_timeout_ms : pref_vrco_ack_timeout_ms;
+
+    if (PINFO_FD_VISITED(pinfo)) {
+        expert_add_info_format(pinfo, ti, vrci ? &ei_vrci_deadline : &ei_vrco_deadline,
+            "Deadline of %s command %u (frame %u) passed with no %s (%u ms)",
+            what, command_id, frame, ack, timeout_ms);
+        return;
+    }
+    expert_add_info_format(pinfo, ti, vrci ? &ei_vrci_unacked : &ei_vrco_unacked,
+        "%s command %u (frame %u) not acknowledged by a %s within %u ms%s", what, command_id, frame, ack,
+        timeout_ms, vrci ? ": the BU reports to the RU application that the command failed" : "");
+    col_append_str(pinfo->cinfo, COL_INFO, " [unacked]");
+}
+
 static void
 show_command(proto_tree *at, proto_item *aitem, tvbuff_t *tvb, packet_info *pinfo,
              const eglink_info_t *info, const eglink_frame_t *fd)
@@ -1180,6 +1211,10 @@ show_command(proto_tree *at, proto_item *aitem, tvbuff_t *tvb, packet_info *pinf
         if (fd->flags & FF_DELTA)
             add_generated_time(at, hf_ack_time, tvb, fd->delta_ns);
         late = find_finding(fd, FND_LATE_ACK);
+        /* A late acknowledgement that is itself the first packet past the
+         * deadline: the command failed here, as at any other such packet. */
+        if (late && cmd->deadline_frame == pinfo->num && !PINFO_FD_VISITED(pinfo))
+            show_failed(at, tvb, pinfo, cmd->dir, cmd->first_frame, cmd->command_id);
         if (late) {
             expert_add_info_format(pinfo, ti, &ei_late_ack,
                 "Acknowledges %s command %u %s after its first transmission, later than %u ms",
@@ -1292,19 +1327,11 @@ show_findings(proto_tree *at, proto_item *aitem, tvbuff_t *tvb, packet_info *pin
                 "an RU armed, opens the ES-Link relays", t, pref_vrpo_gap_ms);
             col_append_fstr(pinfo->cinfo, COL_INFO, " [no VRPO %s]", t);
             break;
-        /* This packet only saw the deadline pass: a note naming the command;
-         * the warning and the [unacked] tag are on the command's frame. */
         case FND_FAILED_VRCI:
-            ti = add_generated_uint(at, hf_failed_command, tvb, f->frame);
-            expert_add_info_format(pinfo, ti, &ei_vrci_deadline,
-                "Deadline of VRCI command %u (frame %u) passed with no VRAO (%u ms)",
-                f->value, f->frame, pref_vrci_ack_timeout_ms);
+            show_failed(at, tvb, pinfo, EGLINK_DIR_IN, f->frame, f->value);
             break;
         case FND_FAILED_VRCO:
-            ti = add_generated_uint(at, hf_failed_command, tvb, f->frame);
-            expert_add_info_format(pinfo, ti, &ei_vrco_deadline,
-                "Deadline of VRCO command %u (frame %u) passed with no VRAI (%u ms)",
-                f->value, f->frame, pref_vrco_ack_timeout_ms);
+            show_failed(at, tvb, pinfo, EGLINK_DIR_OUT, f->frame, f->value);
             break;
         case FND_UNKNOWN_ACK:
             expert_add_info_format(pinfo, aitem, &ei_unknown_ack,
