@@ -739,6 +739,7 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb)
                 rec.hint = string.format("Looks like a BU (%s), not recognised: needs %s; to decode it now: %s",
                     c.det.shaped,
                     missing ~= "" and missing or "more of its traffic", c.setting)
+                rec.hint_setting = c.setting
             end
         else
             return NOT_DECODED
@@ -1058,7 +1059,7 @@ local HOOKS = { heuristic = true, always = true, server = true }
 -- setting in a field of its own, on the parent tree (the protocol item
 -- stays for decoded ADUs: "eclink_modbus" keeps matching those alone).
 local function show_hint(tvb, tree, off, adu_len, rec)
-    local item = tree:add(pf.candidate_setting, tvb(off, adu_len), rec.hint:match("(eclink_modbus%.servers:%S+)$"))
+    local item = tree:add(pf.candidate_setting, tvb(off, adu_len), rec.hint_setting)
     item:set_generated()
     item:add_proto_expert_info(ef.candidate, rec.hint)
 end

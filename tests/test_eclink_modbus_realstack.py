@@ -330,6 +330,10 @@ def test_io_device_polled_like_a_bu_never_decoded(tshark, real_capture):
         assert {v["modbus.func_code"] for v in polled} >= {"4", "16", "23"}
         assert len(polled) >= 40
         assert [v for v in polled if v["eclink.image"] or v["eclink_modbus.accepted_in"]] == []
+    # nor any note that it looks like a BU (0/1 inputs, counting registers written)
+    notes = tshark.frames(cap, ["ip.src", "ip.dst"], prefs=PREFS, display_filter="eclink_modbus.candidate")
+    assert [v for v in notes.values() if BU_LIKE in (v["ip.src"], v["ip.dst"]) or v["ip.src"] in ORDINARY
+            or v["ip.dst"] in ORDINARY] == []
 
 
 # --- a short excerpt of the real capture (editcap -r) ------------------------------
