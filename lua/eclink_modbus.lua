@@ -29,7 +29,8 @@ one pass, the earlier ones too on a second pass (tshark -2, GUI). A
 connection not accepted within CANDIDATE_TRIES ADUs is left to Modbus. An
 accepted connection whose input images stop being valid (DROP_IMAGES in a
 row) is dropped again with a note, and judged afresh.
-"always" decodes every connection on the port; "off" leaves Modbus alone.
+"always" decodes every connection on the port; "off" leaves Modbus alone
+but for the listed servers.
 
 Servers (preference eclink_modbus.servers, vrshark/modbus_servers.luam):
 the BUs the user names are decoded from their first frame, whatever the
@@ -178,12 +179,12 @@ proto.prefs.port = Pref.uint("Modbus/TCP port", 0, "TCP port of the BU's Modbus/
 proto.prefs.detection = Pref.enum("Detection", DETECT_HEURISTIC,
     "heuristic: decode a connection once its traffic shows a BU (input images whose PCI moves every 125 ms, "
     .. "or an input image and a written output image); always: every connection on the port; off: leave "
-    .. "Modbus alone",
+    .. "Modbus alone (but for the BU servers listed)",
     { { 1, "heuristic", DETECT_HEURISTIC }, { 2, "always", DETECT_ALWAYS }, { 3, "off", DETECT_OFF } }, false)
 proto.prefs.servers = Pref.string("BU servers", "",
     "BU Modbus/TCP servers decoded from their first frame without evidence, comma separated: an IPv4 address "
     .. "(on the Modbus/TCP port) or address:port (on that port), e.g. 192.168.2.41, 192.168.2.42:5020. "
-    .. "Invalid entries are ignored and named on the console (stderr).")
+    .. "Invalid entries are ignored and named on stderr (and in a dialog in the GUI).")
 proto.prefs.swap = Pref.bool("Swap register bytes", true,
     "A register carries image byte 2n in its low 8 bits (as the BU does); off: in its high 8 bits")
 proto.prefs.pci_timeout = Pref.uint("PCI timeout (ms)", 500,
