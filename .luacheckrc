@@ -12,7 +12,7 @@ read_globals = {
     "set_plugin_info", "get_version", "register_stat_cmd_arg", "Listener", "GUI_ENABLED",
     "register_menu", "MENU_TOOLS_UNSORTED", "MENU_STAT_GENERIC", "TextWindow", "retap_packets",
     "DESEGMENT_ONE_MORE_SEGMENT", "persconffile_path", "datafile_path", "all_field_infos",
-    "dissect_tcp_pdus", "Dir", "report_failure", "critical", "warn", "message", "info", "debug",
+    "dissect_tcp_pdus", "Dir", "report_failure", "gui_enabled", "critical", "warn", "message", "info", "debug",
 }
 -- Lua 5.4 (Wireshark 4.4 and later) has no bit32: use the bit library.
 not_globals = { "bit32" }

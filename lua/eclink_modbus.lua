@@ -29,7 +29,17 @@ one pass, the earlier ones too on a second pass (tshark -2, GUI). A
 connection not accepted within CANDIDATE_TRIES ADUs is left to Modbus. An
 accepted connection whose input images stop being valid (DROP_IMAGES in a
 row) is dropped again with a note, and judged afresh.
-"always" decodes every connection on the port; "off" leaves Modbus alone.
+"always" decodes every connection on the port; "off" leaves Modbus alone
+but for the listed servers.
+
+Servers (preference eclink_modbus.servers, vrshark/modbus_servers.luam):
+the BUs the user names are decoded from their first frame, whatever the
+detection (an excerpt too short for the evidence); the other servers are
+judged as the detection says. A connection the heuristic has not accepted
+whose ADU has a BU's shape (modbus_detect.luam) gets the note
+eclink_modbus.candidate on that ADU, saying what the evidence still lacks
+and the setting that decodes it now (eclink_modbus.candidate_setting); not
+on a second pass once the connection was accepted later.
 
 Port: eclink_modbus.port, or with 0 (the default) the port of Wireshark's
 Modbus/TCP dissector, mbtcp.tcp.port (502 unless set): one setting is enough,
@@ -54,6 +64,7 @@ local handshake = require("vrshark.eclink_handshake")
 local wrap = require("vrshark.wrap")
 local fe = require("vrshark.frontends")
 local detect = require("vrshark.modbus_detect")
+local servers = require("vrshark.modbus_servers")
 local record = require("vrshark.pnio_record") -- add_time(): times to the ms, as over PROFINET
 local iodata = require("vrshark.iodata") -- vrshark_io hook
 
@@ -101,6 +112,7 @@ local pf = {
     periodic_data = ProtoField.bytes("eclink_modbus.periodic.data", "Reassembled periodic data"),
     poll_gap_time = ProtoField.relative_time("eclink_modbus.poll_gap_time", "Time since the previous input image read"),
     poll_gap_from = ProtoField.framenum("eclink_modbus.poll_gap_from", "Previous input image read in"),
+    candidate_setting = ProtoField.string("eclink_modbus.candidate_setting", "Setting that decodes this server"),
 }
 -- frame links of the handshake findings (PCI/PCO unchanged since, command in)
 local hs_fields, hs_new_fields = handshake.fields("eclink_modbus", pf)
@@ -122,7 +134,12 @@ ef.poll_gap = ProtoExpert.new("eclink_modbus.poll_gap", "Input image not read fo
 -- an accepted connection whose input images stopped being a BU's
 ef.dropped = ProtoExpert.new("eclink_modbus.dropped", "Input images no longer valid: not taken for a BU any more",
     expert.group.PROTOCOL, expert.severity.NOTE)
+-- a connection with a BU's shape the heuristic has not accepted (yet): never silent
+ef.candidate = ProtoExpert.new("eclink_modbus.candidate",
+    "Looks like a BU's Modbus/TCP server, not recognised: the setting that decodes it",
+    expert.group.UNDECODED, expert.severity.NOTE)
 hs_experts[#hs_experts + 1] = ef.periodic_reassembled
+hs_experts[#hs_experts + 1] = ef.candidate
 hs_experts[#hs_experts + 1] = ef.dropped
 hs_experts[#hs_experts + 1] = ef.no_request
 hs_experts[#hs_experts + 1] = ef.poll_gap
@@ -162,8 +179,12 @@ proto.prefs.port = Pref.uint("Modbus/TCP port", 0, "TCP port of the BU's Modbus/
 proto.prefs.detection = Pref.enum("Detection", DETECT_HEURISTIC,
     "heuristic: decode a connection once its traffic shows a BU (input images whose PCI moves every 125 ms, "
     .. "or an input image and a written output image); always: every connection on the port; off: leave "
-    .. "Modbus alone",
+    .. "Modbus alone (but for the BU servers listed)",
     { { 1, "heuristic", DETECT_HEURISTIC }, { 2, "always", DETECT_ALWAYS }, { 3, "off", DETECT_OFF } }, false)
+proto.prefs.servers = Pref.string("BU servers", "",
+    "BU Modbus/TCP servers decoded from their first frame without evidence, comma separated: an IPv4 address "
+    .. "(on the Modbus/TCP port) or address:port (on that port), e.g. 192.168.2.41, 192.168.2.42:5020. "
+    .. "Invalid entries are ignored and named on stderr (and in a dialog in the GUI).")
 proto.prefs.swap = Pref.bool("Swap register bytes", true,
     "A register carries image byte 2n in its low 8 bits (as the BU does); off: in its high 8 bits")
 proto.prefs.pci_timeout = Pref.uint("PCI timeout (ms)", 500,
@@ -180,9 +201,26 @@ local mbtcp_port = 502
 -- preference values read once per change, not per ADU
 local opt = {}
 
+-- the servers preference, parsed when its text changes; what is wrong with
+-- it said once per text (stderr, and a dialog in the GUI)
+local servers_text
+local function read_servers()
+    local text = proto.prefs.servers or ""
+    if text == servers_text then return end
+    servers_text = text
+    opt.servers = servers.parse(text)
+    opt.any_servers = #opt.servers.list > 0
+    if #opt.servers.errors > 0 then
+        local msg = "vrshark: eclink_modbus.servers: " .. table.concat(opt.servers.errors, "; ")
+        io.stderr:write(msg .. "\n")
+        if gui_enabled() then report_failure(msg) end
+    end
+end
+
 local function read_prefs()
     opt.detection, opt.swap, opt.assembled = proto.prefs.detection, proto.prefs.swap, proto.prefs.assembled
     opt.pci_timeout = proto.prefs.pci_timeout / 1000
+    read_servers()
 end
 
 -- Dissectors compare by name (Lua gives each lookup a new object).
@@ -224,9 +262,45 @@ local function place_on_port()
     current_port = port
 end
 
+-- The ports named in eclink_modbus.servers are decoded too: the decoder (or
+-- the C front end) is put on each that has not got it, taking it from
+-- whatever had it (given back when the entry goes). With the C plugin the
+-- listed servers go into vrshark.mbtcp.hook as "server ADDR" / "server
+-- ADDR:PORT" (and "server", the hook, while any is listed): the front end hands
+-- their frames to this decoder whatever the detection.
+local server_ports = {}     -- port -> the dissector it had before (false: none)
+local server_keys = {}      -- hook keys registered
+local function place_servers()
+    for port, before in pairs(server_ports) do
+        if holds(port, front) then
+            tcp_port_table:remove(port, front)
+            if before then tcp_port_table:add(port, before) end
+        end
+    end
+    server_ports = {}
+    if C then
+        for _, key in ipairs(server_keys) do fe.mb_hook:remove(key, proto) end
+        server_keys = {}
+    end
+    for port in pairs(opt.servers.ports) do
+        if not holds(port, front) and not holds(port, proto) then
+            server_ports[port] = tcp_port_table:get_dissector(port) or false
+            tcp_port_table:add(port, front)
+        end
+    end
+    if C then
+        for _, e in ipairs(opt.servers.list) do
+            server_keys[#server_keys + 1] = "server " .. e.addr .. (e.port and (":" .. e.port) or "")
+        end
+        if #server_keys > 0 then server_keys[#server_keys + 1] = "server" end
+        for _, key in ipairs(server_keys) do fe.mb_hook:add(key, proto) end
+    end
+end
+
 local function prefs_changed()
     read_prefs()
     place_on_port()
+    place_servers()
     if C then
         fe.hook(fe.mb_hook, "heuristic", proto, opt.detection == DETECT_HEURISTIC)
         fe.hook(fe.mb_hook, "always", proto, opt.detection == DETECT_ALWAYS)
@@ -274,6 +348,7 @@ end
 proto.init = function()
     init_state()
     place_on_port()
+    place_servers()
 end
 init_state()
 
@@ -611,6 +686,13 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb)
     local tname = FC_TABLE[fc]
     if not tname then return NOT_DECODED end
     local c = get_conn(conn_key(pinfo, is_request))
+    if c.pinned == nil then
+        -- the server: named in eclink_modbus.servers?
+        local addr = tostring(is_request and pinfo.dst or pinfo.src)
+        local port = is_request and pinfo.dst_port or pinfo.src_port
+        c.pinned = opt.any_servers and servers.listed(opt.servers, addr, port, pinfo.match_uint) or false
+        c.setting = servers.setting(addr, port)
+    end
     local tkey = (tid * 256 + unit) * 256 + fc
     local t = pinfo.abs_ts
     -- the usual per-frame values in the array part (8 slots, no hash part)
@@ -638,11 +720,13 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb)
     local accesses = adu_accesses(tvb, off, adu_len, fcb, is_request, r)
     -- detection: from the first evidence on, a candidate's ADUs are analysed
     -- like an accepted connection's, and shown once it is accepted
-    local det = opt.detection
+    -- a listed server: decoded from the first frame, as with "always"
+    local det = c.pinned and DETECT_ALWAYS or opt.detection
     if det == DETECT_OFF then return NOT_DECODED end
     if det == DETECT_HEURISTIC and not c.accepted then
         if c.tries >= CANDIDATE_TRIES then return NOT_DECODED end
         c.tries = c.tries + 1
+        c.det.shaped = nil
         if look(c, accesses, tvb, off, t) then
             c.accepted = pinfo.number
             for _, pr in ipairs(c.pre) do pr[R_ACCEPTED] = pinfo.number end
@@ -650,6 +734,14 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb)
         elseif detect.candidate(c.det) then
             rec.pending = true
             c.pre[#c.pre + 1] = rec
+            if c.det.shaped then
+                -- never silent: what is missing, and the setting that decodes it now
+                local missing = detect.missing(c.det)
+                rec.hint = string.format("Looks like a BU (%s), not recognised: needs %s; to decode it now: %s",
+                    c.det.shaped,
+                    missing ~= "" and missing or "more of its traffic", c.setting)
+                rec.hint_setting = c.setting
+            end
         else
             return NOT_DECODED
         end
@@ -964,7 +1056,16 @@ end
 -- columns, only the state is kept; ".sparse:..." an invisible tree
 -- (vrshark/frontends.luam view(); sparse_plan()). Called by TCP (no C plugin, or Decode
 -- As), this plugin calls mbtcp itself.
-local HOOKS = { heuristic = true, always = true }
+local HOOKS = { heuristic = true, always = true, server = true }
+
+-- The note on an ADU of a connection with a BU's shape, not accepted: the
+-- setting in a field of its own, on the parent tree (the protocol item
+-- stays for decoded ADUs: "eclink_modbus" keeps matching those alone).
+local function show_hint(tvb, tree, off, adu_len, rec)
+    local item = tree:add(pf.candidate_setting, tvb(off, adu_len), rec.hint_setting)
+    item:set_generated()
+    item:add_proto_expert_info(ef.candidate, rec.hint)
+end
 
 function proto.dissector(tvb, pinfo, tree)
     local consumed = 0
@@ -988,7 +1089,7 @@ function proto.dissector(tvb, pinfo, tree)
         -- a malformed Modbus/TCP PDU: Wireshark's report stands, no EC-Link view
         if consumed == nil then return tvb:len() end
     end
-    if opt.detection == DETECT_OFF then return consumed end
+    if opt.detection == DETECT_OFF and not opt.any_servers then return consumed end
     local decoded = false
     local gaps = {}
     local found = {}
@@ -1012,6 +1113,9 @@ function proto.dissector(tvb, pinfo, tree)
             key = pinfo.number .. ":" .. rl .. ":" .. off
         end
         local rec = adus[key]
+        -- (the C front end hands a candidate's later frames over again for
+        -- the notes: one the first pass did not see stays Modbus's)
+        if not rec and pinfo.visited and via_front then rec = NOT_DECODED end
         if not rec then
             rec = first_pass(tvb, pinfo, off, adu_len, is_request, t1 * 256 + t2, unit, fcb)
             adus[key] = rec
@@ -1033,6 +1137,8 @@ function proto.dissector(tvb, pinfo, tree)
             for _, s in ipairs(adu_infos) do infos[#infos + 1] = s end
             if adu_infos.tags then infos.tags = (infos.tags or "") .. adu_infos.tags end
             if gap then gaps[#gaps + 1] = string.format(" [poll gap %.3f s]", gap) end
+        elseif rec.hint and not rec[R_ACCEPTED] and not quiet then
+            show_hint(tvb, tree, f[1], f[2], rec)
         end
     end
     -- the tags first: after Modbus's own long text they stay in view in a

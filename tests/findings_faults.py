@@ -130,4 +130,8 @@ FAULTS = {
     "eclink_pnio.cmd_from_ru": ("eclink_pnio_connect.pcap", [9, 43]),
     "eclink_modbus.cmd_to_ru.ack": ("eclink_modbus_basic.pcap", [37]),
     "eclink_pnio.cmd_to_ru.ack": ("eclink_pnio_connect.pcap", [21]),
+    # --- recognition: eclink_modbus_excerpt, a BU too short for the evidence
+    # (never accepted): its two input images (2, 10) and its write (5) have
+    # a BU's shape; the IO device beside it (0/1 inputs, counting writes) none
+    "eclink_modbus.candidate": ("eclink_modbus_excerpt.pcap", [2, 5, 10]),
 }

@@ -182,3 +182,73 @@ def test_ordinary_devices_are_never_recognized(tshark, work_dir, devices):
     cap = traffic.write(work_dir, "ordinary-%d.pcap" % next(_runs))
     got = _accepted(tshark, cap)
     assert not {s: devices[s] for s in got}
+
+
+# --- the hint: a BU's shape, not recognised ---------------------------------------
+
+def _candidates(tshark, cap):
+    """{tcp.stream: {frame: candidate setting}} of every frame with the note (one pass)."""
+    rows = tshark.fields(cap, ["tcp.stream", "frame.number", "eclink_modbus.candidate_setting"],
+                         display_filter="eclink_modbus.candidate")
+    out = {}
+    for stream, frame, setting in rows:
+        out.setdefault(int(stream), {})[int(frame)] = setting
+    return out
+
+
+@settings(max_examples=4, **SETTINGS)
+@given(excerpts=st.lists(st.tuples(image_fields(), st.integers(2, 254), st.sampled_from([4, 3, 2])),
+                         min_size=60, max_size=60))
+def test_every_valid_image_and_write_of_an_excerpt_gets_the_hint(tshark, work_dir, excerpts):
+    """An excerpt of any valid BU: two input images (PCI n, n + 1) read 125 ms
+    apart, one valid output write between them: too short to be recognized,
+    each of the three carries the note with its server's setting."""
+    traffic = Traffic()
+    expected = {}
+    for fields, pci, fc in excerpts:
+        mb, stream = traffic.client()
+        t = traffic.t + 0.01
+        _, first = read_input(mb, t, fc, mbgen.input_image(pci=pci, **fields))
+        write, _ = mb.write_regs(t + 0.01, 0, mbgen.regs(mbgen.output_image(pco=pci, cao=fields["cci"])))
+        _, second = read_input(mb, t + 0.125, fc, mbgen.input_image(pci=pci + 1, **fields))
+        traffic.done(t + 0.13)
+        server = mb.conn.s[0]
+        expected[stream] = {f: "eclink_modbus.servers:" + server for f in (first, write, second)}
+    cap = traffic.write(work_dir, "excerpts-%d.pcap" % next(_runs))
+    assert _candidates(tshark, cap) == expected
+
+
+PLAIN_KINDS = ["zeros", "counters", "clock", "random", "random_static", "flags", "flags_static"]
+
+
+@st.composite
+def plain_device(draw):
+    """An ordinary device (0/1 flags, counters, ...) polled exactly like a BU:
+    the whole input image read, then 112 counting registers written from 0."""
+    poll = draw(st.floats(0.03, 0.3))
+    return dict(kind=draw(st.sampled_from(PLAIN_KINDS)), seed=draw(st.integers(0, 2 ** 32 - 1)), poll=poll,
+                polls=draw(st.integers(1, 12)), fc=draw(st.sampled_from([4, 3, 2])),
+                tick=draw(st.sampled_from([0.1, 0.125, 0.25, 1.0])), fields=None, writes=None,
+                count0=draw(st.integers(0, 180)))
+
+
+@settings(max_examples=6, **SETTINGS)
+@given(devices=st.lists(plain_device(), min_size=120, max_size=120))
+def test_ordinary_devices_never_get_the_hint(tshark, work_dir, devices):
+    traffic = Traffic()
+    for d in devices:
+        rnd = random.Random(d["seed"])
+        mb, _ = traffic.client()
+        static = [rnd.randrange(65536) for _ in range(32)] if d["kind"] in ("counters", "clock") else \
+            bytes(rnd.randrange(256) for _ in range(64)) if d["kind"] == "random_static" else \
+            _flags(rnd) if d["kind"] == "flags_static" else None
+        t = traffic.t + 0.01
+        for i in range(d["polls"]):
+            t = traffic.t + 0.01 + i * d["poll"]
+            read_input(mb, t, d["fc"], mbgen.regs(_registers(d, i, rnd, static)))
+            mb.write_regs(t + 0.004, 0, b"".join(struct.pack(">H", (d["count0"] + i + k) & 0xFFFF)
+                                                 for k in range(112)))
+        traffic.done(t + 0.01)
+    cap = traffic.write(work_dir, "plain-%d.pcap" % next(_runs))
+    got = _candidates(tshark, cap)
+    assert not {s: devices[s] for s in got}

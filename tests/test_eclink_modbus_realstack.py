@@ -330,3 +330,75 @@ def test_io_device_polled_like_a_bu_never_decoded(tshark, real_capture):
         assert {v["modbus.func_code"] for v in polled} >= {"4", "16", "23"}
         assert len(polled) >= 40
         assert [v for v in polled if v["eclink.image"] or v["eclink_modbus.accepted_in"]] == []
+    # nor any note that it looks like a BU (0/1 inputs, counting registers written)
+    notes = tshark.frames(cap, ["ip.src", "ip.dst"], prefs=PREFS, display_filter="eclink_modbus.candidate")
+    assert [v for v in notes.values() if BU_LIKE in (v["ip.src"], v["ip.dst"]) or v["ip.src"] in ORDINARY
+            or v["ip.dst"] in ORDINARY] == []
+
+
+# --- a short excerpt of the real capture (editcap -r) ------------------------------
+
+IMAGE_FIELDS = ["eclink.image", "eclink.pci", "eclink.cci", "eclink.cai", "eclink.cmd_from_ru", "eclink.bu_state",
+                "eclink.ec_link_status", "eclink.armed_ru", "eclink.ru_battery", "eclink.ru_rssi",
+                "eclink.joystick1", "eclink.encoder", "eclink.pco", "eclink.cco", "eclink.cao", "eclink.cmd_to_ru",
+                "eclink.periodic_size"]
+EXCERPT_NAMES = ["ip.src", "ip.dst", "modbus.func_code", "eclink_modbus.candidate",
+                 "eclink_modbus.candidate_setting", "eclink_modbus.accepted_in"] + IMAGE_FIELDS
+
+
+def _is_bu(v):
+    return v["ip.src"] == v["ip.dst"] == BU
+
+
+@pytest.fixture(scope="module")
+def real_excerpt(tshark, real_capture):
+    """(excerpt path, first frame of the excerpt in the full capture, the
+    full capture decoded in two passes): from a read request of the IO device
+    polled like a BU, half-way through, to the response of the BU's second
+    input image read after it: two input images and a write of the BU."""
+    cap, _ = real_capture
+    full = tshark.frames(cap, EXCERPT_NAMES + ["frame.time_relative", "tcp.dstport"], prefs=PREFS, two_pass=True)
+    start = min(f for f, v in full.items() if v["ip.dst"] == BU_LIKE and v["modbus.func_code"] == "4"
+                and int(v["tcp.dstport"]) == PORT and float(v["frame.time_relative"]) > RUN_S / 2)
+    images = [f for f, v in sorted(full.items()) if f > start and _is_bu(v) and v["eclink.image"] == "input"]
+    end = images[1]
+    assert [f for f in range(start, end) if _is_bu(full[f]) and full[f]["eclink.image"] == "output"]
+    excerpt = cap.parent / "excerpt.pcapng"
+    subprocess.run(["editcap", "-r", str(cap), str(excerpt), "%d-%d" % (start, end)], check=True)
+    excerpt.chmod(0o644)
+    return excerpt, start, full
+
+
+def test_excerpt_unpinned_hint_on_the_bu_alone(tshark, real_excerpt):
+    """Too short for the evidence: the BU's image frames carry the note with
+    the setting that decodes it; the IO device and the others nothing."""
+    excerpt, _, _ = real_excerpt
+    setting = "eclink_modbus.servers:%s:%d" % (BU, PORT)
+    for two in (False, True):
+        got = tshark.frames(excerpt, EXCERPT_NAMES, prefs=PREFS, two_pass=two)
+        noted = {f: v for f, v in got.items() if v["eclink_modbus.candidate"]}
+        assert len(noted) >= 3                      # two input images and a write
+        assert all(_is_bu(v) for v in noted.values())
+        assert {v["eclink_modbus.candidate_setting"] for v in noted.values()} == {setting}
+        assert [f for f, v in got.items() if v["eclink.image"] or v["eclink_modbus.accepted_in"]] == []
+        assert [f for f, v in got.items() if BU_LIKE in (v["ip.src"], v["ip.dst"]) and v["modbus.func_code"]]
+
+
+@pytest.mark.parametrize("prefs", [{"eclink_modbus.servers": "%s:%d" % (BU, PORT)},
+                                   dict(PREFS, **{"eclink_modbus.servers": BU})], ids=["setting-alone", "with-port"])
+def test_excerpt_pinned_equals_the_full_capture(tshark, real_excerpt, prefs):
+    """The setting the note names (alone, or the address with eclink_modbus.port):
+    every image of the BU in the excerpt decoded from its first frame, each
+    value equal to the same frame of the whole capture decoded (the oracle);
+    the IO device and the other servers stay plain."""
+    excerpt, start, full = real_excerpt
+    for two in (False, True):
+        got = tshark.frames(excerpt, EXCERPT_NAMES, prefs=prefs, two_pass=two)
+        decoded = {f: v for f, v in got.items() if v["eclink.image"]}
+        assert all(_is_bu(v) for v in decoded.values())
+        oracle = {f - start + 1: {k: full[f][k] for k in IMAGE_FIELDS} for f in range(start, start + len(got))
+                  if _is_bu(full[f]) and full[f]["eclink.image"]}
+        assert sorted(oracle) == sorted(decoded)
+        assert {"input", "output"} <= {v["eclink.image"] for v in decoded.values()}
+        assert {f: {k: v[k] for k in IMAGE_FIELDS} for f, v in decoded.items()} == oracle
+        assert [f for f, v in got.items() if v["eclink_modbus.candidate"]] == []

@@ -41,7 +41,14 @@ function install()
     local pn = DissectorTable.get("vrshark.pn.hook")
     pn:add("candidate", probe)
     pn:add("connect", probe)
-    DissectorTable.get("vrshark.mbtcp.hook"):add("heuristic", probe)
+    local mb = DissectorTable.get("vrshark.mbtcp.hook")
+    mb:add("heuristic", probe)
+    -- a listed server, as eclink_modbus.servers registers it
+    local server = os.getenv("VRSHARK_PROBE_SERVER") or ""
+    if server ~= "" then
+        mb:add("server", probe)
+        mb:add("server " .. server, probe)
+    end
 end
 register_postdissector(probe)
 """
@@ -58,7 +65,7 @@ def _write(cap, work_dir, name):
     return path
 
 
-def _probe(tshark, work_dir, capture, two_pass=False, accept_from=0, extra=()):
+def _probe(tshark, work_dir, capture, two_pass=False, accept_from=0, extra=(), server=""):
     """[(hook, frame, visited)] of every call into the probe."""
     script = work_dir / "probe.lua"
     script.write_text(PROBE)
@@ -66,7 +73,8 @@ def _probe(tshark, work_dir, capture, two_pass=False, accept_from=0, extra=()):
     out = work_dir / ("probe-%d-%d.txt" % (two_pass, accept_from))
     out.touch()
     out.chmod(0o666)
-    env = dict(tshark.env, VRSHARK_PROBE_OUT=str(out), VRSHARK_PROBE_ACCEPT=str(accept_from))
+    env = dict(tshark.env, VRSHARK_PROBE_OUT=str(out), VRSHARK_PROBE_ACCEPT=str(accept_from),
+               VRSHARK_PROBE_SERVER=server)
     args = [tshark.cmd, "-n", "-r", str(capture), "-X", "lua_script:%s" % script] + list(extra)
     if two_pass:
         args.append("-2")
@@ -162,8 +170,11 @@ def _modbus_plain(work_dir, transactions, image_shaped=True):
 def test_modbus_connections_are_tried_a_bounded_number_of_frames(tshark, work_dir, two_pass):
     cap, adus = _modbus_plain(work_dir, 600)
     calls = _probe(tshark, work_dir, cap, two_pass=two_pass)
-    assert all(hook == "heuristic" and not visited for hook, _, visited in calls)
-    assert [frame for _, frame, _ in calls] == adus[:MB_TRIES]
+    # (later passes: what is looked at, e.g. "heuristic.quiet")
+    assert all(hook.split(".")[0] == "heuristic" for hook, _, _ in calls)
+    assert [frame for _, frame, visited in calls if not visited] == adus[:MB_TRIES]
+    # a second pass: the frames looked at once, again (for the candidate notes), no other
+    assert [frame for _, frame, visited in calls if visited] == (adus[:MB_TRIES] if two_pass else [])
 
 
 @needs_c
@@ -174,6 +185,23 @@ def test_modbus_without_image_shaped_requests_never_reaches_lua(tshark, work_dir
     cap, adus = _modbus_plain(work_dir, 50, image_shaped=False)
     assert len(adus) == 100
     assert _probe(tshark, work_dir, cap) == []
+
+
+@needs_c
+@pytest.mark.parametrize("server,reached", [("192.168.2.60", True), ("192.168.2.60:502", True),
+                                            ("192.168.2.60:5020", False), ("192.168.2.61", False)])
+def test_a_listed_modbus_server_gets_every_frame(tshark, work_dir, server, reached):
+    """A server in eclink_modbus.servers (hook keys "server ADDR" or "server
+    ADDR:PORT"): every frame from the first, on both passes, even one that
+    gives no evidence; another address or port: none."""
+    cap, adus = _modbus_plain(work_dir, 20, image_shaped=False)
+    calls = _probe(tshark, work_dir, cap, two_pass=True, server=server)
+    if not reached:
+        assert calls == []
+        return
+    assert all(hook.split(".")[0] == "server" for hook, _, _ in calls)
+    assert [frame for _, frame, visited in calls if not visited] == adus
+    assert [frame for _, frame, visited in calls if visited] == adus
 
 
 @needs_c

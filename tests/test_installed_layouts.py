@@ -73,12 +73,28 @@ def run_installed(inst, args):
 def test_decodes_as_the_harness(installed, harness, capture):
     if installed.kind == "lua-only" and capture in NEEDS_C:
         pytest.skip("EG-Link needs the C plugin")
+    _as_the_harness(installed, harness, capture, CASES[capture])
+
+
+# The short Modbus/TCP excerpt: unpinned, the note on the BU's frames;
+# pinned (eclink_modbus.servers, with -o), the BU decoded from its first frame.
+MODBUS_EXCERPT = {"unpinned": ([], "eclink_modbus.candidate"),
+                  "pinned": (["-o", "eclink_modbus.servers:192.168.2.41"], "eclink_modbus")}
+
+
+@pytest.mark.parametrize("how", sorted(MODBUS_EXCERPT))
+def test_modbus_excerpt_as_the_harness(installed, harness, how):
+    prefs, filt = MODBUS_EXCERPT[how]
+    _as_the_harness(installed, harness, "eclink_modbus_excerpt.pcap", filt, prefs)
+
+
+def _as_the_harness(installed, harness, capture, filt, prefs=()):
     ref = harness["lua-only" if installed.kind == "lua-only" else "full"]
     path = str(CAPTURES / capture)
-    filt = CASES[capture]
+    prefs = list(prefs)
     # the protocol is there at all, on the frames where the harness has it
     for two_pass in ([], ["-2"]):
-        args = ["-n", "-r", path, "-Y", filt] + two_pass
+        args = ["-n", "-r", path, "-Y", filt] + prefs + two_pass
         listed = run_installed(installed, args).stdout
         assert listed, "%s: nothing matches %r in the %s install" % (capture, filt, installed.kind)
         assert listed == ref.run(args).stdout, "%s: other frames match %r in the %s install" % (
@@ -86,8 +102,8 @@ def test_decodes_as_the_harness(installed, harness, capture):
     # and everything reads as through tools/tshark: the packet list of one
     # pass, and the whole tree of two
     for args in (["-n", "-r", path, "-T", "fields", "-e", "frame.number", "-e", "frame.protocols",
-                  "-e", "_ws.col.Protocol", "-e", "_ws.col.Info"],
-                 ["-n", "-2", "-r", path, "-V"]):
+                  "-e", "_ws.col.Protocol", "-e", "_ws.col.Info"] + prefs,
+                 ["-n", "-2", "-r", path, "-V"] + prefs):
         got = run_installed(installed, args).stdout
         want = ref.run(args).stdout
         assert got == want, "%s differs in the %s install from tools/tshark (%s)" % (

@@ -27,6 +27,7 @@ PREFS = {
     "mcmb2_duplex_noconnect.pcap": {"mcmb2.layouts": "0xC010/0xC011=duplex:8/4"},
     "eclink_modbus_port5020.pcap": {"eclink_modbus.port": "5020"},
     "eclink_modbus_noswap.pcap": {"eclink_modbus.swap": "FALSE"},
+    "eclink_modbus_excerpt.pcap": {"eclink_modbus.servers": "192.168.2.41"},
 }
 # The EC-Link over Modbus/TCP fields the sparse display adds itself (the
 # others, and every expert, mean the full tree).

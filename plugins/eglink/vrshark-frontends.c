@@ -30,6 +30,16 @@
  *                      than mbtcp's own (mbtcp.tcp.port) mbtcp is shown the
  *                      server's port as its own while it runs: it tells
  *                      queries from responses by that preference.
+ *                      A server the user listed (eclink_modbus.servers: the
+ *                      Lua side registers "server ADDR:PORT" or "server
+ *                      ADDR" in vrshark.mbtcp.hook, and "server" while any
+ *                      is listed) goes to the decoder from its first frame
+ *                      as hook "server", whatever the detection; the Lua
+ *                      side also puts this front end on the ports its
+ *                      entries name. On later passes the frames a candidate
+ *                      handed to "heuristic" on the first pass go there
+ *                      again, for the notes on its candidate frames (the
+ *                      decoder adds nothing else to them).
  *
  * Table entries are taken again when each file starts (own_pn_rt,
  * own_pn_cm, own_mb_port): the order of plugin hand-offs depends on the
@@ -65,6 +75,8 @@
 #include <epan/exceptions.h>
 #include <epan/expert.h>
 #include <epan/prefs.h>
+#include <epan/to_str.h>
+#include <epan/proto_data.h>
 
 #include "vrshark-frontends.h"
 
@@ -132,6 +144,7 @@ typedef struct {
 static lua_view_t view_pn = { "frame_id", pn_lua_protos, { 0 }, NULL, NULL, FALSE, FALSE, NULL };
 static lua_view_t view_mb_always = { "always", mb_lua_protos, { 0 }, NULL, NULL, FALSE, FALSE, NULL };
 static lua_view_t view_mb_heuristic = { "heuristic", mb_lua_protos, { 0 }, NULL, NULL, FALSE, FALSE, NULL };
+static lua_view_t view_mb_server = { "server", mb_lua_protos, { 0 }, NULL, NULL, FALSE, FALSE, NULL };
 
 static GArray *view_scratch;   /* lua_view()'s list of this frame */
 static int expert_tap;         /* 0 until found (find_tap_id's "not registered") */
@@ -424,6 +437,7 @@ dissect_pn_cm(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
 #define MB_ACCEPTED 0x80000000u
 #define MB_LIVE     0x40000000u     /* a request shaped like BU evidence was seen */
 #define MB_TRIES_MASK 0x0FFFFFFFu
+#define MB_TRIED    0               /* proto data key: a frame the decoder refused */
 
 /* Would this request, if the server were a BU, carry the evidence the Lua
  * heuristic accepts a connection on (vrshark/modbus_detect.luam): the whole
@@ -547,7 +561,37 @@ leave_layer_list(packet_info *pinfo)
     }
 }
 
-/* The Lua decoder registered as v->hook ("always" or "heuristic"), with
+/* Is the server of this frame (the destination of a request: to the port
+ * the front end was called for) one the user listed? The key the Lua side
+ * registers: "server ADDR:PORT", or "server ADDR" for every port. */
+static gboolean
+mb_listed(packet_info *pinfo, guint32 server_port)
+{
+    const address *server;
+    guint32 port;
+    char *addr, *key;
+    gboolean found;
+
+    if (!dissector_get_string_handle(mb_hook_table, view_mb_server.hook))
+        return FALSE;
+    if (pinfo->destport == server_port) {
+        server = &pinfo->dst;
+        port = pinfo->destport;
+    } else {
+        server = &pinfo->src;
+        port = pinfo->srcport;
+    }
+    addr = address_to_str(pinfo->pool, server);
+    key = wmem_strdup_printf(pinfo->pool, "server %s:%u", addr, port);
+    found = dissector_get_string_handle(mb_hook_table, key) != NULL;
+    if (!found) {
+        key = wmem_strdup_printf(pinfo->pool, "server %s", addr);
+        found = dissector_get_string_handle(mb_hook_table, key) != NULL;
+    }
+    return found;
+}
+
+/* The Lua decoder registered as v->hook ("always", "heuristic", "server"), with
  * pinfo->match_string what it is to add (lua_view; everything while the
  * connection is still a candidate: `full`). Its protocol joins the layer
  * list, as when it wraps mbtcp itself. */
@@ -613,6 +657,10 @@ dissect_mbtcp_front(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *d
         call_mb_decoder(&view_mb_always, FALSE, tvb, pinfo, tree);
         return consumed;
     }
+    if (mb_listed(pinfo, server_port)) {
+        call_mb_decoder(&view_mb_server, FALSE, tvb, pinfo, tree);
+        return consumed;
+    }
     if (!dissector_get_string_handle(mb_hook_table, view_mb_heuristic.hook) ||
         !(conv = find_conversation_pinfo(pinfo, 0)))
         return consumed;
@@ -622,18 +670,26 @@ dissect_mbtcp_front(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *d
         call_mb_decoder(&view_mb_heuristic, FALSE, tvb, pinfo, tree);
         return consumed;
     }
-    /* a candidate: later passes keep the first pass's refusals */
-    if (pinfo->fd->visited || (state & MB_TRIES_MASK) >= VRSHARK_MB_CANDIDATE_TRIES)
+    /* a candidate: later passes keep the first pass's refusals; the frames
+     * the decoder looked at then go to it again for its notes (lua_view) */
+    if (pinfo->fd->visited) {
+        if (p_get_proto_data(wmem_file_scope(), pinfo, proto_vrshark_mbtcp, MB_TRIED))
+            call_mb_decoder(&view_mb_heuristic, FALSE, tvb, pinfo, tree);
+        return consumed;
+    }
+    if ((state & MB_TRIES_MASK) >= VRSHARK_MB_CANDIDATE_TRIES)
         return consumed;
     if (!(state & MB_LIVE)) {
         if (pinfo->destport != server_port || !mb_evidence_request(tvb))
             return consumed;
         state |= MB_LIVE;
     }
-    if (call_mb_decoder(&view_mb_heuristic, TRUE, tvb, pinfo, tree))
+    if (call_mb_decoder(&view_mb_heuristic, TRUE, tvb, pinfo, tree)) {
         state = MB_ACCEPTED;
-    else
+    } else {
         state++;
+        p_add_proto_data(wmem_file_scope(), pinfo, proto_vrshark_mbtcp, MB_TRIED, GUINT_TO_POINTER(1));
+    }
     wmem_map_insert(mb_state, key, GUINT_TO_POINTER(state));
     return consumed;
 }
@@ -662,6 +718,7 @@ frontends_shutdown(void)
     lua_view_free(&view_pn);
     lua_view_free(&view_mb_always);
     lua_view_free(&view_mb_heuristic);
+    lua_view_free(&view_mb_server);
     if (view_scratch)
         g_array_free(view_scratch, TRUE);
     view_scratch = NULL;

@@ -347,3 +347,46 @@ def plain_devices():
     for i in range(4):
         mb3.read_regs(2.1 + i * 0.1, 4, 0, bytes(rnd.randrange(7) for _ in range(64)))
     return cap
+
+
+def _midstream(cap, client_port, server_ip, client_isn=1000, server_isn=50000, tid=0):
+    """A ModbusClient on a connection already open (an excerpt: no handshake)."""
+    mb = ModbusClient.__new__(ModbusClient)
+    mb.conn = TcpConnection(cap, PLC_IP, client_port, server_ip, 502, client_isn=client_isn,
+                            server_isn=server_isn)
+    mb.tid = tid
+    mb.unit = 1
+    return mb
+
+
+def _io_flags(n):
+    """An IO device's 0/1 digital inputs as its 32 input registers (on the
+    wire): every value check of an input image passes, and nothing but 0/1."""
+    values = [0] * 32
+    values[10] = values[12] = values[13] = 1
+    for k in (0, 5, 16):
+        values[k] = (n // (3 + k % 2)) % 2
+    return b"".join(struct.pack(">H", v) for v in values)
+
+
+@capture("eclink_modbus_excerpt.pcap",
+         "EC-Link over Modbus/TCP: a 17-frame excerpt (two input images and one write of a BU, too short "
+         "for the evidence; an IO device polled like a BU beside it): eclink_modbus.servers decodes it")
+def excerpt():
+    cap = Capture()
+    bu = _midstream(cap, 50100, BU_IP, client_isn=7000, server_isn=90000, tid=880)
+    io = _midstream(cap, 50300, "192.168.2.60", client_isn=3000, server_isn=60000, tid=410)
+    def counting(n):
+        return b"".join(struct.pack(">H", n + k) for k in range(112))
+    inp = dict(cci=6, cai=2, cmd=b"FROM-RU-COMMAND!", armed_ru=0x4242, battery=77, rssi=88,
+               joy=(370, 0, 0, -12), enc=42)
+    bu.read_regs(0.000, 4, 0, regs(input_image(pci=40, **inp)))              # 1-2 input image
+    io.read_regs(0.010, 4, 0, _io_flags(0))                                  # 3-4 0/1 flags
+    bu.write_regs(0.020, 0, regs(output_image(pco=7, cco=3, cao=6, cmd=b"TO-RU-COMMAND-16")))  # 5-6 write
+    io.write_regs(0.030, 0, counting(0))                                      # 7-8 counting registers
+    bu.read_regs(0.125, 4, 0, regs(input_image(pci=41, **inp)))              # 9-10 input image
+    io.read_regs(0.135, 4, 0, _io_flags(1))                                  # 11-12
+    io.write_regs(0.145, 0, counting(1))                        # 13-14
+    bu.conn.client_send(0.250, bu.adu(struct.pack(">BHH", 4, 0, 32), tid=883))  # 15 cut after the request
+    io.read_regs(0.260, 4, 0, _io_flags(2))                                  # 16-17
+    return cap
