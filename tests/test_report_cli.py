@@ -144,7 +144,8 @@ def test_expect_missing_protocol(cmd):
 
 
 def test_expect_excerpt_and_subsets(cmd, work):
-    """A Modbus excerpt that ends before the BU is recognised, and several
+    """A Modbus excerpt that ends before the BU is recognised (its candidate
+    note names the setting), and several
     protocols: each capture names the ones it lacks; EC-Link over PROFINET
     counts as EC-Link."""
     excerpt = work / "excerpt.pcap"
@@ -156,8 +157,9 @@ def test_expect_excerpt_and_subsets(cmd, work):
     assert proc.returncode == 1
     assert proc.stderr.splitlines() == [
         "vrshark-report: %s: expected EG-Link, EC-Link and MC-MB2-PN, none found (8 frames read; "
-        "EG-Link on another UDP port: -o eglink.input_port:PORT; %s; a base whose Connect is not in "
-        "the capture: -o mcmb2.layouts, docs/profinet.md)" % (excerpt, HINT_ECLINK),
+        "EG-Link on another UDP port: -o eglink.input_port:PORT; not recognised, to decode: "
+        "-o eclink_modbus.servers:192.168.2.41; a base whose Connect is not in "
+        "the capture: -o mcmb2.layouts, docs/profinet.md)" % excerpt,
         "vrshark-report: %s: expected EG-Link and MC-MB2-PN, none found (82 frames read; EG-Link on "
         "another UDP port: -o eglink.input_port:PORT; a base whose Connect is not in the capture: "
         "-o mcmb2.layouts, docs/profinet.md)" % pnio,
@@ -165,6 +167,22 @@ def test_expect_excerpt_and_subsets(cmd, work):
         "another UDP port: -o eglink.input_port:PORT; %s)" % (MCMB2, HINT_ECLINK)]
     proc = run(cmd, "--expect", "eclink", pnio)
     assert (proc.returncode, proc.stderr) == (0, "")
+
+
+def test_expect_names_the_candidate(cmd):
+    """A BU the dissector saw but could not recognise (a short excerpt): the
+    line names the exact setting of its candidate note; with it, the BU is
+    there and the capture passes."""
+    excerpt = str(CAPTURES / "eclink_modbus_excerpt.pcap")
+    proc = run(cmd, "--expect", "eclink", excerpt)
+    assert proc.returncode == 1
+    assert proc.stderr.splitlines() == [
+        "vrshark-report: %s: expected EC-Link, none found (17 frames read; not recognised, to decode: "
+        "-o eclink_modbus.servers:192.168.2.41)" % excerpt]
+    proc = run(cmd, "--json", "--expect", "eclink", "-o", "eclink_modbus.servers:192.168.2.41", excerpt)
+    assert (proc.returncode, proc.stderr) == (0, "")
+    assert [d["name"] for d in captures(proc)[0]["devices"]] == [
+        "EC-Link BU, Modbus/TCP server 192.168.2.41:502"]
 
 
 @pytest.mark.parametrize("args, status, lines", [

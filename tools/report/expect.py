@@ -40,9 +40,34 @@ def listed(words):
     return ", ".join(words[:-1]) + " and " + words[-1] if len(words) > 1 else words[0]
 
 
+# Candidates (traffic with the shape of ours that was not recognised) by the
+# protocols they may be: a Modbus/TCP server is an EC-Link BU, a PROFINET run
+# an MC-MB2-PN base or an EC-Link BU.
+CANDIDATE_FOR = {"eclink_modbus.servers": {"eclink"}, "mcmb2.layouts": {"eclink", "mcmb2"}}
+
+
+def settings(rep, name):
+    """The settings that decode the capture's candidates for a protocol."""
+    found = []
+    for dev in rep["devices"]:
+        setting = dev["kind"] == "candidate" and dev.get("address", {}).get("setting")
+        if setting and name in CANDIDATE_FOR.get(setting.split(":", 1)[0], ()):
+            found.append("-o " + setting)
+    return list(dict.fromkeys(found))
+
+
+def hint(rep, name):
+    """Where to look for an absent protocol: the candidates' own settings when
+    the capture has candidates for it, else the setting that usually helps."""
+    found = settings(rep, name)
+    if found:
+        return "not recognised, to decode: " + ", ".join(found)
+    return PROTOCOLS[name][2]
+
+
 def line(rep):
     """The one line for a capture without some expected protocol."""
     absent = rep["missing"]
     return "%s: expected %s, none found (%d frames read; %s)" % (
         rep["capture"], listed([title(n) for n in absent]), rep["frames"],
-        "; ".join(PROTOCOLS[n][2] for n in absent))
+        "; ".join(hint(rep, n) for n in absent))
