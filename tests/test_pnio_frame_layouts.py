@@ -183,7 +183,9 @@ def order_from(perms, kinds):
 
 def random_mcmb2_traffic(d, cap, pairs, up, data, seed):
     """Data that never look like a header or text: random bytes (not 0x80);
-    the ASCII modules hold text; both watchdogs move; base unit number 0
+    the ASCII modules hold letters (a module of digits and blanks could be
+    data as well, and of two ways to split the modules section 5.3 allows
+    data is taken); both watchdogs move; base unit number 0
     (multiple select not configured: a downlink header that reads as an
     uplink status byte, see test_pnio_candidate.py)."""
     rnd = random.Random(seed)
@@ -193,8 +195,8 @@ def random_mcmb2_traffic(d, cap, pairs, up, data, seed):
     for i in range(pairs):
         payload = bytes(byte() for _ in range(up))
         cap.add(d.cyclic("in", _spread(ins, "inlen", bytes([0x31, i & 0xFF]) + payload)), 0.002)
-        down = bytes(byte() for _ in range(data)) + (b"CRANE 7 " * 64)[:ascii_]
-        cap.add(d.cyclic("out", _spread(outs, "outlen", bytes([0, (i // 4) & 0xFF]) + down)), 0.002)
+        down = bytes(byte() for _ in range(data)) + (b"CRANEHOIST" * 64)[:ascii_]
+        cap.add(d.cyclic("out", _spread(outs, "outlen", bytes([0, i & 0xFF]) + down)), 0.002)
 
 
 @settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
