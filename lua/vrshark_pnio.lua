@@ -35,8 +35,11 @@ Layouts (vrshark/pnio_layout.luam) come from, best first:
   4. the cyclic frames of a duplex/simplex MC-MB2-PN base or an EC-Link BU
      themselves (vrshark/pnio_infer.luam): a run of frames of one FrameID
      pair, whose IOxS positions, module sizes, watchdogs or EC-Link images
-     leave one layout. Its frames before the settling frame are analysed
+     leave one layout, wherever the controller put the IO data objects and
+     IOCS in the frame. Its frames before the settling frame are analysed
      then, in frame order: shown on the second pass (tshark -2, the GUI).
+     A run that looked like ours but did not settle carries the candidate
+     note with the layout-table entries that decode it (candidate()).
 
 The decoders register themselves in vrshark/pnio_systems.luam by system
 ("duplex", "polled", "eclink"); the per-frame record they fill is described

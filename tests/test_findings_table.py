@@ -17,7 +17,7 @@ from findings_faults import FAULTS
 
 SEVERITY = {"2097152": "chat", "4194304": "note", "6291456": "warning", "8388608": "error"}
 GROUP = {"16777216": "Checksum", "33554432": "Sequence", "50331648": "Response code",
-         "117440512": "Malformed", "150994944": "Protocol"}
+         "83886080": "Undecoded", "117440512": "Malformed", "150994944": "Protocol"}
 PROTOCOLS = ["EG-Link", "EC-Link", "MC-MB2-PN"]
 
 
