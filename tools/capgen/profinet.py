@@ -397,17 +397,24 @@ def polled_vlan():
     return _polled_noconnect(100)
 
 
+def _duplex_pairs(d, pairs, up, down):
+    """pairs uplink + downlink frames 0.1 s apart; up(i), down(i): (header, payload)."""
+    cap = Capture()
+    for i in range(pairs):
+        t = 0.1 * (i + 1)
+        header, payload = up(i)
+        d.uplink(cap, t, header, [payload])
+        header, payload = down(i)
+        d.downlink(cap, t + 0.001, header, [payload])
+    return cap
+
+
 @capture("mcmb2_duplex_noconnect.pcap",
          "MC-MB2-PN duplex without a Connect (FrameIDs 0xC010/0xC011, 8 up / 4 down bytes): layout "
          "inferred from its cyclic frames, or from the mcmb2.layouts preference")
 def duplex_noconnect():
-    cap = Capture()
-    d = Mcmb2("duplex", 8, 4, in_fid=0xC010, out_fid=0xC011)
-    for i in range(3):
-        t = 0.1 * (i + 1)
-        d.uplink(cap, t, [0x31, i + 1], [bytes(range(1, 9))])
-        d.downlink(cap, t + 0.001, [2, i + 1], [bytes([9, 8, 7, 6])])
-    return cap
+    return _duplex_pairs(Mcmb2("duplex", 8, 4, in_fid=0xC010, out_fid=0xC011), 3,
+                         lambda i: ([0x31, i + 1], bytes(range(1, 9))), lambda i: ([2, i + 1], bytes([9, 8, 7, 6])))
 
 
 @capture("mcmb2_duplex_pcworx.pcap",
@@ -415,14 +422,10 @@ def duplex_noconnect():
          "out as PC WORX RT Basic does: the IOCS first, then the IO data objects; layout inferred from its "
          "cyclic frames")
 def duplex_pcworx():
-    cap = Capture()
     d = Mcmb2("duplex", 26, 2, ascii_=8, in_fid=0xC012, out_fid=0xC013,
               order={"in": "iocs_first", "out": "iocs_first"})
-    for i in range(3):
-        t = 0.1 * (i + 1)
-        d.uplink(cap, t, [0x31, i + 1], [_duplex_payload(26, i)])
-        d.downlink(cap, t + 0.001, [0, i + 1], [bytes([9, 8]) + b"HOIST UP"])
-    return cap
+    return _duplex_pairs(d, 3, lambda i: ([0x31, i + 1], _duplex_payload(26, i)),
+                         lambda i: ([0, i + 1], bytes([9, 8]) + b"HOIST UP"))
 
 
 @capture("mcmb2_duplex_e010_noconnect.pcap",
@@ -430,13 +433,8 @@ def duplex_pcworx():
          "downlink watchdog never moves, so its layout is never inferred; every frame carries the note "
          "mcmb2.candidate with the setting that decodes it (second pass)")
 def duplex_e010_noconnect():
-    cap = Capture()
-    d = Mcmb2("duplex", 8, 4, in_fid=0xC014, out_fid=0xC015)
-    for i in range(5):
-        t = 0.1 * (i + 1)
-        d.uplink(cap, t, [0x3A, i + 1], [bytes(8)])
-        d.downlink(cap, t + 0.001, [0, 7], [bytes([9, 8, 7, 6])])
-    return cap
+    return _duplex_pairs(Mcmb2("duplex", 8, 4, in_fid=0xC014, out_fid=0xC015), 5,
+                         lambda i: ([0x3A, i + 1], bytes(8)), lambda i: ([0, 7], bytes([9, 8, 7, 6])))
 
 
 # -- EC-Link -------------------------------------------------------------------
