@@ -84,6 +84,7 @@ EXPERTS = {
     "mcmb2.short": (ERROR, "finding", "C-SDU shorter than the layout"),
     "mcmb2.layout.inferred": (NOTE, "finding", "layout inferred from the cyclic frames (no Connect)"),
     "mcmb2.layout.ambiguous": (NOTE, "finding", "more than one layout fits the cyclic frames"),
+    "mcmb2.candidate": (NOTE, "finding", "looks like ours, layout not inferred: mcmb2.layouts decodes it"),
     # EC-Link images (both transports)
     "eclink.relays_open": (WARNING, "relays", "ES-Link relays open"),
     "eclink.ru_stopped": (WARNING, "relays", "RU stopped"),
