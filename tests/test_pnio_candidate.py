@@ -120,3 +120,23 @@ def test_a_base_unit_number_that_reads_as_a_status(tshark, work_dir):
     # pinning the right one decodes it
     pinned = tshark.frames(path, ["mcmb2.direction"], prefs={"mcmb2.layouts": right}, two_pass=True)
     assert [r["mcmb2.direction"] for n, r in sorted(pinned.items())] == ["uplink", "downlink"] * 40
+
+
+def test_an_eclink_bu_whose_controller_stopped(tshark, work_dir):
+    """The input image proves the BU (its PCI chain); the controller's PCO
+    never moves, so the output image gives no evidence: the second pass
+    names the EC-Link entry."""
+    from pnio_testlib import eclink_submodules
+    from test_pnio_midsession import eclink_image_in, eclink_image_out
+    d = Device(eclink_submodules(2, 20), mac(42), 0x8044, 0x8045)
+    cap = CaptureFile()
+    for i in range(300):
+        cap.add(d.cyclic("in", {1: eclink_image_in((i * 4) // 125)}), 0.002)
+        cap.add(d.cyclic("out", {2: eclink_image_out(7, length=20)}), 0.002)
+    path = cap.write(work_dir / "eclink_stopped.pcap")
+    setting = "mcmb2.layouts:0x8044/0x8045=eclink:/20@2"
+    two = tshark.frames(path, FIELDS, two_pass=True)
+    assert two == {n: {"mcmb2.candidate_setting": setting, "_ws.expert.message": (
+        "Looks like an EC-Link BU, but its layout was not inferred (not settled by the end of the capture); "
+        "to decode it now: " + setting)} for n in range(1, 601)}
+    assert tshark.frames(path, [], display_filter="mcmb2.candidate || eclink") == {}
