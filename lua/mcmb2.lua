@@ -80,6 +80,7 @@ local pf = {
     direction = ProtoField.string("mcmb2.direction", "Direction"),
     layout = ProtoField.string("mcmb2.layout", "Layout from"),
     layout_entry = ProtoField.string("mcmb2.layout_entry", "Layout table entry (to pin it: mcmb2.layouts)"),
+    candidate_setting = ProtoField.string("mcmb2.candidate_setting", "Setting that decodes it"),
     status = ProtoField.uint8("mcmb2.status", "MC-MB2-PN status", base.HEX, STATUS, 0x0F),
     terminal = ProtoField.uint8("mcmb2.terminal", "Terminal number", base.DEC, nil, 0xF0),
     uplink_watchdog = ProtoField.uint8("mcmb2.uplink_watchdog", "Uplink watchdog counter", base.DEC),
@@ -154,11 +155,14 @@ local ef = {
     ambiguous = expert_new("mcmb2.layout.ambiguous",
         "More than one layout fits these cyclic frames: none is decoded until one is left",
         expert.group.SEQUENCE, expert.severity.NOTE),
+    candidate = expert_new("mcmb2.candidate",
+        "Looks like an MC-MB2-PN base or EC-Link BU whose layout was not inferred: a layout-table entry decodes it",
+        expert.group.UNDECODED, expert.severity.NOTE),
 }
 mcmb2.experts = { ef.status_undefined, ef.slot_status_undefined, ef.terminal_not_zero, ef.not_valid, ef.e010,
                   ef.data_not_zero, ef.uplink_stalled, ef.downlink_stalled, ef.terminal_changed,
                   ef.layout_mismatch, ef.iops_bad, ef.iocs_bad, ef.reserved_not_zero, ef.short, ef.learned,
-                  ef.inferred, ef.ambiguous }
+                  ef.inferred, ef.ambiguous, ef.candidate }
 
 ------------------------------------------------------------------------
 -- Preferences
@@ -714,16 +718,21 @@ local function show_connect(rec, tvb, tree, text)
     item:add_proto_expert_info(ef.learned, "Cyclic data layout learned: " .. text)
 end
 
--- Cyclic frames of one FrameID pair that more than one layout fits
--- (vrshark/pnio_infer.luam): said on the frame that found it; nothing is
--- decoded until one is left.
-local function show_ambiguous(rec, tvb, tree)
+-- Cyclic frames of a run that looked like ours but whose layout was not
+-- inferred (vrshark_pnio.lua candidate()): the note and the settings that
+-- decode it; on the frame that found more than one layout fitting
+-- equally, that too (nothing is decoded until one is left).
+local function show_candidate(rec, tvb, tree)
     local item = tree:add(mcmb2, tvb:range(0, 0))
-    item:append_text(": layout not inferred yet, more than one fits")
-    item:add_proto_expert_info(ef.ambiguous, "Layouts that fit these cyclic frames equally: " .. rec.text
-        .. "; none is decoded until one is left (or pin one in mcmb2.layouts)")
+    item:append_text(": looks like ours, layout not inferred")
+    for _, s in ipairs(rec.settings) do item:add(pf.candidate_setting, s):set_generated() end
+    item:add_proto_expert_info(ef.candidate, rec.text)
+    if rec.ambiguous then
+        item:add_proto_expert_info(ef.ambiguous, "Layouts that fit these cyclic frames equally: " .. rec.ambiguous
+            .. "; none is decoded until one is left (or pin one in mcmb2.layouts)")
+    end
 end
 
 systems.register({ "duplex", "polled" }, { proto = mcmb2, short = ef.short, inferred = ef.inferred,
                                           analyse = analyse, show = show, sparse = sparse,
-                                          show_connect = show_connect, show_ambiguous = show_ambiguous })
+                                          show_connect = show_connect, show_candidate = show_candidate })

@@ -35,8 +35,11 @@ Layouts (vrshark/pnio_layout.luam) come from, best first:
   4. the cyclic frames of a duplex/simplex MC-MB2-PN base or an EC-Link BU
      themselves (vrshark/pnio_infer.luam): a run of frames of one FrameID
      pair, whose IOxS positions, module sizes, watchdogs or EC-Link images
-     leave one layout. Its frames before the settling frame are analysed
+     leave one layout, wherever the controller put the IO data objects and
+     IOCS in the frame. Its frames before the settling frame are analysed
      then, in frame order: shown on the second pass (tshark -2, the GUI).
+     A run that looked like ours but did not settle carries the candidate
+     note with the layout-table entries that decode it (candidate()).
 
 The decoders register themselves in vrshark/pnio_systems.luam by system
 ("duplex", "polled", "eclink"); the per-frame record they fill is described
@@ -80,6 +83,8 @@ local last_rec    -- plan -> its latest distinct records (shared_record)
 local ars         -- AR UUID -> parsed Connect
 local runs        -- vrshark.pnio_infer state: the runs of FrameIDs without a layout
 local addr_of     -- station key of pnio_infer (tostring of an Ethernet address) -> Address
+local hint_recs   -- hint of pnio_infer -> the record of its candidate frames
+local unsettled   -- second pass: whether a run was left unsettled (nil: not asked yet)
 local heuristic, learn -- the preferences mcmb2.heuristic and mcmb2.connect, read in init()
 
 local function register(plan)
@@ -120,13 +125,13 @@ local function table_plans(text)
         local up, down
         local dev = "pref" .. i
         if e.system == "eclink" then
-            up, down = layout.eclink_plans(e.outlen, e.dap, "preference", dev)
+            up, down = layout.eclink_plans(e.outlen, e.dap, "preference", dev, e.order)
         elseif e.system == "polled" and #e.up == 0 then
             up = { system = "polled", dir = "up", deferred = true, out_fid = e.out_fid or nil }
             down = { system = "polled", dir = "down", deferred = true }
         else
             local n = (e.system == "polled") and (e.slots or 4) or 1
-            up, down = layout.mcmb2_plans(e.system, n, e.up, e.down, e.dap, "preference", dev)
+            up, down = layout.mcmb2_plans(e.system, n, e.up, e.down, e.dap, "preference", dev, e.order, e.ascii)
         end
         if up and e.in_fid then up.fid = e.in_fid; plans[#plans + 1] = up end
         if down and e.out_fid then down.fid = e.out_fid; plans[#plans + 1] = down end
@@ -179,7 +184,7 @@ local function init()
     for port in pairs(cm_ports or {}) do udp_table:remove(port, carrier) end
     by_fid, pending_down, tries, frames, ars, cm_ports = {}, {}, {}, {}, {}, {}
     runs = infer.new()
-    addr_of = {}
+    addr_of, hint_recs, unsettled = {}, {}, nil
     last_rec = {}
     local prefs = systems.prefs()
     heuristic, learn = prefs.heuristic, prefs.connect
@@ -419,9 +424,10 @@ local function settle(res)
     local dev = "inferred" .. res.last
     local up, down
     if res.system == "eclink" then
-        up, down = layout.eclink_plans(res.outlen, res.dap, source, dev)
+        up, down = layout.eclink_plans(res.outlen, res.dap, source, dev, res.order)
     else
-        up, down = layout.mcmb2_plans("duplex", 1, res.up_mods, res.down_mods, res.dap, source, dev)
+        up, down = layout.mcmb2_plans("duplex", 1, res.up_mods, res.down_mods, res.dap, source, dev, res.order,
+            res.ascii)
     end
     local list = {}
     for _, pr in ipairs({ { up, res.up }, { down, res.down } }) do
@@ -445,6 +451,48 @@ local function settle(res)
     end
 end
 
+-- The record of the frames of a run that looked like ours but has not
+-- settled (vrshark/pnio_infer.luam hint()): the candidate note with the
+-- layout-table entries that decode it. The first time a hint is seen,
+-- every earlier frame of its runs gets it too (shown on the second pass);
+-- a run that settles later replaces them (settle()).
+local SYSTEM_NAME = { duplex = "an MC-MB2-PN duplex/simplex base", eclink = "an EC-Link BU" }
+
+local function candidate(h, frame)
+    local rec = hint_recs[h]
+    if not rec then
+        local settings = {}
+        for i, e in ipairs(h.entries) do settings[i] = "mcmb2.layouts:" .. e end
+        rec = { kind = "candidate", settings = settings, text = string.format(
+            "Looks like %s, but its layout was not inferred (%s); to decode it now: %s",
+            SYSTEM_NAME[h.system], h.why, table.concat(settings, " or ")) }
+        hint_recs[h] = rec
+        for _, list in ipairs(h.lists or {}) do
+            for _, f in ipairs(list) do
+                if f[1] ~= frame then frames[f[1]] = rec end
+            end
+        end
+        h.lists = nil
+    end
+    if frame == h.frame and h.ambiguous then
+        return { kind = "candidate", settings = rec.settings, text = rec.text, ambiguous = h.ambiguous }
+    end
+    return rec
+end
+
+-- On the second pass, a frame of a run that was not settled by the end of
+-- the capture but looked like ours (pnio_infer.final_hint): the candidate
+-- note. `unsettled` (whether any run is left so) is asked once, on the
+-- first frame of the second pass; nil: not asked yet.
+local function final_candidate(tvb, pinfo)
+    if unsettled == nil then unsettled = infer.unsettled(runs) end
+    if not unsettled then return nil end
+    local fid = tvb:range(0, 2):uint()
+    if fid < 0x8000 or fid > 0xFBFF then return nil end
+    local h = infer.final_hint(runs, fid, tostring(pinfo.dl_src), tostring(pinfo.dl_dst))
+    return h and candidate(h, pinfo.number)
+end
+
 -- A cyclic frame of no known layout, fed to vrshark.pnio_infer.
 local function inferred(fid, tvb, base, size, pinfo)
     local src, dst = tostring(pinfo.dl_src), tostring(pinfo.dl_dst)
@@ -452,8 +500,15 @@ local function inferred(fid, tvb, base, size, pinfo)
     local was = infer.alive(runs)
     local res = infer.feed(runs, fid, src, dst, tvb:raw(base, size), pinfo.abs_ts, pinfo.number)
     if infer.alive(runs) ~= was then set_hooks() end
+    if #runs.watch > 0 then
+        -- the C front end hands later passes only the FrameIDs in its table
+        if C then
+            for _, f in ipairs(runs.watch) do fe.pn_frame_id:add(f, carrier) end
+        end
+        runs.watch = {}
+    end
     if not res then return nil end
-    if res.kind == "ambiguous" then return { kind = "ambiguous", text = res.text } end
+    if res.kind == "candidate" then return candidate(res, pinfo.number) end
     settle(res)
     return frames[pinfo.number]
 end
@@ -480,8 +535,8 @@ local function first_pass(fid, tvb, pinfo)
 end
 
 local function show(rec, tvb, pinfo, tree)
-    if rec.kind == "ambiguous" then
-        systems.decoder("duplex").show_ambiguous(rec, tvb, tree)
+    if rec.kind == "candidate" then
+        systems.decoder("duplex").show_candidate(rec, tvb, tree)
         return
     end
     if rec.kind ~= "connect" then
@@ -513,6 +568,7 @@ local function cyclic(tvb, pinfo, tree, view)
     local rec
     if pinfo.visited then
         rec = frames[pinfo.number]
+        if rec == nil and unsettled ~= false and tvb:len() >= 2 then rec = final_candidate(tvb, pinfo) end
     elseif tvb:len() >= 2 then
         local fid = tvb:range(0, 2):uint()
         if by_fid[fid] or (fid >= 0x8000 and fid <= 0xFBFF and heuristic

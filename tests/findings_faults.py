@@ -123,6 +123,10 @@ FAULTS = {
     "eclink_pnio.bu_state_change": ("eclink_pnio_connect.pcap", [7]),
     "eclink_pnio.layout.inferred": ("eclink_pnio_noconnect.pcap", [6]),
     "mcmb2.layout.inferred": ("mcmb2_duplex_noconnect.pcap", [6]),
+    # --- looks like ours, not recognised: mcmb2_duplex_e010_noconnect, a
+    # base in E010 whose downlink watchdog never moves, without a Connect:
+    # never settled, every frame of both directions (second pass)
+    "mcmb2.candidate": ("mcmb2_duplex_e010_noconnect.pcap", list(range(1, 11))),
     # --- commands and acknowledgements in time
     "eglink.analysis.command": ("eglink_analysis_vrci_retransmission.pcap", [7]),
     "eglink.analysis.ack": ("eglink_analysis_vrci_retransmission.pcap", [14]),

@@ -97,6 +97,9 @@ class Device:
     ctl_ip: str = "192.168.1.1"
     ar: uuid.UUID = field(default_factory=uuid.uuid4)
     cycle: int = 0
+    # The frame layout the controller assigns: order(direction, elements)
+    # returns the elements (slot order) in frame order; None: slot order.
+    order: object = None
 
     def _elements(self, direction):
         """[(kind, submodule)] in frame order; kind: "data" (data + IOPS) or "iocs"."""
@@ -104,6 +107,10 @@ class Device:
         for s in sorted(self.subs, key=lambda s: (s.slot, s.subslot)):
             mine = (s.outlen > 0) if direction == "out" else (s.outlen == 0)
             out.append(("data" if mine else "iocs", s))
+        if self.order:
+            got = list(self.order(direction, out))
+            assert sorted(got, key=id) == sorted(out, key=id), "order() must permute the elements"
+            return got
         return out
 
     def _length(self, s, direction):
@@ -119,7 +126,9 @@ class Device:
             else:
                 iocs.append((s, off))
                 off += 1
-        return objs, iocs, max(off, 40)
+        # the IOCR block lists them in slot order, whatever their offsets
+        key = lambda p: (p[0].slot, p[0].subslot)  # noqa: E731
+        return sorted(objs, key=key), sorted(iocs, key=key), max(off, 40)
 
     def c_sdu(self, direction, data):
         """The C-SDU as scapy packets; data: {slot: bytes} (missing: zeros)."""
@@ -227,6 +236,17 @@ class CaptureFile:
                 w.write(p)
         path.chmod(0o644)
         return path
+
+
+def iocs_first(direction, elements):
+    """The IOCS first, then the IO data objects, each in slot order (the input
+    CR of PC WORX RT Basic, public capture pnio_connect_many.pcapng)."""
+    return [e for e in elements if e[0] == "iocs"] + [e for e in elements if e[0] == "data"]
+
+
+def data_first(direction, elements):
+    """The IO data objects first, then the IOCS, each in slot order."""
+    return [e for e in elements if e[0] == "data"] + [e for e in elements if e[0] == "iocs"]
 
 
 def mac(index):

@@ -27,10 +27,20 @@ CASES = {
     "eclink_pnio_connect.pcap": "eclink_pnio",
     "mcmb2_duplex_connect.pcap": "mcmb2.system == \"duplex\"",
     "mcmb2_polled_connect.pcap": "mcmb2.system == \"polled\"",
+    # PROFINET without the Connect: slot order, PC WORX, IOCS first / data
+    # first, and a base whose layout is not inferred (the candidate note)
+    "mcmb2_duplex_noconnect.pcap": "mcmb2.layout_entry",
+    "mcmb2_duplex_pcworx.pcap": "mcmb2.layout_entry",
+    "eclink_pnio_noconnect.pcap": "eclink_pnio.layout_entry",
+    "eclink_pnio_data_first.pcap": "eclink_pnio.layout_entry",
+    "mcmb2_duplex_e010_noconnect.pcap": "mcmb2.candidate",
     "crane_eglink.pcap": "vrshark_io",
     "crane_mcmb2.pcap": "vrshark_io",
     "crane_eclink_modbus.pcap": "vrshark_io",
 }
+# Captures whose frames are ours on the second pass only (a run not
+# settled by the end of the capture).
+SECOND_PASS_ONLY = {"mcmb2_duplex_e010_noconnect.pcap"}
 # What needs the C plugin (EG-Link is C only).
 NEEDS_C = {"eglink_analysis_session.pcap", "crane_eglink.pcap"}
 
@@ -96,7 +106,8 @@ def _as_the_harness(installed, harness, capture, filt, prefs=()):
     for two_pass in ([], ["-2"]):
         args = ["-n", "-r", path, "-Y", filt] + prefs + two_pass
         listed = run_installed(installed, args).stdout
-        assert listed, "%s: nothing matches %r in the %s install" % (capture, filt, installed.kind)
+        assert listed or (not two_pass and capture in SECOND_PASS_ONLY), "%s: nothing matches %r in the %s install" % (
+            capture, filt, installed.kind)
         assert listed == ref.run(args).stdout, "%s: other frames match %r in the %s install" % (
             capture, filt, installed.kind)
     # and everything reads as through tools/tshark: the packet list of one

@@ -52,3 +52,34 @@ def test_eclink_from_the_table(tshark, capture_file):
                                          "eclink_pnio.layout": "preference"}, prefs=prefs)
     tshark.expect(capture_file(ECL), 2, {"eclink.image": "output", "eclink.pci": None, "eclink.pco": 1,
                                          "eclink_pnio.layout": "preference"}, prefs=prefs)
+
+
+PCWORX = "mcmb2_duplex_pcworx.pcap"
+ECL_DATA_FIRST = "eclink_pnio_data_first.pcap"
+
+
+def test_frame_order_from_the_table(tshark, capture_file):
+    """[UP/DOWN]: where the controller put each element (PC WORX: the IOCS
+    first); with the heuristic off the table alone decodes it."""
+    prefs = {"mcmb2.layouts": "0xC012/0xC013=duplex:26/2,a8@4[3c,4d,h,20,4,2]", "mcmb2.heuristic": "FALSE"}
+    got = tshark.frames(capture_file(PCWORX), ["mcmb2.layout", "mcmb2.uplink_data", "mcmb2.downlink_data"],
+                        prefs=prefs)
+    # the payload of tools/capgen (profinet.py _duplex_payload(26, 0))
+    assert got[1] == {"mcmb2.layout": "preference", "mcmb2.uplink_data": (b"\x01" + bytes(range(1, 26))).hex(),
+                      "mcmb2.downlink_data": ""}
+    assert got[2] == {"mcmb2.layout": "preference", "mcmb2.uplink_data": "",
+                      "mcmb2.downlink_data": (bytes([9, 8]) + b"HOIST UP").hex()}
+    prefs = {"mcmb2.layouts": "0xC022/0xC023=eclink:/224@4[c,4d,i/i,4d,c]", "mcmb2.heuristic": "FALSE"}
+    got = tshark.frames(capture_file(ECL_DATA_FIRST), ["eclink.pci", "eclink.pco"], prefs=prefs)
+    assert [(r["eclink.pci"], r["eclink.pco"]) for _, r in sorted(got.items())] == \
+        [("1", ""), ("", "1"), ("2", ""), ("", "2"), ("3", ""), ("", "3"), ("4", ""), ("", "4")]
+
+
+def test_frame_orders_that_do_not_fit_are_ignored(tshark, capture_file):
+    """An order naming an element too few or too many, an unknown item or an
+    order on a polled entry: the entry is skipped."""
+    for entry in ("0xC012/0xC013=duplex:26/2,a8@4[3c,4d,h,20,4]", "0xC012/0xC013=duplex:26/2,a8@4[3c,4d,h,20,4,2,c]",
+                  "0xC012/0xC013=duplex:26/2,a8@4[3c,4d,h,20,4,x]", "0xC012/0xC013=polled:26/2,a8@4[3c,4d,h,20,4,2]",
+                  "0xC012/0xC013=duplex:26/2,a8@4[3c,4d,h,20,4,a2]"):
+        got = systems(tshark, capture_file(PCWORX), prefs={"mcmb2.layouts": entry, "mcmb2.heuristic": "FALSE"})
+        assert set(got.values()) == {""}, entry

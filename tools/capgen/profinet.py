@@ -72,8 +72,12 @@ class Device:
     """An IO device with its submodules; lays out both cyclic frames."""
 
     def __init__(self, subs, in_fid, out_fid, device_mac=DEVICE_MAC, controller_mac=CONTROLLER_MAC,
-                 vlan=None, ar_uuid="6d8b0a1c-2f3e-4a5b-8c9d-0e1f2a3b4c5d"):
+                 vlan=None, ar_uuid="6d8b0a1c-2f3e-4a5b-8c9d-0e1f2a3b4c5d", order=None):
         self.subs = sorted(subs, key=lambda s: (s.slot, s.subslot))
+        # The frame layout the controller assigns, per direction ("in",
+        # "out"): "iocs_first" (the IOCS, then the IO data objects, each in
+        # slot order: PC WORX RT Basic), "data_first", or slot order.
+        self.order = order or {}
         self.in_fid, self.out_fid = in_fid, out_fid
         self.dev_mac, self.ctl_mac = device_mac, controller_mac
         self.vlan = vlan
@@ -84,14 +88,21 @@ class Device:
 
     def _layout(self, direction):
         """{sub: data offset}, {sub: IOCS offset}, C-SDU length of one direction."""
-        data, iocs, off = {}, {}, 0
+        elements = []
         for s in self.subs:
-            mine = s.is_input if direction == "in" else s.is_output
-            other = s.is_output if direction == "in" else s.is_input
-            if mine:
+            if s.is_input if direction == "in" else s.is_output:
+                elements.append(("data", s))
+            if s.is_output if direction == "in" else s.is_input:
+                elements.append(("iocs", s))
+        first = {"iocs_first": "iocs", "data_first": "data"}.get(self.order.get(direction))
+        if first:
+            elements.sort(key=lambda e: e[0] != first)   # stable: slot order within each kind
+        data, iocs, off = {}, {}, 0
+        for kind, s in elements:
+            if kind == "data":
                 data[s] = off
                 off += (s.inlen if direction == "in" else s.outlen) + 1
-            if other:
+            else:
                 iocs[s] = off
                 off += 1
         return data, iocs, max(off, 40)
@@ -386,17 +397,44 @@ def polled_vlan():
     return _polled_noconnect(100)
 
 
+def _duplex_pairs(d, pairs, up, down):
+    """pairs uplink + downlink frames 0.1 s apart; up(i), down(i): (header, payload)."""
+    cap = Capture()
+    for i in range(pairs):
+        t = 0.1 * (i + 1)
+        header, payload = up(i)
+        d.uplink(cap, t, header, [payload])
+        header, payload = down(i)
+        d.downlink(cap, t + 0.001, header, [payload])
+    return cap
+
+
 @capture("mcmb2_duplex_noconnect.pcap",
          "MC-MB2-PN duplex without a Connect (FrameIDs 0xC010/0xC011, 8 up / 4 down bytes): layout "
          "inferred from its cyclic frames, or from the mcmb2.layouts preference")
 def duplex_noconnect():
-    cap = Capture()
-    d = Mcmb2("duplex", 8, 4, in_fid=0xC010, out_fid=0xC011)
-    for i in range(3):
-        t = 0.1 * (i + 1)
-        d.uplink(cap, t, [0x31, i + 1], [bytes(range(1, 9))])
-        d.downlink(cap, t + 0.001, [2, i + 1], [bytes([9, 8, 7, 6])])
-    return cap
+    return _duplex_pairs(Mcmb2("duplex", 8, 4, in_fid=0xC010, out_fid=0xC011), 3,
+                         lambda i: ([0x31, i + 1], bytes(range(1, 9))), lambda i: ([2, i + 1], bytes([9, 8, 7, 6])))
+
+
+@capture("mcmb2_duplex_pcworx.pcap",
+         "MC-MB2-PN duplex without a Connect (FrameIDs 0xC012/0xC013, 26 up / 2 + 8 ASCII down bytes), laid "
+         "out as PC WORX RT Basic does: the IOCS first, then the IO data objects; layout inferred from its "
+         "cyclic frames")
+def duplex_pcworx():
+    d = Mcmb2("duplex", 26, 2, ascii_=8, in_fid=0xC012, out_fid=0xC013,
+              order={"in": "iocs_first", "out": "iocs_first"})
+    return _duplex_pairs(d, 3, lambda i: ([0x31, i + 1], _duplex_payload(26, i)),
+                         lambda i: ([0, i + 1], bytes([9, 8]) + b"HOIST UP"))
+
+
+@capture("mcmb2_duplex_e010_noconnect.pcap",
+         "MC-MB2-PN duplex without a Connect (FrameIDs 0xC014/0xC015, 8 up / 4 down bytes) in E010: its "
+         "downlink watchdog never moves, so its layout is never inferred; every frame carries the note "
+         "mcmb2.candidate with the setting that decodes it (second pass)")
+def duplex_e010_noconnect():
+    return _duplex_pairs(Mcmb2("duplex", 8, 4, in_fid=0xC014, out_fid=0xC015), 5,
+                         lambda i: ([0x3A, i + 1], bytes(8)), lambda i: ([0, 7], bytes([9, 8, 7, 6])))
 
 
 # -- EC-Link -------------------------------------------------------------------
@@ -466,6 +504,20 @@ def eclink_connect():
         bu_state = 0x10 if i < 2 else 0x11
         bu.inputs(cap, t, eclink_input(pci, cci, cai, bu=bu_state))
         bu.outputs(cap, t + 0.001, eclink_output(pco, cco, cao))
+    return cap
+
+
+@capture("eclink_pnio_data_first.pcap",
+         "EC-Link BU (Standard, 64 in / 224 out) without a Connect (FrameIDs 0xC022/0xC023): the IOCS first "
+         "in the uplink, the output image first and the IOCS last in the downlink; layout inferred from its "
+         "cyclic frames")
+def eclink_data_first():
+    cap = Capture()
+    bu = EclinkBu(224, in_fid=0xC022, out_fid=0xC023, order={"in": "iocs_first", "out": "data_first"})
+    for i in range(4):
+        t = 0.125 * (i + 1)
+        bu.inputs(cap, t, eclink_input(i + 1, 0, 0))
+        bu.outputs(cap, t + 0.001, eclink_output(i + 1, 0, 0))
     return cap
 
 
