@@ -463,7 +463,7 @@ local function candidate(h, frame)
     if not rec then
         local settings = {}
         for i, e in ipairs(h.entries) do settings[i] = "mcmb2.layouts:" .. e end
-        rec = { kind = "candidate", settings = settings, text = string.format(
+        rec = { kind = "candidate", settings = settings, early = h.early, text = string.format(
             "Looks like %s, but its layout was not inferred (%s); to decode it now: %s",
             SYSTEM_NAME[h.system], h.why, table.concat(settings, " or ")) }
         hint_recs[h] = rec
@@ -568,7 +568,10 @@ local function cyclic(tvb, pinfo, tree, view)
     local rec
     if pinfo.visited then
         rec = frames[pinfo.number]
-        if rec == nil and unsettled ~= false and tvb:len() >= 2 then rec = final_candidate(tvb, pinfo) end
+        -- (a one-pass early hint gives way to the hint known at the end)
+        if (rec == nil or rec.early) and unsettled ~= false and tvb:len() >= 2 then
+            rec = final_candidate(tvb, pinfo) or rec
+        end
     elseif tvb:len() >= 2 then
         local fid = tvb:range(0, 2):uint()
         if by_fid[fid] or (fid >= 0x8000 and fid <= 0xFBFF and heuristic

@@ -6,9 +6,12 @@ mcmb2.layouts entry that decodes it. Frames are built with scapy
 
 - never settled: a base in E010 (its downlink watchdog stalled, so the
   downlink gives no evidence): on the second pass every frame of both
-  directions; one pass says nothing (the end of the capture is not known);
-- given up: the same base whose status then turns undefined: one pass from
-  the frame it was given up in, the second pass every frame;
+  directions; one pass, where the end of the capture is not known, from the
+  frame its uplink showed its evidence (E010, the watchdog moving twice):
+  "so far evidence from one direction only";
+- given up: the same base whose status then turns undefined: one pass says
+  so early as above, then from the frame it was given up in, the second
+  pass every frame;
 - ambiguous: a downlink header whose base unit number reads as a status
   byte (multiple select), in the PC WORX layout, so that the frames fit the
   two directions the other way round as well: both entries, the
@@ -55,7 +58,10 @@ def test_a_base_in_e010_never_settles(tshark, work_dir):
     want = {"mcmb2.candidate_setting": setting,
             "_ws.expert.message": NOTE % ("not settled by the end of the capture", setting)}
     assert two == {n: want for n in range(1, 61)}
-    assert tshark.frames(path, [], display_filter="mcmb2.candidate") == {}
+    # one pass: from the uplink's third frame (E010 and its watchdog moved twice) on
+    early = {"mcmb2.candidate_setting": setting,
+             "_ws.expert.message": NOTE % ("so far evidence from one direction only", setting)}
+    assert tshark.frames(path, FIELDS, display_filter="mcmb2.candidate") == {n: early for n in range(5, 61)}
     assert tshark.frames(path, [], display_filter="mcmb2.system", two_pass=True) == {}
     # the setting decodes every frame as the Connect does
     entry = setting.split(":", 1)[1]
@@ -83,7 +89,9 @@ def test_given_up_when_the_status_turns_undefined(tshark, work_dir):
     want = {"mcmb2.candidate_setting": setting,
             "_ws.expert.message": NOTE % ("its uplink reading was contradicted in frame 21", setting)}
     one = tshark.frames(path, FIELDS, display_filter="mcmb2")
-    assert one == {n: want for n in range(21, 61)}
+    early = {"mcmb2.candidate_setting": setting,
+             "_ws.expert.message": NOTE % ("so far evidence from one direction only", setting)}
+    assert one == {n: (early if n < 21 else want) for n in range(5, 61)}
     two = tshark.frames(path, FIELDS, two_pass=True)
     assert two == {n: want for n in range(1, 61)}
 
@@ -125,7 +133,8 @@ def test_a_base_unit_number_that_reads_as_a_status(tshark, work_dir):
 def test_an_eclink_bu_whose_controller_stopped(tshark, work_dir):
     """The input image proves the BU (its PCI chain); the controller's PCO
     never moves, so the output image gives no evidence: the second pass
-    names the EC-Link entry."""
+    names the EC-Link entry; one pass names it from the frame whose PCI
+    proved the input image (its third change, pair 64) on."""
     from pnio_testlib import eclink_submodules
     from test_pnio_midsession import eclink_image_in, eclink_image_out
     d = Device(eclink_submodules(2, 20), mac(42), 0x8044, 0x8045)
@@ -139,4 +148,8 @@ def test_an_eclink_bu_whose_controller_stopped(tshark, work_dir):
     assert two == {n: {"mcmb2.candidate_setting": setting, "_ws.expert.message": (
         "Looks like an EC-Link BU, but its layout was not inferred (not settled by the end of the capture); "
         "to decode it now: " + setting)} for n in range(1, 601)}
-    assert tshark.frames(path, [], display_filter="mcmb2.candidate || eclink") == {}
+    assert tshark.frames(path, [], display_filter="eclink") == {}
+    one = tshark.frames(path, FIELDS, display_filter="mcmb2.candidate")
+    assert one == {n: {"mcmb2.candidate_setting": setting, "_ws.expert.message": (
+        "Looks like an EC-Link BU, but its layout was not inferred (so far evidence from one direction only); "
+        "to decode it now: " + setting)} for n in range(127, 601)}

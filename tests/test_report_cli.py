@@ -169,20 +169,32 @@ def test_expect_excerpt_and_subsets(cmd, work):
     assert (proc.returncode, proc.stderr) == (0, "")
 
 
-def test_expect_names_the_candidate(cmd):
-    """A BU the dissector saw but could not recognise (a short excerpt): the
-    line names the exact setting of its candidate note; with it, the BU is
-    there and the capture passes."""
-    excerpt = str(CAPTURES / "eclink_modbus_excerpt.pcap")
-    proc = run(cmd, "--expect", "eclink", excerpt)
+@pytest.mark.parametrize("capture, protocol, setting, device", [
+    ("eclink_modbus_excerpt.pcap", "eclink", "eclink_modbus.servers:192.168.2.41",
+     "EC-Link BU, Modbus/TCP server 192.168.2.41:502"),
+    ("mcmb2_duplex_e010_noconnect.pcap", "mcmb2", "mcmb2.layouts:0xc014/0xc015=duplex:8/4@4",
+     "MC-MB2-PN duplex base 00:30:11:00:00:02"),
+])
+def test_expect_names_the_candidate(cmd, capture, protocol, setting, device):
+    """A BU or base the dissectors saw but could not recognise (a short
+    Modbus excerpt; a base in E010 without its Connect): the candidate is a
+    device with a warning, the --expect line names the exact setting of its
+    note; with that setting the device is there and the capture passes."""
+    path = str(CAPTURES / capture)
+    proc = run(cmd, "--json", "--expect", protocol, path)
     assert proc.returncode == 1
+    title = {"eclink": "EC-Link", "mcmb2": "MC-MB2-PN"}[protocol]
+    frames = captures(proc)[0]["frames"]
     assert proc.stderr.splitlines() == [
-        "vrshark-report: %s: expected EC-Link, none found (17 frames read; not recognised, to decode: "
-        "-o eclink_modbus.servers:192.168.2.41)" % excerpt]
-    proc = run(cmd, "--json", "--expect", "eclink", "-o", "eclink_modbus.servers:192.168.2.41", excerpt)
-    assert (proc.returncode, proc.stderr) == (0, "")
-    assert [d["name"] for d in captures(proc)[0]["devices"]] == [
-        "EC-Link BU, Modbus/TCP server 192.168.2.41:502"]
+        "vrshark-report: %s: expected %s, none found (%d frames read; not recognised, to decode: -o %s)" % (
+            path, title, frames, setting)]
+    cap = captures(proc)[0]
+    assert [(d["kind"], d["address"]["setting"]) for d in cap["devices"]] == [("candidate", setting)]
+    assert [(e["severity"], e["text"].endswith("to decode it: -o " + setting)) for e in cap["timeline"]] == [
+        ("warning", True)]
+    proc = run(cmd, "--json", "--expect", protocol, "-o", setting, path)
+    assert proc.stderr == ""
+    assert [d["name"] for d in captures(proc)[0]["devices"]] == [device]
 
 
 @pytest.mark.parametrize("args, status, lines", [
