@@ -25,6 +25,7 @@ local image = require("vrshark.eclink_image")
 local record = require("vrshark.pnio_record")
 local systems = require("vrshark.pnio_systems")
 local iodata = require("vrshark.iodata") -- vrshark_io hook
+local fe = require("vrshark.frontends")
 image.proto()  -- the single Proto("eclink"), shared with the other EC-Link plugins
 
 local add_finding, attach = record.add_finding, record.attach
@@ -156,6 +157,60 @@ local function show(rec, tvb, pinfo, tree)
         .. (rec.unacked and " [unacked]" or "") .. (rec.late_ack and " [late ack]" or "")
 end
 
+------------------------------------------------------------------------
+-- Sparse display: an invisible tree (the packet list, -T fields, -Y)
+------------------------------------------------------------------------
+-- As in mcmb2.lua: only the referenced fields, flat, in the occurrences
+-- show() gives them (tests/test_sparse_view.py), then the columns. The
+-- image adds its own fields (image.dissect, opts.only). Any expert wanted,
+-- or a field without an adder here, means show().
+local function age_adders(field, ms_field, key)
+    return function(c) if c.rec[key] then c.tree:add(field, record.nstime(c.rec[key])) end end,
+        function(c) if c.rec[key] then c.tree:add(ms_field, record.whole_ms(c.rec[key])) end end
+end
+local ADDERS = {
+    ["eclink_pnio.layout"] = function(c) c.tree:add(epf.layout, c.plan.source) end,
+    ["eclink_pnio.layout_entry"] = function(c) if c.plan.entry then c.tree:add(epf.layout_entry, c.plan.entry) end end,
+    ["eclink_pnio.frame_id"] = function(c) c.tree:add(epf.frame_id, c.tvb:range(0, 2)) end,
+    ["eclink_pnio.iops"] = function(c) record.add_ioxs_sparse(c.tree, c.rec, c.tvb, epf.iops, false) end,
+    ["eclink_pnio.iocs"] = function(c) record.add_ioxs_sparse(c.tree, c.rec, c.tvb, epf.iocs, true) end,
+}
+ADDERS["eclink_pnio.pci_age"], ADDERS["eclink_pnio.pci_age_ms"] = age_adders(epf.pci_age, epf.pci_age_ms, "pci_age")
+ADDERS["eclink_pnio.pco_age"], ADDERS["eclink_pnio.pco_age_ms"] = age_adders(epf.pco_age, epf.pco_age_ms, "pco_age")
+local function image_field() end
+for _, name in ipairs({ "image", "covered", "cut", "not_covered", "es_relays_open" }) do
+    ADDERS["eclink." .. name] = image_field
+end
+for _, kind in ipairs({ "input", "output" }) do
+    for _, e in ipairs(image.layout[kind]) do ADDERS[e.abbr] = image_field end
+end
+-- no expert names: any referenced expert means the full tree
+local SPARSE = { adders = ADDERS, experts = {}, prefixes = { "eclink_pnio", "eclink", "vrshark_io", "vrshark.io" } }
+
+-- false: show() is needed instead.
+local function sparse(rec, tvb, pinfo, tree, view)
+    if view.experts then return false end
+    local plan = rec.plan
+    local p = fe.plan(view, SPARSE)
+    -- machine data can add findings and Info tags of its own
+    if not p or rec.size < plan.need or (p.cols and next(iodata.areas)) then return false end
+    if #p.adders > 0 then
+        local c = { rec = rec, tvb = tvb, tree = tree, plan = plan }
+        for _, add in ipairs(p.adders) do add(c) end
+    end
+    local up = plan.dir == "up"
+    local o = plan.image
+    local info = image.dissect(tvb, pinfo, tree, { kind = up and "input" or "output", offset = rec.base + o.off,
+        length = o.len, image_len = o.len, only = view.fields })
+    if p.cols then
+        pinfo.cols.protocol = "EC-Link"
+        pinfo.cols.info = (up and "Input image " or "Output image ") .. info.summary .. info.tags
+            .. eclink_handshake.tags(rec.pci_age, rec.pco_age)
+            .. (rec.unacked and " [unacked]" or "") .. (rec.late_ack and " [late ack]" or "")
+    end
+    return true
+end
+
 local function show_connect(rec, tvb, tree, text)
     local _ = rec
     local item = tree:add(eclp, tvb:range(0, 0))
@@ -164,5 +219,5 @@ local function show_connect(rec, tvb, tree, text)
 end
 
 systems.register({ "eclink" }, { proto = eclp, short = eef.short, inferred = eef.inferred, analyse = analyse,
-                                 show = show,
+                                 show = show, sparse = sparse,
                                  show_connect = show_connect })
