@@ -29,6 +29,7 @@ local fe = require("vrshark.frontends")
 image.proto()  -- the single Proto("eclink"), shared with the other EC-Link plugins
 
 local add_finding, attach = record.add_finding, record.attach
+local byte = string.byte
 
 local eclp = Proto("eclink_pnio", "EC-Link over PROFINET IO")
 
@@ -75,6 +76,7 @@ end
 ------------------------------------------------------------------------
 -- First pass
 ------------------------------------------------------------------------
+-- ba: the C-SDU as a Lua string (byte i at byte(ba, i + 1)).
 local function analyse(rec, ba, t, frame)
     local plan = rec.plan
     local hs = devs[plan.dev]
@@ -86,9 +88,11 @@ local function analyse(rec, ba, t, frame)
     record.check_ioxs(rec, ba, eef.iops_bad, nil)
     local inp, out
     if plan.dir == "up" then
-        inp = { pci = ba:get_index(o), cci = ba:get_index(o + 1), cai = ba:get_index(o + 3), bu = ba:get_index(o + 20) }
+        local pci, cci, _, cai = byte(ba, o + 1, o + 4)
+        inp = { pci = pci, cci = cci, cai = cai, bu = byte(ba, o + 21) }
     else
-        out = { pco = ba:get_index(o), cco = ba:get_index(o + 1), cao = ba:get_index(o + 3) }
+        local pco, cco, _, cao = byte(ba, o + 1, o + 4)
+        out = { pco = pco, cco = cco, cao = cao }
     end
     local r = eclink_handshake.update(hs, inp, out, t, frame, rec)
     local links
@@ -177,13 +181,7 @@ local ADDERS = {
 }
 ADDERS["eclink_pnio.pci_age"], ADDERS["eclink_pnio.pci_age_ms"] = age_adders(epf.pci_age, epf.pci_age_ms, "pci_age")
 ADDERS["eclink_pnio.pco_age"], ADDERS["eclink_pnio.pco_age_ms"] = age_adders(epf.pco_age, epf.pco_age_ms, "pco_age")
-local function image_field() end
-for _, name in ipairs({ "image", "covered", "cut", "not_covered", "es_relays_open" }) do
-    ADDERS["eclink." .. name] = image_field
-end
-for _, kind in ipairs({ "input", "output" }) do
-    for _, e in ipairs(image.layout[kind]) do ADDERS[e.abbr] = image_field end
-end
+image.own_fields(ADDERS, function() end)
 -- no expert names: any referenced expert means the full tree
 local SPARSE = { adders = ADDERS, experts = {}, prefixes = { "eclink_pnio", "eclink", "vrshark_io", "vrshark.io" } }
 

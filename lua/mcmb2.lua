@@ -35,6 +35,7 @@ local iodata = require("vrshark.iodata") -- vrshark_io hook
 local frontends = require("vrshark.frontends")
 
 local add_finding, attach, nstime = record.add_finding, record.attach, record.nstime
+local byte = string.byte
 
 local mcmb2 = systems.mcmb2_proto()
 
@@ -201,10 +202,10 @@ end
 ------------------------------------------------------------------------
 -- Helpers
 ------------------------------------------------------------------------
-local function all_zero(ba, objs)
+local function all_zero(ba, objs) -- ba: a Lua string
     for _, o in ipairs(objs) do
         for i = o.off, o.off + o.len - 1 do
-            if ba:get_index(i) ~= 0 then return false end
+            if byte(ba, i + 1) ~= 0 then return false end
         end
     end
     return true
@@ -260,6 +261,7 @@ end
 ------------------------------------------------------------------------
 -- First pass: the analysis of one cyclic frame
 ------------------------------------------------------------------------
+-- ba: the C-SDU as a Lua string (byte i at byte(ba, i + 1)).
 -- Seconds rounded to the millisecond (ages are differences of capture
 -- times: 1.2 s, not 1.200000048 s).
 local function ms(s)
@@ -283,7 +285,7 @@ local function analyse_duplex(rec, d, ba, t, frame)
     local plan = rec.plan
     local h = plan.header.off
     if plan.dir == "up" then
-        local sb = ba:get_index(h)
+        local sb = byte(ba, h + 1)
         local st = bit.band(sb, 0x0F)
         if not DUPLEX_OK[st] then
             rec.undefined = true
@@ -305,10 +307,10 @@ local function analyse_duplex(rec, d, ba, t, frame)
                 "Status %s is not 'Terminal present' but the uplink data is not all 0",
                 name_of(STATUS, DUPLEX_OK, st)))
         end
-        watchdog(rec, d.up_wd, ba:get_index(h + 1), t, frame, up_limit,
+        watchdog(rec, d.up_wd, byte(ba, h + 2), t, frame, up_limit,
             ef.uplink_stalled, "Uplink")
     else
-        watchdog(rec, d.down_wd, ba:get_index(h + 1), t, frame, down_limit,
+        watchdog(rec, d.down_wd, byte(ba, h + 2), t, frame, down_limit,
             ef.downlink_stalled, "Downlink")
     end
     plan.one_group = plan.one_group or { plan.modules }
@@ -319,7 +321,7 @@ local function analyse_polled_up(rec, d, ba, t, frame)
     local plan = rec.plan
     local h = plan.header.off
     local cfg = plan.cfg
-    local sb = ba:get_index(h)
+    local sb = byte(ba, h + 1)
     local st = bit.band(sb, 0x0F)
     if not POLLED_OK[st] then
         rec.undefined = true
@@ -336,12 +338,12 @@ local function analyse_polled_up(rec, d, ba, t, frame)
         add_finding(rec, "status", ef.terminal_not_zero, string.format(
             "Terminal number bits are %d, not 0, on a polled system", bit.rshift(sb, 4)))
     end
-    watchdog(rec, d.up_wd, ba:get_index(h + 1), t, frame, up_limit,
+    watchdog(rec, d.up_wd, byte(ba, h + 2), t, frame, up_limit,
         ef.uplink_stalled, "Uplink")
-    local y, z = ba:get_index(h + 2), ba:get_index(h + 3)
+    local y, z = byte(ba, h + 3), byte(ba, h + 4)
     local mask = 0
     for k = 1, 4 do
-        local s = ba:get_index(h + 3 + k)
+        local s = byte(ba, h + 4 + k)
         if bit.band(s, 0x0F) ~= 0x0F then mask = mask + bit.lshift(1, k - 1) end
     end
     local used = used_slots(mask)
@@ -362,7 +364,7 @@ local function analyse_polled_up(rec, d, ba, t, frame)
     rec.groups, rec.slots = groups, used
     d.z, d.used = z, used
     for k = 1, 4 do
-        local s = ba:get_index(h + 3 + k)
+        local s = byte(ba, h + 4 + k)
         local sst, term = bit.band(s, 0x0F), bit.rshift(s, 4)
         local anchor = SLOT_ANCHOR[k]
         if not SLOT_OK[sst] then
@@ -393,11 +395,11 @@ local function analyse_polled_down(rec, d, ba, t, frame)
     local plan = rec.plan
     local h = plan.header.off
     local cfg = plan.cfg
-    local r = ba:get_index(h)
+    local r = byte(ba, h + 1)
     if r ~= 0 then
         add_finding(rec, "reserved", ef.reserved_not_zero, string.format("Reserved byte is 0x%02x, not 0", r))
     end
-    watchdog(rec, d.down_wd, ba:get_index(h + 1), t, frame, down_limit,
+    watchdog(rec, d.down_wd, byte(ba, h + 2), t, frame, down_limit,
         ef.downlink_stalled, "Downlink")
     local z = d.z or cfg.z
     local groups = plan_groups(plan, z) or plan_groups(plan, cfg.z) or {}

@@ -257,6 +257,17 @@ def _image_probe(tshark, work_dir, capture, args, full=False):
     return sorted({int(line.split()[1]) for line in lines})
 
 
+def _same_columns(tshark, name, extra, proto, two_pass):
+    """Every EC-Link image field, extra and (if given) every field of proto as
+    columns: the sparse display's output (returned) is the full tree's."""
+    names = _fields(tshark, "eclink") + extra + (_fields(tshark, proto) if proto else [])
+    args = ["-n", "-r", str(CAPTURES / name), "-o", "gui.column.format:" + _columns(sorted(set(names)))]
+    args += _prefs(name) + (["-2"] if two_pass else [])
+    sparse = _run(tshark, args)
+    assert sparse.splitlines() == _run(tshark, args, full=True).splitlines()
+    return sparse
+
+
 @needs_c
 @pytest.mark.parametrize("name", MODBUS_CAPTURES)
 @pytest.mark.parametrize("fieldset", ["sparse", "all"])
@@ -265,13 +276,7 @@ def test_modbus_columns_are_those_of_the_full_tree(tshark, name, fieldset, two_p
     """The EC-Link image fields and the ADU facts the sparse display adds
     (fieldset "sparse"), or every EC-Link field (most of them mean the full
     tree): the same columns as the full tree, frame by frame."""
-    names = _fields(tshark, "eclink") + MODBUS_SPARSE
-    if fieldset == "all":
-        names += _fields(tshark, "eclink_modbus")
-    args = ["-n", "-r", str(CAPTURES / name), "-o", "gui.column.format:" + _columns(sorted(set(names)))]
-    args += _prefs(name) + (["-2"] if two_pass else [])
-    sparse = _run(tshark, args)
-    assert sparse.splitlines() == _run(tshark, args, full=True).splitlines()
+    sparse = _same_columns(tshark, name, MODBUS_SPARSE, "eclink_modbus" if fieldset == "all" else None, two_pass)
     if name != "modbus_plain_devices.pcap" and two_pass:
         assert "EC-Link" in sparse
 
@@ -310,14 +315,8 @@ def test_eclink_pnio_columns_are_those_of_the_full_tree(tshark, name, fieldset, 
     """EC-Link over PROFINET: the image fields and the frame facts the sparse
     display adds (fieldset "sparse"), or every field of both protocols: the
     same columns as the full tree, frame by frame."""
-    names = _fields(tshark, "eclink") + ECLINK_PNIO_SPARSE
-    if fieldset == "all":
-        names += _fields(tshark, "eclink_pnio")
-    args = ["-n", "-r", str(CAPTURES / name), "-o", "gui.column.format:" + _columns(sorted(set(names)))]
-    args += _prefs(name) + (["-2"] if two_pass else [])
-    sparse = _run(tshark, args)
-    assert sparse.splitlines() == _run(tshark, args, full=True).splitlines()
-    assert "EC-Link" in sparse
+    assert "EC-Link" in _same_columns(tshark, name, ECLINK_PNIO_SPARSE, "eclink_pnio" if fieldset == "all" else None,
+                                      two_pass)
 
 
 @needs_c
