@@ -185,7 +185,8 @@ image.own_fields(ADDERS, function() end)
 -- no expert names: any referenced expert means the full tree
 local SPARSE = { adders = ADDERS, experts = {}, prefixes = { "eclink_pnio", "eclink", "vrshark_io", "vrshark.io" } }
 
--- false: show() is needed instead.
+-- false: show() is needed instead. One context table, refilled per frame.
+local ctx = {}
 local function sparse(rec, tvb, pinfo, tree, view)
     if view.experts then return false end
     local plan = rec.plan
@@ -193,7 +194,8 @@ local function sparse(rec, tvb, pinfo, tree, view)
     -- machine data can add findings and Info tags of its own
     if not p or rec.size < plan.need or (p.cols and next(iodata.areas)) then return false end
     if #p.adders > 0 then
-        local c = { rec = rec, tvb = tvb, tree = tree, plan = plan }
+        local c = ctx
+        c.rec, c.tvb, c.tree, c.plan = rec, tvb, tree, plan
         for _, add in ipairs(p.adders) do add(c) end
     end
     local up = plan.dir == "up"

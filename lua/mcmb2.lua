@@ -686,7 +686,8 @@ local ADDERS = {
 }
 local SPARSE = { adders = ADDERS, experts = expert_names, prefixes = { "mcmb2", "vrshark_io", "vrshark.io" } }
 
--- false: show() is needed instead.
+-- false: show() is needed instead. One context table, refilled per frame.
+local ctx = {}
 local function sparse(rec, tvb, pinfo, tree, view)
     local plan = rec.plan
     local p = frontends.plan(view, SPARSE)
@@ -695,7 +696,8 @@ local function sparse(rec, tvb, pinfo, tree, view)
     if (p.cols or p.experts) and (iodata.areas["mcmb2.up"] or iodata.areas["mcmb2.down"]) then return false end
     local h = rec.base + plan.header.off
     if #p.adders > 0 then
-        local c = { rec = rec, tvb = tvb, tree = tree, plan = plan, up = plan.dir == "up", h = h }
+        local c = ctx
+        c.rec, c.tvb, c.tree, c.plan, c.up, c.h = rec, tvb, tree, plan, plan.dir == "up", h
         for _, add in ipairs(p.adders) do add(c) end
     end
     if p.experts then record.finish(rec, tree) end
