@@ -145,7 +145,7 @@ local function show(rec, tvb, pinfo, tree)
     local o = plan.image
     local info = image.dissect(tvb, pinfo, root, { kind = up and "input" or "output", offset = base + o.off,
         length = o.len, image_len = o.len })
-    iodata.decode_eclink(info, { frame_id = tvb(0, 2):uint() }, pinfo) -- vrshark_io hook
+    if next(iodata.areas) then iodata.decode_eclink(info, { frame_id = tvb(0, 2):uint() }, pinfo) end -- vrshark_io hook
     if rec.pci_age then
         record.add_time(root, epf.pci_age, "Time since PCI changed", rec.pci_age, nil, epf.pci_age_ms)
     end

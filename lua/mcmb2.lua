@@ -490,7 +490,7 @@ local function show_duplex_up(rec, tvb, root, hr, wr, pinfo) -- vrshark_io hook:
     add_watchdog(root, rec, pf.uplink_watchdog, wr)
     local r = data_range(tvb, rec.base, rec.plan.modules, "MC-MB2 uplink data")
     if r then attach(rec, "data", root:add(pf.uplink_data, r)) end
-    if r then iodata.decode("mcmb2.up", -- vrshark_io hook
+    if r and iodata.areas["mcmb2.up"] then iodata.decode("mcmb2.up", -- vrshark_io hook
         { terminal = bit.rshift(sb, 4), frame_id = tvb(0, 2):uint() }, r, root, pinfo) end -- vrshark_io hook
 end
 
@@ -514,7 +514,7 @@ local function show_polled_up(rec, tvb, root, h, pinfo) -- vrshark_io hook: pinf
         if g then
             local r = data_range(tvb, rec.base, g, "MC-MB2 slot " .. k .. " uplink data")
             if r then st:add(pf.slot_uplink_data, r) end
-            if r then iodata.decode("mcmb2.up", -- vrshark_io hook
+            if r and iodata.areas["mcmb2.up"] then iodata.decode("mcmb2.up", -- vrshark_io hook
                 { terminal = bit.rshift(s, 4), slot = k, frame_id = tvb(0, 2):uint() }, -- vrshark_io hook
                 r, st, pinfo) end -- vrshark_io hook
         end
@@ -533,7 +533,9 @@ local function show_down(rec, tvb, root, hr, wr, pinfo) -- vrshark_io hook: pinf
     if duplex then
         local r = data_range(tvb, rec.base, rec.plan.modules, "MC-MB2 downlink data")
         if r then root:add(pf.downlink_data, r) end
-        if r then iodata.decode("mcmb2.down", { frame_id = tvb(0, 2):uint() }, r, root, pinfo) end -- vrshark_io hook
+        if r and iodata.areas["mcmb2.down"] then -- vrshark_io hook
+            iodata.decode("mcmb2.down", { frame_id = tvb(0, 2):uint() }, r, root, pinfo) -- vrshark_io hook
+        end -- vrshark_io hook
         return
     end
     for i, g in ipairs(rec.groups or {}) do
@@ -543,7 +545,9 @@ local function show_down(rec, tvb, root, hr, wr, pinfo) -- vrshark_io hook: pinf
             local st = root:add(r, string.format("Slot %d", k))
             st:add(pf.slot, k):set_generated()
             st:add(pf.slot_downlink_data, r)
-            iodata.decode("mcmb2.down", { slot = k, frame_id = tvb(0, 2):uint() }, r, st, pinfo) -- vrshark_io hook
+            if iodata.areas["mcmb2.down"] then -- vrshark_io hook
+                iodata.decode("mcmb2.down", { slot = k, frame_id = tvb(0, 2):uint() }, r, st, pinfo) -- vrshark_io hook
+            end -- vrshark_io hook
         end
     end
 end
