@@ -460,6 +460,30 @@ end
 -- header byte) and the tags (info_tags()). The long polled uplink text has
 -- them right after its watchdog, before the layout and the slots, so that
 -- they stay in view where the packet list cuts the line.
+-- The texts of a slot status byte s of slot k, made once per value
+-- (the same few values come frame after frame).
+local slot_labels, slot_infos = {}, {}
+local function slot_label(k, s)
+    local key = k * 256 + s
+    local t = slot_labels[key]
+    if not t then
+        t = string.format("Slot %d: %s, terminal %d", k, name_of(SLOT_STATUS, SLOT_OK, bit.band(s, 0x0F)),
+            bit.rshift(s, 4))
+        slot_labels[key] = t
+    end
+    return t
+end
+local function slot_info(k, s)
+    local key = k * 256 + s
+    local t = slot_infos[key]
+    if not t then
+        local sst = bit.band(s, 0x0F)
+        t = string.format("%d:T%d %s", k, bit.rshift(s, 4), SLOT_SHORT[sst] or name_of(SLOT_STATUS, SLOT_OK, sst))
+        slot_infos[key] = t
+    end
+    return t
+end
+
 local function info_text(rec, hb, tags)
     local plan = rec.plan
     if plan.dir == "up" and plan.system == "duplex" then
@@ -469,11 +493,7 @@ local function info_text(rec, hb, tags)
         local parts = {}
         for k = 1, 4 do
             local s = hb[4 + k]
-            local sst = bit.band(s, 0x0F)
-            if sst ~= 0xF then
-                parts[#parts + 1] = string.format("%d:T%d %s", k, bit.rshift(s, 4),
-                    SLOT_SHORT[sst] or name_of(SLOT_STATUS, SLOT_OK, sst))
-            end
+            if bit.band(s, 0x0F) ~= 0xF then parts[#parts + 1] = slot_info(k, s) end
         end
         return string.format("Uplink polled: %s, watchdog %d%s, Y=%d Z=%d, slots %s",
             name_of(STATUS, POLLED_OK, bit.band(hb[1], 0x0F)), hb[2], tags, hb[3], hb[4],
@@ -504,9 +524,7 @@ local function show_polled_up(rec, tvb, root, h, pinfo) -- vrshark_io hook: pinf
     for k = 1, 4 do
         local sr = tvb:range(h + 3 + k, 1)
         local s = sr:uint()
-        local sst = bit.band(s, 0x0F)
-        local st = root:add(sr, string.format("Slot %d: %s, terminal %d", k, name_of(SLOT_STATUS, SLOT_OK, sst),
-            bit.rshift(s, 4)))
+        local st = root:add(sr, slot_label(k, s))
         st:add(pf.slot, k):set_generated()
         st:add(pf.slot_status, sr)
         st:add(pf.slot_terminal, sr)
