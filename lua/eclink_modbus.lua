@@ -881,13 +881,7 @@ for _, name in ipairs({ "cmd_from_ru_latency", "cmd_to_ru_latency" }) do
     SPARSE_ADDERS["eclink_modbus." .. name] = link_value(pf[name], name, true)
 end
 -- the image adds its own fields (opts.only)
-local function image_field() end
-for _, name in ipairs({ "image", "covered", "cut", "not_covered", "es_relays_open" }) do
-    SPARSE_ADDERS["eclink." .. name] = image_field
-end
-for _, kind in ipairs({ "input", "output" }) do
-    for _, e in ipairs(image.layout[kind]) do SPARSE_ADDERS[e.abbr] = image_field end
-end
+image.own_fields(SPARSE_ADDERS, function() end)
 -- no expert names: any referenced expert means the full tree
 local SPARSE = { adders = SPARSE_ADDERS, experts = {}, prefixes = { "eclink_modbus", "eclink", "vrshark_io",
                                                                    "vrshark.io" } }

@@ -25,9 +25,11 @@ local image = require("vrshark.eclink_image")
 local record = require("vrshark.pnio_record")
 local systems = require("vrshark.pnio_systems")
 local iodata = require("vrshark.iodata") -- vrshark_io hook
+local fe = require("vrshark.frontends")
 image.proto()  -- the single Proto("eclink"), shared with the other EC-Link plugins
 
 local add_finding, attach = record.add_finding, record.attach
+local byte = string.byte
 
 local eclp = Proto("eclink_pnio", "EC-Link over PROFINET IO")
 
@@ -74,6 +76,7 @@ end
 ------------------------------------------------------------------------
 -- First pass
 ------------------------------------------------------------------------
+-- ba: the C-SDU as a Lua string (byte i at byte(ba, i + 1)).
 local function analyse(rec, ba, t, frame)
     local plan = rec.plan
     local hs = devs[plan.dev]
@@ -85,9 +88,11 @@ local function analyse(rec, ba, t, frame)
     record.check_ioxs(rec, ba, eef.iops_bad, nil)
     local inp, out
     if plan.dir == "up" then
-        inp = { pci = ba:get_index(o), cci = ba:get_index(o + 1), cai = ba:get_index(o + 3), bu = ba:get_index(o + 20) }
+        local pci, cci, _, cai = byte(ba, o + 1, o + 4)
+        inp = { pci = pci, cci = cci, cai = cai, bu = byte(ba, o + 21) }
     else
-        out = { pco = ba:get_index(o), cco = ba:get_index(o + 1), cao = ba:get_index(o + 3) }
+        local pco, cco, _, cao = byte(ba, o + 1, o + 4)
+        out = { pco = pco, cco = cco, cao = cao }
     end
     local r = eclink_handshake.update(hs, inp, out, t, frame, rec)
     local links
@@ -146,7 +151,7 @@ local function show(rec, tvb, pinfo, tree)
     local o = plan.image
     local info = image.dissect(tvb, pinfo, root, { kind = up and "input" or "output", offset = base + o.off,
         length = o.len, image_len = o.len })
-    iodata.decode_eclink(info, { frame_id = tvb(0, 2):uint() }, pinfo) -- vrshark_io hook
+    if next(iodata.areas) then iodata.decode_eclink(info, { frame_id = tvb(0, 2):uint() }, pinfo) end -- vrshark_io hook
     if rec.pci_age then
         record.add_time(root, epf.pci_age, "Time since PCI changed", rec.pci_age, nil, epf.pci_age_ms)
     end
@@ -169,6 +174,56 @@ local function show(rec, tvb, pinfo, tree)
         .. (unacked and " [unacked]" or "") .. (rec.late_ack and " [late ack]" or "")
 end
 
+------------------------------------------------------------------------
+-- Sparse display: an invisible tree (the packet list, -T fields, -Y)
+------------------------------------------------------------------------
+-- As in mcmb2.lua: only the referenced fields, flat, in the occurrences
+-- show() gives them (tests/test_sparse_view.py), then the columns. The
+-- image adds its own fields (image.dissect, opts.only). Any expert wanted,
+-- or a field without an adder here, means show().
+local function age_adders(field, ms_field, key)
+    return function(c) if c.rec[key] then c.tree:add(field, record.nstime(c.rec[key])) end end,
+        function(c) if c.rec[key] then c.tree:add(ms_field, record.whole_ms(c.rec[key])) end end
+end
+local ADDERS = {
+    ["eclink_pnio.layout"] = function(c) c.tree:add(epf.layout, c.plan.source) end,
+    ["eclink_pnio.layout_entry"] = function(c) if c.plan.entry then c.tree:add(epf.layout_entry, c.plan.entry) end end,
+    ["eclink_pnio.frame_id"] = function(c) c.tree:add(epf.frame_id, c.tvb:range(0, 2)) end,
+    ["eclink_pnio.iops"] = function(c) record.add_ioxs_sparse(c.tree, c.rec, c.tvb, epf.iops, false) end,
+    ["eclink_pnio.iocs"] = function(c) record.add_ioxs_sparse(c.tree, c.rec, c.tvb, epf.iocs, true) end,
+}
+ADDERS["eclink_pnio.pci_age"], ADDERS["eclink_pnio.pci_age_ms"] = age_adders(epf.pci_age, epf.pci_age_ms, "pci_age")
+ADDERS["eclink_pnio.pco_age"], ADDERS["eclink_pnio.pco_age_ms"] = age_adders(epf.pco_age, epf.pco_age_ms, "pco_age")
+image.own_fields(ADDERS, function() end)
+-- no expert names: any referenced expert means the full tree
+local SPARSE = { adders = ADDERS, experts = {}, prefixes = { "eclink_pnio", "eclink", "vrshark_io", "vrshark.io" } }
+
+-- false: show() is needed instead. One context table, refilled per frame.
+local ctx = {}
+local function sparse(rec, tvb, pinfo, tree, view)
+    if view.experts then return false end
+    local plan = rec.plan
+    local p = fe.plan(view, SPARSE)
+    -- machine data can add findings and Info tags of its own
+    if not p or rec.size < plan.need or (p.cols and next(iodata.areas)) then return false end
+    if #p.adders > 0 then
+        local c = ctx
+        c.rec, c.tvb, c.tree, c.plan = rec, tvb, tree, plan
+        for _, add in ipairs(p.adders) do add(c) end
+    end
+    local up = plan.dir == "up"
+    local o = plan.image
+    local info = image.dissect(tvb, pinfo, tree, { kind = up and "input" or "output", offset = rec.base + o.off,
+        length = o.len, image_len = o.len, only = view.fields })
+    if p.cols then
+        pinfo.cols.protocol = "EC-Link"
+        pinfo.cols.info = (up and "Input image " or "Output image ") .. info.summary .. info.tags
+            .. eclink_handshake.tags(rec.pci_age, rec.pco_age)
+            .. (rec.unacked and " [unacked]" or "") .. (rec.late_ack and " [late ack]" or "")
+    end
+    return true
+end
+
 local function show_connect(rec, tvb, tree, text)
     local _ = rec
     local item = tree:add(eclp, tvb:range(0, 0))
@@ -177,5 +232,5 @@ local function show_connect(rec, tvb, tree, text)
 end
 
 systems.register({ "eclink" }, { proto = eclp, short = eef.short, inferred = eef.inferred, analyse = analyse,
-                                 show = show,
+                                 show = show, sparse = sparse,
                                  show_connect = show_connect })

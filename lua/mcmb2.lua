@@ -35,6 +35,7 @@ local iodata = require("vrshark.iodata") -- vrshark_io hook
 local frontends = require("vrshark.frontends")
 
 local add_finding, attach, nstime = record.add_finding, record.attach, record.nstime
+local byte = string.byte
 
 local mcmb2 = systems.mcmb2_proto()
 
@@ -205,10 +206,10 @@ end
 ------------------------------------------------------------------------
 -- Helpers
 ------------------------------------------------------------------------
-local function all_zero(ba, objs)
+local function all_zero(ba, objs) -- ba: a Lua string
     for _, o in ipairs(objs) do
         for i = o.off, o.off + o.len - 1 do
-            if ba:get_index(i) ~= 0 then return false end
+            if byte(ba, i + 1) ~= 0 then return false end
         end
     end
     return true
@@ -264,6 +265,7 @@ end
 ------------------------------------------------------------------------
 -- First pass: the analysis of one cyclic frame
 ------------------------------------------------------------------------
+-- ba: the C-SDU as a Lua string (byte i at byte(ba, i + 1)).
 -- Seconds rounded to the millisecond (ages are differences of capture
 -- times: 1.2 s, not 1.200000048 s).
 local function ms(s)
@@ -287,7 +289,7 @@ local function analyse_duplex(rec, d, ba, t, frame)
     local plan = rec.plan
     local h = plan.header.off
     if plan.dir == "up" then
-        local sb = ba:get_index(h)
+        local sb = byte(ba, h + 1)
         local st = bit.band(sb, 0x0F)
         if not DUPLEX_OK[st] then
             rec.undefined = true
@@ -309,10 +311,10 @@ local function analyse_duplex(rec, d, ba, t, frame)
                 "Status %s is not 'Terminal present' but the uplink data is not all 0",
                 name_of(STATUS, DUPLEX_OK, st)))
         end
-        watchdog(rec, d.up_wd, ba:get_index(h + 1), t, frame, up_limit,
+        watchdog(rec, d.up_wd, byte(ba, h + 2), t, frame, up_limit,
             ef.uplink_stalled, "Uplink")
     else
-        watchdog(rec, d.down_wd, ba:get_index(h + 1), t, frame, down_limit,
+        watchdog(rec, d.down_wd, byte(ba, h + 2), t, frame, down_limit,
             ef.downlink_stalled, "Downlink")
     end
     plan.one_group = plan.one_group or { plan.modules }
@@ -323,7 +325,7 @@ local function analyse_polled_up(rec, d, ba, t, frame)
     local plan = rec.plan
     local h = plan.header.off
     local cfg = plan.cfg
-    local sb = ba:get_index(h)
+    local sb = byte(ba, h + 1)
     local st = bit.band(sb, 0x0F)
     if not POLLED_OK[st] then
         rec.undefined = true
@@ -340,12 +342,12 @@ local function analyse_polled_up(rec, d, ba, t, frame)
         add_finding(rec, "status", ef.terminal_not_zero, string.format(
             "Terminal number bits are %d, not 0, on a polled system", bit.rshift(sb, 4)))
     end
-    watchdog(rec, d.up_wd, ba:get_index(h + 1), t, frame, up_limit,
+    watchdog(rec, d.up_wd, byte(ba, h + 2), t, frame, up_limit,
         ef.uplink_stalled, "Uplink")
-    local y, z = ba:get_index(h + 2), ba:get_index(h + 3)
+    local y, z = byte(ba, h + 3), byte(ba, h + 4)
     local mask = 0
     for k = 1, 4 do
-        local s = ba:get_index(h + 3 + k)
+        local s = byte(ba, h + 4 + k)
         if bit.band(s, 0x0F) ~= 0x0F then mask = mask + bit.lshift(1, k - 1) end
     end
     local used = used_slots(mask)
@@ -366,7 +368,7 @@ local function analyse_polled_up(rec, d, ba, t, frame)
     rec.groups, rec.slots = groups, used
     d.z, d.used = z, used
     for k = 1, 4 do
-        local s = ba:get_index(h + 3 + k)
+        local s = byte(ba, h + 4 + k)
         local sst, term = bit.band(s, 0x0F), bit.rshift(s, 4)
         local anchor = SLOT_ANCHOR[k]
         if not SLOT_OK[sst] then
@@ -397,11 +399,11 @@ local function analyse_polled_down(rec, d, ba, t, frame)
     local plan = rec.plan
     local h = plan.header.off
     local cfg = plan.cfg
-    local r = ba:get_index(h)
+    local r = byte(ba, h + 1)
     if r ~= 0 then
         add_finding(rec, "reserved", ef.reserved_not_zero, string.format("Reserved byte is 0x%02x, not 0", r))
     end
-    watchdog(rec, d.down_wd, ba:get_index(h + 1), t, frame, down_limit,
+    watchdog(rec, d.down_wd, byte(ba, h + 2), t, frame, down_limit,
         ef.downlink_stalled, "Downlink")
     local z = d.z or cfg.z
     local groups = plan_groups(plan, z) or plan_groups(plan, cfg.z) or {}
@@ -462,6 +464,30 @@ end
 -- header byte) and the tags (info_tags()). The long polled uplink text has
 -- them right after its watchdog, before the layout and the slots, so that
 -- they stay in view where the packet list cuts the line.
+-- The texts of a slot status byte s of slot k, made once per value
+-- (the same few values come frame after frame).
+local slot_labels, slot_infos = {}, {}
+local function slot_label(k, s)
+    local key = k * 256 + s
+    local t = slot_labels[key]
+    if not t then
+        t = string.format("Slot %d: %s, terminal %d", k, name_of(SLOT_STATUS, SLOT_OK, bit.band(s, 0x0F)),
+            bit.rshift(s, 4))
+        slot_labels[key] = t
+    end
+    return t
+end
+local function slot_info(k, s)
+    local key = k * 256 + s
+    local t = slot_infos[key]
+    if not t then
+        local sst = bit.band(s, 0x0F)
+        t = string.format("%d:T%d %s", k, bit.rshift(s, 4), SLOT_SHORT[sst] or name_of(SLOT_STATUS, SLOT_OK, sst))
+        slot_infos[key] = t
+    end
+    return t
+end
+
 local function info_text(rec, hb, tags)
     local plan = rec.plan
     if plan.dir == "up" and plan.system == "duplex" then
@@ -471,11 +497,7 @@ local function info_text(rec, hb, tags)
         local parts = {}
         for k = 1, 4 do
             local s = hb[4 + k]
-            local sst = bit.band(s, 0x0F)
-            if sst ~= 0xF then
-                parts[#parts + 1] = string.format("%d:T%d %s", k, bit.rshift(s, 4),
-                    SLOT_SHORT[sst] or name_of(SLOT_STATUS, SLOT_OK, sst))
-            end
+            if bit.band(s, 0x0F) ~= 0xF then parts[#parts + 1] = slot_info(k, s) end
         end
         return string.format("Uplink polled: %s, watchdog %d%s, Y=%d Z=%d, slots %s",
             name_of(STATUS, POLLED_OK, bit.band(hb[1], 0x0F)), hb[2], tags, hb[3], hb[4],
@@ -492,7 +514,7 @@ local function show_duplex_up(rec, tvb, root, hr, wr, pinfo) -- vrshark_io hook:
     add_watchdog(root, rec, pf.uplink_watchdog, wr)
     local r = data_range(tvb, rec.base, rec.plan.modules, "MC-MB2 uplink data")
     if r then attach(rec, "data", root:add(pf.uplink_data, r)) end
-    if r then iodata.decode("mcmb2.up", -- vrshark_io hook
+    if r and iodata.areas["mcmb2.up"] then iodata.decode("mcmb2.up", -- vrshark_io hook
         { terminal = bit.rshift(sb, 4), frame_id = tvb(0, 2):uint() }, r, root, pinfo) end -- vrshark_io hook
 end
 
@@ -506,9 +528,7 @@ local function show_polled_up(rec, tvb, root, h, pinfo) -- vrshark_io hook: pinf
     for k = 1, 4 do
         local sr = tvb:range(h + 3 + k, 1)
         local s = sr:uint()
-        local sst = bit.band(s, 0x0F)
-        local st = root:add(sr, string.format("Slot %d: %s, terminal %d", k, name_of(SLOT_STATUS, SLOT_OK, sst),
-            bit.rshift(s, 4)))
+        local st = root:add(sr, slot_label(k, s))
         st:add(pf.slot, k):set_generated()
         st:add(pf.slot_status, sr)
         st:add(pf.slot_terminal, sr)
@@ -516,7 +536,7 @@ local function show_polled_up(rec, tvb, root, h, pinfo) -- vrshark_io hook: pinf
         if g then
             local r = data_range(tvb, rec.base, g, "MC-MB2 slot " .. k .. " uplink data")
             if r then st:add(pf.slot_uplink_data, r) end
-            if r then iodata.decode("mcmb2.up", -- vrshark_io hook
+            if r and iodata.areas["mcmb2.up"] then iodata.decode("mcmb2.up", -- vrshark_io hook
                 { terminal = bit.rshift(s, 4), slot = k, frame_id = tvb(0, 2):uint() }, -- vrshark_io hook
                 r, st, pinfo) end -- vrshark_io hook
         end
@@ -535,7 +555,9 @@ local function show_down(rec, tvb, root, hr, wr, pinfo) -- vrshark_io hook: pinf
     if duplex then
         local r = data_range(tvb, rec.base, rec.plan.modules, "MC-MB2 downlink data")
         if r then root:add(pf.downlink_data, r) end
-        if r then iodata.decode("mcmb2.down", { frame_id = tvb(0, 2):uint() }, r, root, pinfo) end -- vrshark_io hook
+        if r and iodata.areas["mcmb2.down"] then -- vrshark_io hook
+            iodata.decode("mcmb2.down", { frame_id = tvb(0, 2):uint() }, r, root, pinfo) -- vrshark_io hook
+        end -- vrshark_io hook
         return
     end
     for i, g in ipairs(rec.groups or {}) do
@@ -545,7 +567,9 @@ local function show_down(rec, tvb, root, hr, wr, pinfo) -- vrshark_io hook: pinf
             local st = root:add(r, string.format("Slot %d", k))
             st:add(pf.slot, k):set_generated()
             st:add(pf.slot_downlink_data, r)
-            iodata.decode("mcmb2.down", { slot = k, frame_id = tvb(0, 2):uint() }, r, st, pinfo) -- vrshark_io hook
+            if iodata.areas["mcmb2.down"] then -- vrshark_io hook
+                iodata.decode("mcmb2.down", { slot = k, frame_id = tvb(0, 2):uint() }, r, st, pinfo) -- vrshark_io hook
+            end -- vrshark_io hook
         end
     end
 end
@@ -688,7 +712,8 @@ local ADDERS = {
 }
 local SPARSE = { adders = ADDERS, experts = expert_names, prefixes = { "mcmb2", "vrshark_io", "vrshark.io" } }
 
--- false: show() is needed instead.
+-- false: show() is needed instead. One context table, refilled per frame.
+local ctx = {}
 local function sparse(rec, tvb, pinfo, tree, view)
     local plan = rec.plan
     local p = frontends.plan(view, SPARSE)
@@ -697,7 +722,8 @@ local function sparse(rec, tvb, pinfo, tree, view)
     if (p.cols or p.experts) and (iodata.areas["mcmb2.up"] or iodata.areas["mcmb2.down"]) then return false end
     local h = rec.base + plan.header.off
     if #p.adders > 0 then
-        local c = { rec = rec, tvb = tvb, tree = tree, plan = plan, up = plan.dir == "up", h = h }
+        local c = ctx
+        c.rec, c.tvb, c.tree, c.plan, c.up, c.h = rec, tvb, tree, plan, plan.dir == "up", h
         for _, add in ipairs(p.adders) do add(c) end
     end
     if p.experts then record.finish(rec, tree) end

@@ -21,10 +21,12 @@ needs_c = pytest.mark.skipif(bool(os.environ.get("VRSHARK_NO_C_PLUGIN")), reason
 
 MCMB2_CAPTURES = sorted(p.name for p in CAPTURES.glob("*.pcap") if "mcmb2" in p.name)
 MODBUS_CAPTURES = sorted(p.name for p in CAPTURES.glob("*.pcap") if "modbus" in p.name)
+ECLINK_PNIO_CAPTURES = sorted(p.name for p in CAPTURES.glob("*.pcap") if "eclink_pnio" in p.name)
 PUBLIC = ["pnio_connect_and_cyclic.pcap", "pnio_connect_many.pcapng"]
 # Prefs that make the no-Connect captures decode (layouts from the table).
 PREFS = {
     "mcmb2_duplex_noconnect.pcap": {"mcmb2.layouts": "0xC010/0xC011=duplex:8/4"},
+    "eclink_pnio_noconnect.pcap": {"mcmb2.layouts": "0xC020/0xC021=eclink:/20"},
     "eclink_modbus_port5020.pcap": {"eclink_modbus.port": "5020"},
     "eclink_modbus_noswap.pcap": {"eclink_modbus.swap": "FALSE"},
     "eclink_modbus_excerpt.pcap": {"eclink_modbus.servers": "192.168.2.41"},
@@ -37,6 +39,10 @@ MODBUS_SPARSE = ["eclink_modbus.accepted_in", "eclink_modbus.request_in", "eclin
                  "eclink_modbus.pci_since", "eclink_modbus.pco_since", "eclink_modbus.cmd_from_ru_in",
                  "eclink_modbus.cao_in", "eclink_modbus.cmd_to_ru_in", "eclink_modbus.cai_in",
                  "eclink_modbus.cmd_from_ru_latency", "eclink_modbus.cmd_to_ru_latency"]
+# The EC-Link over PROFINET fields the sparse display adds itself (lua/eclink_pnio.lua sparse()).
+ECLINK_PNIO_SPARSE = ["eclink_pnio.layout", "eclink_pnio.layout_entry", "eclink_pnio.frame_id", "eclink_pnio.iops",
+                      "eclink_pnio.iocs", "eclink_pnio.pci_age", "eclink_pnio.pci_age_ms", "eclink_pnio.pco_age",
+                      "eclink_pnio.pco_age_ms"]
 
 # Writes "served FRAME" for every frame the MC-MB2-PN sparse display served,
 # and "hook MATCH_STRING" for every frame the front end hands the carrier.
@@ -253,6 +259,17 @@ def _image_probe(tshark, work_dir, capture, args, full=False):
     return sorted({int(line.split()[1]) for line in lines})
 
 
+def _same_columns(tshark, name, extra, proto, two_pass):
+    """Every EC-Link image field, extra and (if given) every field of proto as
+    columns: the sparse display's output (returned) is the full tree's."""
+    names = _fields(tshark, "eclink") + extra + (_fields(tshark, proto) if proto else [])
+    args = ["-n", "-r", str(CAPTURES / name), "-o", "gui.column.format:" + _columns(sorted(set(names)))]
+    args += _prefs(name) + (["-2"] if two_pass else [])
+    sparse = _run(tshark, args)
+    assert sparse.splitlines() == _run(tshark, args, full=True).splitlines()
+    return sparse
+
+
 @needs_c
 @pytest.mark.parametrize("name", MODBUS_CAPTURES)
 @pytest.mark.parametrize("fieldset", ["sparse", "all"])
@@ -261,13 +278,7 @@ def test_modbus_columns_are_those_of_the_full_tree(tshark, name, fieldset, two_p
     """The EC-Link image fields and the ADU facts the sparse display adds
     (fieldset "sparse"), or every EC-Link field (most of them mean the full
     tree): the same columns as the full tree, frame by frame."""
-    names = _fields(tshark, "eclink") + MODBUS_SPARSE
-    if fieldset == "all":
-        names += _fields(tshark, "eclink_modbus")
-    args = ["-n", "-r", str(CAPTURES / name), "-o", "gui.column.format:" + _columns(sorted(set(names)))]
-    args += _prefs(name) + (["-2"] if two_pass else [])
-    sparse = _run(tshark, args)
-    assert sparse.splitlines() == _run(tshark, args, full=True).splitlines()
+    sparse = _same_columns(tshark, name, MODBUS_SPARSE, "eclink_modbus" if fieldset == "all" else None, two_pass)
     if name != "modbus_plain_devices.pcap" and two_pass:
         assert "EC-Link" in sparse
 
@@ -296,3 +307,48 @@ def test_the_sparse_display_serves_the_modbus_frames(tshark, work_dir):
                                  "eclink_modbus.bits"])
 def test_modbus_full_tree_for_what_the_sparse_display_does_not_add(tshark, work_dir, flt):
     assert _image_probe(tshark, work_dir, MODBUS_BASIC, ["-2", "-Y", flt]) == []
+
+
+@needs_c
+@pytest.mark.parametrize("name", ECLINK_PNIO_CAPTURES)
+@pytest.mark.parametrize("fieldset", ["sparse", "all"])
+@pytest.mark.parametrize("two_pass", [False, True])
+def test_eclink_pnio_columns_are_those_of_the_full_tree(tshark, name, fieldset, two_pass):
+    """EC-Link over PROFINET: the image fields and the frame facts the sparse
+    display adds (fieldset "sparse"), or every field of both protocols: the
+    same columns as the full tree, frame by frame."""
+    assert "EC-Link" in _same_columns(tshark, name, ECLINK_PNIO_SPARSE, "eclink_pnio" if fieldset == "all" else None,
+                                      two_pass)
+
+
+@needs_c
+@pytest.mark.parametrize("name", ECLINK_PNIO_CAPTURES)
+def test_eclink_pnio_expert_statistics_are_those_of_the_full_tree(tshark, name):
+    args = ["-n", "-q", "-r", str(CAPTURES / name), "-z", "expert"] + _prefs(name)
+    assert _run(tshark, args) == _run(tshark, args, full=True)
+
+
+ECLINK_PNIO = CAPTURES / "eclink_pnio_connect.pcap"
+
+
+@needs_c
+@pytest.mark.parametrize("flt", ["eclink.bu_state == 0x11", "eclink_pnio.pci_age > 0.5", "eclink.pco > 10",
+                                 "eclink_pnio.pco_age_ms > 500", "eclink.cmd_from_ru[0] == 0x41"])
+def test_eclink_pnio_filters_select_the_frames_of_the_full_tree(tshark, flt):
+    matched = 0
+    for name in ECLINK_PNIO_CAPTURES:
+        args = ["-n", "-r", str(CAPTURES / name), "-Y", flt] + _prefs(name)
+        sparse = _run(tshark, args)
+        assert sparse == _run(tshark, args, full=True), (name, flt)
+        matched += len(sparse.splitlines())
+    assert matched > 0, flt
+
+
+@needs_c
+def test_the_sparse_display_serves_the_eclink_pnio_frames(tshark, work_dir):
+    decoded = [int(n) for n in tshark.field(ECLINK_PNIO, "frame.number", display_filter="eclink.image", two_pass=True)]
+    assert len(decoded) > 10
+    shown = _image_probe(tshark, work_dir, ECLINK_PNIO, ["-2", "-Y", "eclink.bu_state == 0x11"])
+    assert shown == decoded
+    for flt in ["eclink_pnio", "eclink.relays_open", "eclink_pnio.cmd_from_ru_in"]:
+        assert _image_probe(tshark, work_dir, ECLINK_PNIO, ["-2", "-Y", flt]) == [], flt
