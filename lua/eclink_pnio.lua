@@ -216,10 +216,18 @@ local function sparse(rec, tvb, pinfo, tree, view)
     local info = image.dissect(tvb, pinfo, tree, { kind = up and "input" or "output", offset = rec.base + o.off,
         length = o.len, image_len = o.len, only = view.fields })
     if p.cols then
+        -- a command's deadline: in one pass the command's warning, as show()
+        local unacked = rec.unacked
+        if not unacked and rec.passing and not pinfo.visited then
+            for _, f in ipairs(rec.passing) do
+                local ex = eclink_handshake.shown(f, false)
+                if ex == eef.cmd_from_ru_late or ex == eef.cmd_to_ru_late then unacked = true end
+            end
+        end
         pinfo.cols.protocol = "EC-Link"
         pinfo.cols.info = (up and "Input image " or "Output image ") .. info.summary .. info.tags
             .. eclink_handshake.tags(rec.pci_age, rec.pco_age)
-            .. (rec.unacked and " [unacked]" or "") .. (rec.late_ack and " [late ack]" or "")
+            .. (unacked and " [unacked]" or "") .. (rec.late_ack and " [late ack]" or "")
     end
     return true
 end
