@@ -269,33 +269,80 @@ end
 -- Cyclic frames
 ------------------------------------------------------------------------
 -- The plans of a device recognised by its polled header `h` with the
--- downlink candidate `cand` (laid out as controllers usually do it).
+-- downlink candidate `cand`, in the frame orders found (cand.up_order,
+-- cand.down_order; nil: as controllers usually do it).
 local function header_plans(w, cand)
     if not cand.up then
-        cand.up, cand.down = layout.mcmb2_plans("polled", w.h.used, w.h.up_mods, cand.mods, w.h.dap, w.source,
-            w.dev)
+        local order = (cand.up_order or cand.down_order) and { up = cand.up_order, down = cand.down_order }
+        cand.up, cand.down = layout.mcmb2_plans("polled", w.h.used, w.h.up_mods, cand.mods, cand.dap or w.h.dap,
+            w.source, w.dev, order)
+        if not cand.up then return nil, nil end
+        cand.down.inv = order and layout.inversions(cand.down) or 0
         cand.up.fid, cand.up.sender, cand.up.from_header = w.up_fid, w.dev_mac, true
         cand.down.sender, cand.down.from_header = w.ctl_mac, true
     end
     return cand.up, cand.down
 end
 
+-- Whether two plans put every element at the same offsets.
+local function same_offsets(a, b)
+    local function list(p)
+        local t = { p.header.off }
+        for _, o in ipairs(p.modules) do t[#t + 1] = o.off end
+        for _, o in ipairs(p.dap) do t[#t + 1] = o.off end
+        for _, c in ipairs(p.iocs) do t[#t + 1] = c.off end
+        return table.concat(t, ",")
+    end
+    return list(a) == list(b)
+end
+
+-- The downlink in another frame order than the usual one: for each
+-- candidate, the variant with the downlink's own frame order cut from a
+-- frame (layout.polled_down_order; tried on each waiting downlink frame
+-- until one is found, HEUR_TRIES frames at most, DOWN_CUT_STEPS steps a
+-- frame).
+local DOWN_CUT_STEPS = 20000
+
+local function down_variants(w, get, size)
+    local budget = { steps = DOWN_CUT_STEPS }
+    for _, c in ipairs(w.h.downs) do
+        if c.variant == nil and budget.steps > 0 then
+            local order = layout.polled_down_order(get, size, w.h, c, budget)
+            if order then
+                local v = { mods = c.mods, data = c.data, ascii = c.ascii, exact = c.exact, dap = c.dap,
+                            up_order = c.up_order, down_order = order }
+                local _, usual = header_plans(w, c)
+                local _, down = header_plans(w, v)
+                -- the usual order after all: nothing new
+                c.variant = (down and not (usual and same_offsets(usual, down))) and v or false
+            end
+        end
+    end
+end
+
 -- A frame from the controller to a device whose polled header was seen:
 -- the downlink candidate that fits it best (layout.best_fit) becomes the
 -- layout of both directions (the uplink's IOCS bytes follow the downlink
--- modules). When another candidate fits as well (all data 0 and the IOPS
--- BAD while the controller starts, say), the plan stays open and the
--- following frames of its FrameID are checked again (HEUR_TRIES at most).
--- Returns the downlink plan, or nil if no candidate fits this frame.
+-- modules). Each candidate comes in the usual frame order and in the one
+-- cut from the downlink frames (down_variants). When another candidate fits
+-- as well (all data 0 and the IOPS BAD while the controller starts, say),
+-- the plan stays open and the following frames of its FrameID are checked
+-- again (HEUR_TRIES at most). Returns the downlink plan, or nil if no
+-- candidate fits this frame.
 local function settle_downlink(w, fid, get, size)
-    local downs, exact = {}, {}
-    for i, c in ipairs(w.h.downs) do
-        local _, down = header_plans(w, c)
-        downs[i], exact[i] = down, c.exact
+    down_variants(w, get, size)
+    local cands, downs, exact = {}, {}, {}
+    for _, c in ipairs(w.h.downs) do
+        for _, v in ipairs({ c, c.variant or nil }) do
+            local _, down = header_plans(w, v)
+            if down then
+                cands[#cands + 1], downs[#downs + 1], exact[#exact + 1] = v, down, v.exact
+            end
+        end
     end
     local best, sure = layout.best_fit(downs, get, size, exact)
     if not best then return nil end
-    local up, down = header_plans(w, w.h.downs[best])
+    local up, down = header_plans(w, cands[best])
     if up ~= w.up then
         w.up = up
         register(up)

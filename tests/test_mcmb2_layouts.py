@@ -77,9 +77,9 @@ def test_frame_order_from_the_table(tshark, capture_file):
 
 def test_frame_orders_that_do_not_fit_are_ignored(tshark, capture_file):
     """An order naming an element too few or too many, an unknown item or an
-    order on a polled entry: the entry is skipped."""
+    order on a polled entry without sizes: the entry is skipped."""
     for entry in ("0xC012/0xC013=duplex:26/2,a8@4[3c,4d,h,20,4]", "0xC012/0xC013=duplex:26/2,a8@4[3c,4d,h,20,4,2,c]",
-                  "0xC012/0xC013=duplex:26/2,a8@4[3c,4d,h,20,4,x]", "0xC012/0xC013=polled:26/2,a8@4[3c,4d,h,20,4,2]",
+                  "0xC012/0xC013=duplex:26/2,a8@4[3c,4d,h,20,4,x]", "0xC012/0xC013=polled@4[3c,4d,h,20,4,2]",
                   "0xC012/0xC013=duplex:26/2,a8@4[3c,4d,h,20,4,a2]"):
         got = systems(tshark, capture_file(PCWORX), prefs={"mcmb2.layouts": entry, "mcmb2.heuristic": "FALSE"})
         assert set(got.values()) == {""}, entry
