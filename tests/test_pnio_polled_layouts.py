@@ -128,3 +128,16 @@ def test_layout_table_polled_entry_with_frame_order(tshark, work_dir):
     got = tshark.frames(without, ["mcmb2.layout", "mcmb2.slot.uplink_data"],
                         prefs={"mcmb2.layouts": entry, "mcmb2.heuristic": "FALSE"})
     assert got[1]["mcmb2.slot.uplink_data"] != a[3]["mcmb2.slot.uplink_data"]
+
+
+def test_a_downlink_of_its_header_only_with_the_iocs_first(tshark, work_dir):
+    """DAP 1, one terminal, Y=2, Z=0: the uplink carries one IOCS (of the
+    downlink header), put right after the DAP IOPS. In the usual order it
+    would read as a second DAP IOPS with a zero IOCS from the padding; the
+    reading whose IOCS all fit wins (found by test_any_polled_frame_layout)."""
+    perms = {"in": [0, 3, 2, 1] + list(range(4, 60)), "out": list(range(60))}
+    subs = mcmb2_submodules("polled", 1, 2, 0, 0, 1)
+    with_connect, without = captures(work_dir, "polled_header_only",
+                                     lambda: Device(subs, mac(43), 0x8001, 0x8002, order=singles_anywhere(perms)),
+                                     lambda d, cap: polled_traffic(d, cap, 6, 2, 0, 0, 1))
+    assert_reads_as_with_connect(tshark, with_connect, without)
