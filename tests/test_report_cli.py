@@ -243,10 +243,13 @@ def test_text_file_is_no_capture(cmd, work):
         "bad CRC (6x, frames 1-6 over 0.050 s)" % BAD_CRC]
     assert proc.stdout.startswith("== %s\n  not a network capture: tshark reads it as MP4 media\n\n"
                                   % six)
-    # The same bytes on standard input.
+    # The same bytes on standard input: refused (2) as well. Wireshark 4.0
+    # names the format; newer versions read a pipe as pcap or pcapng only and
+    # stop at the 6 bytes, before a first packet.
     proc = run(cmd, "--json", "-", input="hello\n", stdin=None)
     assert proc.returncode == 2
-    assert proc.stderr == "vrshark-report: -: not a network capture: tshark reads it as MP4 media\n"
+    assert proc.stderr in ("vrshark-report: -: not a network capture: tshark reads it as MP4 media\n",
+                           "vrshark-report: -: truncated: the file ends before its first packet\n")
     assert captures(proc)[0]["frames"] == 0 and captures(proc)[0]["devices"] == []
 
 
