@@ -244,7 +244,7 @@ def test_text_file_is_no_capture(cmd, work):
     assert proc.stdout.startswith("== %s\n  not a network capture: tshark reads it as MP4 media\n\n"
                                   % six)
     # The same bytes on standard input: refused (2) as well. Wireshark 4.0
-    # names the format; newer versions read a pipe as pcap or pcapng only and
+    # names the format; 4.6 reads a pipe as pcap or pcapng only and
     # stop at the 6 bytes, before a first packet.
     proc = run(cmd, "--json", "-", input="hello\n", stdin=None)
     assert proc.returncode == 2
