@@ -284,8 +284,9 @@ def test_modbus_columns_are_those_of_the_full_tree(tshark, name, fieldset, two_p
 
 
 @needs_c
-@pytest.mark.parametrize("name", MODBUS_CAPTURES)
-def test_modbus_expert_statistics_are_those_of_the_full_tree(tshark, name):
+@pytest.mark.parametrize("name", MODBUS_CAPTURES + ECLINK_PNIO_CAPTURES)
+def test_ec_link_expert_statistics_are_those_of_the_full_tree(tshark, name):
+    """EC-Link over Modbus/TCP and over PROFINET: -z expert as with the full tree."""
     args = ["-n", "-q", "-r", str(CAPTURES / name), "-z", "expert"] + _prefs(name)
     assert _run(tshark, args) == _run(tshark, args, full=True)
 
@@ -319,13 +320,6 @@ def test_eclink_pnio_columns_are_those_of_the_full_tree(tshark, name, fieldset, 
     same columns as the full tree, frame by frame."""
     assert "EC-Link" in _same_columns(tshark, name, ECLINK_PNIO_SPARSE, "eclink_pnio" if fieldset == "all" else None,
                                       two_pass)
-
-
-@needs_c
-@pytest.mark.parametrize("name", ECLINK_PNIO_CAPTURES)
-def test_eclink_pnio_expert_statistics_are_those_of_the_full_tree(tshark, name):
-    args = ["-n", "-q", "-r", str(CAPTURES / name), "-z", "expert"] + _prefs(name)
-    assert _run(tshark, args) == _run(tshark, args, full=True)
 
 
 ECLINK_PNIO = CAPTURES / "eclink_pnio_connect.pcap"

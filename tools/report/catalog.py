@@ -119,37 +119,32 @@ EXPERTS = {
     "eclink.periodic_block.range": (ERROR, "finding", "periodic data block beyond the size"),
     "eclink.bad_length": (ERROR, "finding", "not an EC-Link image length"),
     # EC-Link over Modbus/TCP
-    "eclink_modbus.pci_stalled": (ERROR, "stall", "PCI"),
-    "eclink_modbus.pco_stalled": (ERROR, "stall", "PCO"),
-    "eclink_modbus.cmd_from_ru.late": (WARNING, "failed",
-                                       "command from RU{of} not echoed by CAO in time: the command failed"),
-    "eclink_modbus.cmd_to_ru.late": (WARNING, "failed",
-                                     "command to RU{of} not echoed by CAI in time: the command failed"),
-    "eclink_modbus.cmd_from_ru.deadline": (NOTE, "deadline", "deadline of the command from RU{of} passed"),
-    "eclink_modbus.cmd_to_ru.deadline": (NOTE, "deadline", "deadline of the command to RU{of} passed"),
-    "eclink_modbus.cmd_from_ru.late_ack": (WARNING, "finding", "command from RU echoed by CAO late"),
-    "eclink_modbus.cmd_to_ru.late_ack": (WARNING, "finding", "command to RU echoed by CAI late"),
-    "eclink_modbus.bu_state_change": (NOTE, "state", "BU state changed"),
     "eclink_modbus.no_request": (NOTE, "finding", "response without its request"),
     "eclink_modbus.poll_gap": (WARNING, "poll_gap", "input image not read"),
     "eclink_modbus.dropped": (NOTE, "finding", "images no longer valid: not taken for a BU any more"),
     "eclink_modbus.candidate": (WARNING, "candidate", "looks like an EC-Link BU but was not recognised"),
     # EC-Link over PROFINET
-    "eclink_pnio.pci_stalled": (ERROR, "stall", "PCI"),
-    "eclink_pnio.pco_stalled": (ERROR, "stall", "PCO"),
-    "eclink_pnio.cmd_from_ru.late": (WARNING, "failed",
-                                     "command from RU{of} not echoed by CAO in time: the command failed"),
-    "eclink_pnio.cmd_to_ru.late": (WARNING, "failed",
-                                   "command to RU{of} not echoed by CAI in time: the command failed"),
-    "eclink_pnio.cmd_from_ru.deadline": (NOTE, "deadline", "deadline of the command from RU{of} passed"),
-    "eclink_pnio.cmd_to_ru.deadline": (NOTE, "deadline", "deadline of the command to RU{of} passed"),
-    "eclink_pnio.cmd_from_ru.late_ack": (WARNING, "finding", "command from RU echoed by CAO late"),
-    "eclink_pnio.cmd_to_ru.late_ack": (WARNING, "finding", "command to RU echoed by CAI late"),
-    "eclink_pnio.bu_state_change": (NOTE, "state", "BU state changed"),
     "eclink_pnio.iops.bad": (WARNING, "finding", "IOPS not GOOD"),
     "eclink_pnio.short": (ERROR, "finding", "C-SDU shorter than the layout"),
     "eclink_pnio.layout.inferred": (NOTE, "finding", "layout inferred from the cyclic frames (no Connect)"),
 }
+
+# The EC-Link handshake findings, the same on both transports.
+HANDSHAKE = {
+    "pci_stalled": (ERROR, "stall", "PCI"),
+    "pco_stalled": (ERROR, "stall", "PCO"),
+    "cmd_from_ru.late": (WARNING, "failed",
+                         "command from RU{of} not echoed by CAO in time: the command failed"),
+    "cmd_to_ru.late": (WARNING, "failed",
+                       "command to RU{of} not echoed by CAI in time: the command failed"),
+    "cmd_from_ru.deadline": (NOTE, "deadline", "deadline of the command from RU{of} passed"),
+    "cmd_to_ru.deadline": (NOTE, "deadline", "deadline of the command to RU{of} passed"),
+    "cmd_from_ru.late_ack": (WARNING, "finding", "command from RU echoed by CAO late"),
+    "cmd_to_ru.late_ack": (WARNING, "finding", "command to RU echoed by CAI late"),
+    "bu_state_change": (NOTE, "state", "BU state changed"),
+}
+for _transport in ("eclink_modbus", "eclink_pnio"):
+    EXPERTS.update({_transport + "." + name: entry for name, entry in HANDSHAKE.items()})
 
 # The dissector's severity of the findings the report rates higher (see above).
 PROMOTED = {"eclink_modbus.candidate": NOTE, "mcmb2.candidate": NOTE}
