@@ -312,7 +312,7 @@ proto.prefs_changed = prefs_changed
 -- Per-capture state
 ------------------------------------------------------------------------
 local conns      -- connection key -> connection state
-local adus       -- ADU key -> what the first pass worked out for it
+local adus       -- ADU key -> what the first pass worked out for it (but plain records: below)
 
 -- seconds (a difference of pcap timestamps) as an NSTime, to the microsecond
 local function nstime(secs)
@@ -338,10 +338,59 @@ local R_START, R_COUNT, R_REQUEST, R_TIME, R_RESPONSE, R_PCI_AGE, R_PCO_AGE, R_A
 local unpack = table.unpack or unpack  -- luacheck: ignore 113 (Lua 5.1/5.2 global)
 local NONE = {}
 
+-- Plain records, kept flat: the record of the first ADU of a frame's first
+-- buffer that has nothing but the 8 usual values (no findings, links, notes,
+-- nothing another frame still writes into) is not kept as a table of its own
+-- but in these arrays, indexed by frame number. A table per ADU (about 250
+-- bytes with its entry in `adus`) made most of the plugin's memory, and its
+-- garbage collection most of its time, on long captures.
+--   at_rl    reported length of the buffer the values belong to
+--   at_sc    start * 65536 + count, or false
+--   at_link  a request: its response's frame; a response: its request's
+--   at_time  a response: time since its request
+--   at_pci, at_pco, at_acc   R_PCI_AGE, R_PCO_AGE, R_ACCEPTED
+local at_rl, at_sc, at_link, at_time, at_pci, at_pco, at_acc
+
 local function init_state()
     read_prefs()
     conns = {}
     adus = {}
+    at_rl, at_sc, at_link, at_time, at_pci, at_pco, at_acc = {}, {}, {}, {}, {}, {}, {}
+end
+
+-- A record with nothing beyond its array slots (next() past slot 8 finds no
+-- key) goes flat; it is marked so that the response that answers it later
+-- writes its link into the arrays (first_pass).
+local function store_rec(key, n, rl, off, rec, is_request)
+    if off ~= 0 or rec == NOT_DECODED or at_rl[n] ~= nil or #rec ~= 8 or next(rec, 8) ~= nil then
+        adus[key] = rec
+        return
+    end
+    at_rl[n] = rl
+    at_sc[n] = rec[R_START] and (rec[R_START] * 65536 + rec[R_COUNT]) or false
+    if is_request then
+        at_link[n] = rec[R_RESPONSE]
+    else
+        at_link[n], at_time[n] = rec[R_REQUEST], rec[R_TIME]
+    end
+    at_pci[n], at_pco[n], at_acc[n] = rec[R_PCI_AGE], rec[R_PCO_AGE], rec[R_ACCEPTED]
+    rec.flat = n
+end
+
+-- The record of an ADU (a table; a flat one rebuilt), or nil: not seen.
+local function load_rec(key, n, rl, off, is_request)
+    if off == 0 and at_rl[n] == rl then
+        local sc = at_sc[n]
+        local rec = { false, false, false, false, false, at_pci[n], at_pco[n], at_acc[n] }
+        if sc then rec[R_START], rec[R_COUNT] = math.floor(sc / 65536), sc % 65536 end
+        if is_request then
+            rec[R_RESPONSE] = at_link[n] or false
+        elseif at_link[n] then
+            rec[R_REQUEST], rec[R_TIME] = at_link[n], at_time[n]
+        end
+        return rec
+    end
+    return adus[key]
 end
 -- (the port is taken at each file start; at load, by prefs_changed() below,
 -- once the dissector exists)
@@ -597,6 +646,7 @@ local function analyse(c, rec, t, frame, touched)
                 end
                 if not pb.blocks[block] then pb.count = pb.count + 1 end
                 pb.blocks[block] = { data = out.data:sub(25, 24 + blen), frame = frame, rec = rec }
+                rec.held = true  -- gets a link later: kept as a table
                 if pb.count == pb.n then
                     local parts, frames = {}, {}
                     for b = 0, pb.n - 1 do
@@ -711,7 +761,7 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb)
             c.pending[tkey] = nil
             rec[R_REQUEST] = r.frame
             rec[R_TIME] = t - r.t
-            r.rec[R_RESPONSE] = pinfo.number
+            if r.rec.flat then at_link[r.rec.flat] = pinfo.number else r.rec[R_RESPONSE] = pinfo.number end
             rec[R_START], rec[R_COUNT] = r.start, r.count
         else
             rec.no_request = true
@@ -1106,13 +1156,13 @@ function proto.dissector(tvb, pinfo, tree)
         else
             key = pinfo.number .. ":" .. rl .. ":" .. off
         end
-        local rec = adus[key]
+        local rec = load_rec(key, pinfo.number, rl, off, is_request)
         -- (the C front end hands a candidate's later frames over again for
         -- the notes: one the first pass did not see stays Modbus's)
         if not rec and pinfo.visited and via_front then rec = NOT_DECODED end
         if not rec then
             rec = first_pass(tvb, pinfo, off, adu_len, is_request, t1 * 256 + t2, unit, fcb)
-            adus[key] = rec
+            store_rec(key, pinfo.number, rl, off, rec, is_request)
         end
         found[#found + 1] = { off, adu_len, rec, fcb }
         off = off + adu_len

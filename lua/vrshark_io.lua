@@ -24,36 +24,32 @@ set_plugin_info(require("vrshark.version").info("Machine data decoded from the m
 local iodata = require("vrshark.iodata")
 
 -- The BU origin: the packet's own for BU packets; controller packets carry
--- origin 0, so theirs is the BU origin the EG-Link analysis learned.
--- Without the EG-Link C plugin (a Lua-only install) there is neither the
--- table nor these fields: the EG-Link hook is then left out.
+-- origin 0, so theirs is the BU origin the EG-Link analysis learned. The C
+-- plugin hands both over in pinfo.match_uint (the packet's origin in the low
+-- 16 bits, the analysis' BU origin in the high 16, 0: not known), not as
+-- Lua Fields: once any Lua Field exists, Wireshark builds the frame tree of
+-- every frame of every protocol to feed it. Without the EG-Link C plugin (a
+-- Lua-only install) there is no table: the EG-Link hook is then left out.
 local have_eglink, eglink_table = pcall(DissectorTable.get, "eglink.data")
 have_eglink = have_eglink and eglink_table ~= nil
-local function field(name)
-    local ok, f = pcall(Field.new, name)
-    return ok and f or function() return nil end
-end
-local f_origin = have_eglink and field("eglink.origin") or function() return nil end
-local f_bu_origin = have_eglink and field("eglink.analysis.bu_origin") or function() return nil end
 -- The controller's packets are matched to their BU's origin by the group
 -- (or address) and input port, as the EG-Link analysis does: learned from
--- the BU's VRCI, kept per frame once known. A first pass without a tree
--- (tshark -2) sees no fields; the second pass then learns in frame order.
+-- the BU's VRCI, kept per frame once known.
 local bu_origin_of = {}   -- "dst address:input port" -> origin
 local frame_origin = {}   -- frame number -> origin
 
 local function origin(pinfo, from_bu)
     local known = frame_origin[pinfo.number]
     if known then return known end
-    local o = f_origin()
-    local value = o and o.value or nil
+    local handed = pinfo.match_uint or 0
+    local value = handed % 65536
     if from_bu then
-        if value and value ~= 0 then
+        if value ~= 0 then
             bu_origin_of[tostring(pinfo.dst) .. ":" .. pinfo.dst_port] = value
         end
-    elseif not value or value == 0 then
-        local b = f_bu_origin()
-        value = (b and b.value) or bu_origin_of[tostring(pinfo.dst) .. ":" .. (pinfo.dst_port - 2)]
+    elseif value == 0 then
+        local b = math.floor(handed / 65536)
+        value = (b ~= 0 and b) or bu_origin_of[tostring(pinfo.dst) .. ":" .. (pinfo.dst_port - 2)]
     end
     if value == 0 then value = nil end
     frame_origin[pinfo.number] = value

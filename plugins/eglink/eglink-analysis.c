@@ -1366,9 +1366,21 @@ show_findings(proto_tree *at, proto_item *aitem, tvbuff_t *tvb, packet_info *pin
     }
 }
 
+/* The BU origin handed to the machine data decoder with the periodic data:
+ * the one show_device() names as eglink.analysis.bu_origin, 0 if none. */
+static guint16
+data_bu_origin(const eglink_frame_t *fd)
+{
+    if (fd->flags & FF_ORIGIN)
+        return fd->bu_origin;
+    if (!fd->bu && fd->ctrl && fd->ctrl->bu && fd->ctrl->bu->origin_known)
+        return fd->ctrl->bu->origin;
+    return 0;
+}
+
 static void
 show_reassembled(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, const eglink_info_t *info,
-                 fragment_head *fh)
+                 fragment_head *fh, guint16 bu_origin)
 {
     tvbuff_t *next_tvb;
     proto_item *ti;
@@ -1385,7 +1397,7 @@ show_reassembled(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, const egli
         ti = proto_tree_add_item(tree, hf_eglink_periodic_data_id, next_tvb, 0, -1, ENC_NA);
         proto_item_append_text(ti, " (reassembled, %u bytes)", tvb_reported_length(next_tvb));
     }
-    eglink_data_dissect(next_tvb, pinfo, tree, "vrpo");
+    eglink_data_dissect(next_tvb, pinfo, tree, "vrpo", info->origin, bu_origin);
 }
 
 static void
@@ -1401,21 +1413,21 @@ show_reassembly(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, const eglin
     if (info->packet_number == 0 && !fd->burst_id && !(fd->flags & FF_INVALID) && info->periodic_len > 0 &&
         tvb_bytes_exist(tvb, info->periodic_offset, info->periodic_len))
         eglink_data_dissect(tvb_new_subset_length(tvb, info->periodic_offset, info->periodic_len),
-                            pinfo, tree, "vrpo");
+                            pinfo, tree, "vrpo", info->origin, data_bu_origin(fd));
     if (!pref_reassemble)
         return;
     /* A packet 0 that shows where the previous (all full) burst ended. */
     for (f = fd->findings; f; f = f->next) {
         if (f->kind == FND_BURST_DONE) {
             fh = fragment_end_seq_next(&eglink_reassembly_table, pinfo, f->value, NULL);
-            show_reassembled(tvb, pinfo, tree, info, fh);
+            show_reassembled(tvb, pinfo, tree, info, fh, data_bu_origin(fd));
         }
     }
     if (fd->burst_id && tvb_bytes_exist(tvb, info->periodic_offset, info->periodic_len)) {
         fh = fragment_add_seq_check(&eglink_reassembly_table, tvb, info->periodic_offset, pinfo,
                                     fd->burst_id, NULL, info->packet_number,
                                     (guint32)info->periodic_len, !(fd->flags & FF_BURST_LAST));
-        show_reassembled(tvb, pinfo, tree, info, fh);
+        show_reassembled(tvb, pinfo, tree, info, fh, data_bu_origin(fd));
     }
 }
 

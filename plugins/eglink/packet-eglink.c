@@ -22,6 +22,7 @@
  */
 #include "eglink-compat.h"
 
+#include <epan/exceptions.h>
 #include <epan/expert.h>
 #include <epan/prefs.h>
 #include <epan/unit_strings.h>
@@ -638,12 +639,22 @@ static dissector_table_t eglink_data_table;
 /* Hands an application data area to whoever registered for it in the
  * "eglink.data" table (see packet-eglink.h); nothing when nobody did. */
 void
-eglink_data_dissect(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, const char *area)
+eglink_data_dissect(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, const char *area,
+                    guint16 origin, guint16 bu_origin)
 {
     dissector_handle_t handle = dissector_get_string_handle(eglink_data_table, area);
+    guint32 saved = pinfo->match_uint;
 
-    if (handle)
+    if (!handle)
+        return;
+    pinfo->match_uint = ((guint32)bu_origin << 16) | origin;
+    TRY {
         call_dissector_only(handle, tvb, pinfo, tree, NULL);
+    }
+    FINALLY {
+        pinfo->match_uint = saved;
+    }
+    ENDTRY;
 }
 
 /* VRPO: one fragment of the controller's periodic data. */
@@ -685,7 +696,7 @@ dissect_eglink_command(eglink_payload_t *p, eglink_info_t *info, gboolean with_d
         data_len = eglink_add_bytes(p, hf_eglink_command_data, 6, 16, NULL);
         if (data_len == 16)
             eglink_data_dissect(tvb_new_subset_length(p->tvb, p->base + 6, 16), p->pinfo, p->tree,
-                                info->type == EGLINK_TYPE_VRCI ? "vrci" : "vrco");
+                                info->type == EGLINK_TYPE_VRCI ? "vrci" : "vrco", info->origin, 0);
     }
 }
 

@@ -70,8 +70,14 @@ void eglink_analysis_dissect(tvbuff_t *tvb, packet_info *pinfo, proto_tree *egli
  * can decode them without the EG-Link plugin knowing its format:
  *   "vrci"  command data of a VRCI (from the RU), 16 bytes
  *   "vrco"  command data of a VRCO (to the RU), 16 bytes
- *   "vrpo"  periodic data to the RU: a one-packet burst, or a reassembled one */
+ *   "vrpo"  periodic data to the RU: a one-packet burst, or a reassembled one
+ * The decoder finds the device in pinfo->match_uint: the packet's origin
+ * (eglink.origin) in the low 16 bits, the BU origin the analysis knows for it
+ * (eglink.analysis.bu_origin, 0: not known) in the high 16 bits. (A Lua
+ * Field for these would cost every frame of every protocol: Wireshark builds
+ * the frame tree for each once any Lua Field exists.) */
 #define EGLINK_DATA_TABLE "eglink.data"
-void eglink_data_dissect(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, const char *area);
+void eglink_data_dissect(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, const char *area,
+                         guint16 origin, guint16 bu_origin);
 
 #endif /* PACKET_EGLINK_H */
