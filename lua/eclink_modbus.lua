@@ -344,51 +344,73 @@ local NONE = {}
 -- but in these arrays, indexed by frame number. A table per ADU (about 250
 -- bytes with its entry in `adus`) made most of the plugin's memory, and its
 -- garbage collection most of its time, on long captures.
---   at_rl    reported length of the buffer the values belong to
---   at_sc    start * 65536 + count, or false
+--   at_key   ((rl * 4 + age kind) * 2 + has range) * 2^32 + start * 65536 + count:
+--            rl the reported length of the buffer the values belong to
+--            (< 2^18), age kind 0 none, 1 PCI age, 2 PCO age (a record with
+--            both stays a table), has range: start and count known
+--   at_age   that age (R_PCI_AGE or R_PCO_AGE)
 --   at_link  a request: its response's frame; a response: its request's
 --   at_time  a response: time since its request
---   at_pci, at_pco, at_acc   R_PCI_AGE, R_PCO_AGE, R_ACCEPTED
-local at_rl, at_sc, at_link, at_time, at_pci, at_pco, at_acc
+--   at_acc   R_ACCEPTED
+local at_key, at_age, at_link, at_time, at_acc
+local TWO32 = 4294967296
 
 local function init_state()
     read_prefs()
     conns = {}
     adus = {}
-    at_rl, at_sc, at_link, at_time, at_pci, at_pco, at_acc = {}, {}, {}, {}, {}, {}, {}
+    at_key, at_age, at_link, at_time, at_acc = {}, {}, {}, {}, {}
 end
 
 -- A record with nothing beyond its array slots (next() past slot 8 finds no
 -- key) goes flat; it is marked so that the response that answers it later
 -- writes its link into the arrays (first_pass).
 local function store_rec(key, n, rl, off, rec, is_request)
-    if off ~= 0 or rec == NOT_DECODED or at_rl[n] ~= nil or #rec ~= 8 or next(rec, 8) ~= nil then
+    if off ~= 0 or rec == NOT_DECODED or at_key[n] ~= nil or rl >= 262144 or #rec ~= 8 or next(rec, 8) ~= nil
+        or (rec[R_PCI_AGE] and rec[R_PCO_AGE]) then
         adus[key] = rec
         return
     end
-    at_rl[n] = rl
-    at_sc[n] = rec[R_START] and (rec[R_START] * 65536 + rec[R_COUNT]) or false
+    local kind, age = 0, false
+    if rec[R_PCI_AGE] then
+        kind, age = 1, rec[R_PCI_AGE]
+    elseif rec[R_PCO_AGE] then
+        kind, age = 2, rec[R_PCO_AGE]
+    end
+    if rec[R_START] then
+        at_key[n] = ((rl * 4 + kind) * 2 + 1) * TWO32 + rec[R_START] * 65536 + rec[R_COUNT]
+    else
+        at_key[n] = (rl * 4 + kind) * 2 * TWO32
+    end
+    at_age[n], at_acc[n] = age, rec[R_ACCEPTED]
     if is_request then
         at_link[n] = rec[R_RESPONSE]
     else
         at_link[n], at_time[n] = rec[R_REQUEST], rec[R_TIME]
     end
-    at_pci[n], at_pco[n], at_acc[n] = rec[R_PCI_AGE], rec[R_PCO_AGE], rec[R_ACCEPTED]
     rec.flat = n
 end
 
 -- The record of an ADU (a table; a flat one rebuilt), or nil: not seen.
 local function load_rec(key, n, rl, off, is_request)
-    if off == 0 and at_rl[n] == rl then
-        local sc = at_sc[n]
-        local rec = { false, false, false, false, false, at_pci[n], at_pco[n], at_acc[n] }
-        if sc then rec[R_START], rec[R_COUNT] = math.floor(sc / 65536), sc % 65536 end
-        if is_request then
-            rec[R_RESPONSE] = at_link[n] or false
-        elseif at_link[n] then
-            rec[R_REQUEST], rec[R_TIME] = at_link[n], at_time[n]
+    local v = off == 0 and at_key[n]
+    if v then
+        local hi = math.floor(v / TWO32)
+        if math.floor(hi / 8) == rl then
+            local rec = { false, false, false, false, false, false, false, at_acc[n] }
+            if hi % 2 == 1 then
+                local sc = v % TWO32
+                rec[R_START], rec[R_COUNT] = math.floor(sc / 65536), sc % 65536
+            end
+            local kind = math.floor(hi / 2) % 4
+            if kind == 1 then rec[R_PCI_AGE] = at_age[n] elseif kind == 2 then rec[R_PCO_AGE] = at_age[n] end
+            if is_request then
+                rec[R_RESPONSE] = at_link[n] or false
+            elseif at_link[n] then
+                rec[R_REQUEST], rec[R_TIME] = at_link[n], at_time[n]
+            end
+            return rec
         end
-        return rec
     end
     return adus[key]
 end
