@@ -905,6 +905,12 @@ end
 -- (tests/test_sparse_view.py), and works out the Info text. Anything else
 -- referenced (an expert, machine data, the protocol itself, ...) means the
 -- full tree. c: { rec, tree }
+-- the BU: the server, whichever way the ADU goes
+local function server_text(pinfo, is_request)
+    if is_request then return tostring(pinfo.dst) .. ":" .. pinfo.dst_port end
+    return tostring(pinfo.src) .. ":" .. pinfo.src_port
+end
+
 local function rec_value(field, key, as_time)
     return function(c)
         local v = c.rec[key]
@@ -943,7 +949,7 @@ local SPARSE_ADDERS = {
         if c.rec.poll_gap then c.tree:add(pf.poll_gap_from, c.rec.poll_gap_from) end
     end,
     ["eclink_modbus.bu_state_prev"] = rec_value(pf.bu_state_prev, "bu_state_prev"),
-    ["eclink_modbus.server"] = function(c) c.tree:add(pf.server, c.server) end,
+    ["eclink_modbus.server"] = function(c) c.tree:add(pf.server, server_text(c.pinfo, c.is_request)) end,
 }
 for _, name in ipairs({ "pci_since", "pco_since", "cmd_from_ru_in", "cao_in", "cmd_to_ru_in", "cai_in",
                       "deadline_in" }) do
@@ -1001,11 +1007,8 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
     elseif rec[R_REQUEST] then
         r = { start = rec[R_START], count = rec[R_COUNT] }
     end
-    -- the BU: the server, whichever way the ADU goes
-    local server = is_request and (tostring(pinfo.dst) .. ":" .. pinfo.dst_port)
-        or (tostring(pinfo.src) .. ":" .. pinfo.src_port)
     if sp then
-        local c = { rec = rec, tree = tree, server = server }
+        local c = { rec = rec, tree = tree, pinfo = pinfo, is_request = is_request }
         for _, add in ipairs(sp.adders) do add(c) end
         local infos = {}
         for _, a in ipairs(adu_accesses(tvb, off, adu_len, fcb, is_request, r)) do
@@ -1023,6 +1026,7 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
         add_adu_tags(infos, rec, pinfo.visited)
         return infos, rec.poll_gap
     end
+    local server = server_text(pinfo, is_request)
     local item = tree:add(proto, tvb(off, adu_len))
     local tname = FC_TABLE[fc]
     local desc = TABLE_NAMES[tname]
