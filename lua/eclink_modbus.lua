@@ -471,7 +471,7 @@ local function map_access(tname, start, count, tvb, data_off, coil_value)
                 p.swap = swap
                 -- the image bytes first .. first + length - 1, as one string
                 p.data = tvb:raw(p.tvb_off, p.length)
-                if swap then p.data = p.data:gsub("(.)(.)", "%2%1") end
+                if swap then p.data = image.swap_pairs(p.data) end
             else
                 -- bits lo..hi (addresses) = image bits (lo - lo_a) .. (hi - lo_a)
                 local b0, b1 = lo - lo_a, hi - lo_a
@@ -509,6 +509,25 @@ local function map_access(tname, start, count, tvb, data_off, coil_value)
     return pieces
 end
 
+-- map_access() of an access of the ADU at `off`, worked out once per
+-- dissector call: the first pass (heuristic, watch, image store) and the
+-- view of the same call use the same pieces (each swaps its register bytes
+-- with a gsub). Kept for the call's tvb only (compared with rawequal: a
+-- Tvb of an earlier call has expired, and its __eq says so; the reference
+-- kept here stops its address being taken by another).
+local map_memo = { tvb = false }
+local function mapped(a, tvb, off)
+    if not rawequal(map_memo.tvb, tvb) then map_memo = { tvb = tvb } end
+    local at = off + a.data
+    local m = map_memo[at]
+    if m and m.tname == a.tname and m.start == a.start and m.count == a.count and m.coil == a.coil then
+        return m.pieces
+    end
+    local pieces = map_access(a.tname, a.start, a.count, tvb, at, a.coil)
+    map_memo[at] = { tname = a.tname, start = a.start, count = a.count, coil = a.coil, pieces = pieces }
+    return pieces
+end
+
 -- Does an access cover a whole input image (the heuristic looks at those)?
 local function full_input(tname, start, count)
     for _, r in ipairs(REGIONS[tname]) do
@@ -539,7 +558,7 @@ local function look(c, accesses, tvb, off, t)
     for _, a in ipairs(accesses) do
         local inp, outp = full_input(a.tname, a.start, a.count), full_output_write(a)
         if inp or outp then
-            for _, p in ipairs(map_access(a.tname, a.start, a.count, tvb, off + a.data, a.coil)) do
+            for _, p in ipairs(mapped(a, tvb, off)) do
                 if inp and p.kind == "input" and p.length == 64 then
                     yes = detect.input(c.det, p.data, t) or yes
                 elseif outp and p.kind == "output" then
@@ -556,7 +575,7 @@ end
 local function still_valid(c, accesses, tvb, off)
     for _, a in ipairs(accesses) do
         if full_input(a.tname, a.start, a.count) then
-            for _, p in ipairs(map_access(a.tname, a.start, a.count, tvb, off + a.data, a.coil)) do
+            for _, p in ipairs(mapped(a, tvb, off)) do
                 if p.kind == "input" and p.length == 64 and not detect.still_valid(c.watch, p.data) then
                     return false
                 end
@@ -843,7 +862,7 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb)
     end
     local touched = {}
     for _, a in ipairs(accesses) do
-        for _, p in ipairs(map_access(a.tname, a.start, a.count, tvb, off + a.data, a.coil)) do
+        for _, p in ipairs(mapped(a, tvb, off)) do
             store_piece(c, p)
             touched[p.kind] = true
         end
@@ -1012,11 +1031,11 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
         for _, add in ipairs(sp.adders) do add(c) end
         local infos = {}
         for _, a in ipairs(adu_accesses(tvb, off, adu_len, fcb, is_request, r)) do
-            for _, p in ipairs(map_access(a.tname, a.start, a.count, tvb, off + a.data, a.coil)) do
+            for _, p in ipairs(mapped(a, tvb, off)) do
                 if p.length > 0 then
                     local src, soff = piece_source(tvb, p)
                     local info = image.dissect(src, pinfo, tree, { kind = p.kind, offset = soff, first = p.first,
-                        length = p.length, swap = p.swap, only = sp.only,
+                        length = p.length, swap = p.swap, only = sp.only, data = p.data,
                         image_len = (p.kind == "input") and 64 or 224 })
                     infos[#infos + 1] = p.kind .. " " .. info.summary
                     if info.tags ~= "" then infos.tags = (infos.tags or "") .. info.tags end
@@ -1053,13 +1072,13 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
     end
     local infos = {}
     for _, a in ipairs(adu_accesses(tvb, off, adu_len, fcb, is_request, r)) do
-        for _, p in ipairs(map_access(a.tname, a.start, a.count, tvb, off + a.data, a.coil)) do
+        for _, p in ipairs(mapped(a, tvb, off)) do
             if p.length > 0 then
                 local src, soff = piece_source(tvb, p)
                 local label = string.format("(%s %d-%d%s)", TABLE_NAMES[a.tname]:lower(), p.addr_lo, p.addr_hi,
                     a.write and ", written" or "")
                 local info = image.dissect(src, pinfo, item, { kind = p.kind, offset = soff, first = p.first,
-                    length = p.length, swap = p.swap, label = label,
+                    length = p.length, swap = p.swap, label = label, data = p.data,
                     image_len = (p.kind == "input") and 64 or 224 })
                 iodata.decode_eclink(info, -- vrshark_io hook
                     { server = tostring(is_request and pinfo.dst or pinfo.src) }, pinfo) -- vrshark_io hook
