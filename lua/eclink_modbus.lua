@@ -511,10 +511,10 @@ end
 
 -- map_access() of an access of the ADU at `off`, worked out once per
 -- dissector call: the first pass (heuristic, watch, image store) and the
--- view of the same call use the same pieces (each swaps its register bytes
--- with a gsub). Kept for the call's tvb only (compared with rawequal: a
--- Tvb of an earlier call has expired, and its __eq says so; the reference
--- kept here stops its address being taken by another).
+-- view of the same call use the same pieces (each worked them out again,
+-- swapping the register bytes anew). Kept for the call's tvb only, compared
+-- with rawequal: a Tvb of an earlier call has expired, and its __eq says
+-- so; the reference kept here stops its address being taken by another.
 local map_memo = { tvb = false }
 local function mapped(a, tvb, off)
     if not rawequal(map_memo.tvb, tvb) then map_memo = { tvb = tvb } end
@@ -914,6 +914,12 @@ local function show_assembled(tree, pinfo, snap, kind)
     image.dissect(tvb, pinfo, ti, { kind = kind, image_len = len, generated = true, quiet = true })
 end
 
+-- the BU: the server, whichever way the ADU goes
+local function server_text(pinfo, is_request)
+    if is_request then return tostring(pinfo.dst) .. ":" .. pinfo.dst_port end
+    return tostring(pinfo.src) .. ":" .. pinfo.src_port
+end
+
 ------------------------------------------------------------------------
 -- Sparse display: an invisible tree (the packet list, -Y, -z taps)
 ------------------------------------------------------------------------
@@ -923,13 +929,7 @@ end
 -- ADU, flat under the caller's tree, in the occurrences of the full tree
 -- (tests/test_sparse_view.py), and works out the Info text. Anything else
 -- referenced (an expert, machine data, the protocol itself, ...) means the
--- full tree. c: { rec, tree }
--- the BU: the server, whichever way the ADU goes
-local function server_text(pinfo, is_request)
-    if is_request then return tostring(pinfo.dst) .. ":" .. pinfo.dst_port end
-    return tostring(pinfo.src) .. ":" .. pinfo.src_port
-end
-
+-- full tree. c: { rec, tree, pinfo, is_request }
 local function rec_value(field, key, as_time)
     return function(c)
         local v = c.rec[key]
