@@ -750,7 +750,7 @@ end
 -- equally, that too (nothing is decoded until one is left).
 local function show_candidate(rec, tvb, tree)
     local item = tree:add(mcmb2, tvb:range(0, 0))
-    item:append_text(": looks like ours, layout not inferred")
+    item:append_text(": " .. (rec.head or "looks like ours, layout not inferred"))
     for _, s in ipairs(rec.settings) do item:add(pf.candidate_setting, s):set_generated() end
     item:add_proto_expert_info(ef.candidate, rec.text)
     if rec.ambiguous then

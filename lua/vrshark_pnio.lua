@@ -510,7 +510,8 @@ end
 -- layout-table entries that decode it. The first time a hint is seen,
 -- every earlier frame of its runs gets it too (shown on the second pass);
 -- a run that settles later replaces them (settle()).
-local SYSTEM_NAME = { duplex = "an MC-MB2-PN duplex/simplex base", eclink = "an EC-Link BU" }
+local SYSTEM_NAME = { duplex = "an MC-MB2-PN duplex/simplex base", polled = "an MC-MB2-PN polled base",
+                      eclink = "an EC-Link BU" }
 
 local function candidate(h, frame)
     local rec = hint_recs[h]
@@ -567,6 +568,19 @@ local function inferred(fid, tvb, base, size, pinfo)
     return frames[pinfo.number]
 end
 
+-- The frames of a direction whose Connect could not be learned
+-- (pnio_layout.plans_from_ar): one note for all, naming the setting that
+-- decodes them.
+local function refused_note(plan)
+    if not plan.note then
+        plan.note = { kind = "candidate", settings = { "mcmb2.layouts" }, head = "not decoded, layout not learned",
+            text = string.format("Not decoded: the Connect of %s does not describe this %s (%s); "
+                .. "to decode it: its layout in mcmb2.layouts", SYSTEM_NAME[plan.system] or SYSTEM_NAME.duplex,
+                (plan.dir == "up") and "uplink" or "downlink", plan.refused) }
+    end
+    return plan.note
+end
+
 -- tvb: the PN-RT frame from the FrameID on.
 local function first_pass(fid, tvb, pinfo)
     local cands = by_fid[fid]
@@ -584,6 +598,7 @@ local function first_pass(fid, tvb, pinfo)
         if not plan then return inferred(fid, tvb, base, size, pinfo) end
     end
     if not plan then return nil end
+    if plan.refused then return refused_note(plan) end
     local rec = analysed(plan, tvb:raw(base, size), pinfo.abs_ts, pinfo.number)
     return rec and shared_record(rec)
 end
@@ -599,8 +614,10 @@ local function show(rec, tvb, pinfo, tree)
     end
     local function fid(plan)
         if not plan or not plan.fid then return "none" end
-        if plan.fid == 0xFFFF then return "assigned in the response" end
-        return string.format("0x%04x", plan.fid)
+        -- a direction left out is said, with the object that made it so
+        local refused = plan.refused and (" not learned (" .. plan.refused .. ")") or ""
+        if plan.fid == 0xFFFF then return "assigned in the response" .. refused end
+        return string.format("0x%04x", plan.fid) .. refused
     end
     local text = string.format("%s device: uplink FrameID %s, downlink FrameID %s", rec.system, fid(rec.up),
         fid(rec.down))
