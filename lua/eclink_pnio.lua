@@ -239,6 +239,7 @@ local function show_connect(rec, tvb, tree, text)
     item:add_proto_expert_info(eef.learned, "Cyclic data layout learned: " .. text)
 end
 
-systems.register({ "eclink" }, { proto = eclp, short = eef.short, inferred = eef.inferred, analyse = analyse,
+systems.register({ "eclink" }, { proto = eclp, short = eef.short, inferred = eef.inferred,
+                                 per_frame = { "pci_age", "pco_age" }, analyse = analyse,
                                  show = show, sparse = sparse,
                                  show_connect = show_connect })

@@ -79,6 +79,7 @@ local pending_down -- { { ctl = Address, dev = Address, plan = downlink plan wai
 local cm_ports    -- UDP port -> true: controller ports added to udp.port for Connect responses
 local tries       -- FrameID -> failed header checks
 local frames      -- frame number -> record (shared by frames that analyse alike: shared_record)
+local per_frame   -- record key -> { [frame number] = value or false, n = highest number filled }
 local last_rec    -- plan -> its latest distinct records (shared_record)
 local ars         -- AR UUID -> parsed Connect
 local runs        -- vrshark.pnio_infer state: the runs of FrameIDs without a layout
@@ -185,7 +186,7 @@ local function init()
     by_fid, pending_down, tries, frames, ars, cm_ports = {}, {}, {}, {}, {}, {}
     runs = infer.new()
     addr_of, hint_recs, unsettled = {}, {}, nil
-    last_rec = {}
+    last_rec, per_frame = {}, {}
     local prefs = systems.prefs()
     heuristic, learn = prefs.heuristic, prefs.connect
     if C then fe.pn_frame_id:remove_all(carrier) end
@@ -418,14 +419,40 @@ end
 -- frame after frame (the watchdog's age takes a few values, nothing to
 -- report), and one table per frame was most of the plugins' memory on a
 -- long capture and a good part of their time, in the garbage collector
--- (docs/quality.md).
+-- (docs/quality.md). The values that differ from frame to frame even on a
+-- healthy device (the decoder's per_frame keys: EC-Link's ages of PCI and
+-- PCO) are moved out of the record first, into flat arrays by frame
+-- number, and put back into it before it is shown.
 local RECENT = 8
 
--- nb: the number of keys of b (counted once, when b was kept). The fields
--- that differ most often between records of one plan are compared first,
--- so that most of the latest records are passed over at once.
+-- Moves the decoder's per_frame keys of rec (frame `n`) into per_frame.
+-- Frames not of ours are filled with false, so that each array stays a
+-- Lua array (16 bytes a frame) rather than a hash (40 bytes an entry).
+local function keep_per_frame(keys, rec, n)
+    for _, k in ipairs(keys) do
+        local a = per_frame[k]
+        if not a then
+            a = { n = 0 }
+            per_frame[k] = a
+        end
+        for i = a.n + 1, n - 1 do a[i] = false end
+        if n > a.n then a.n = n end
+        a[n] = rec[k] or false
+        rec[k] = nil
+    end
+end
+
+-- Puts the per_frame values of frame `n` back into its (maybe shared)
+-- record, before the record is shown.
+local function load_per_frame(keys, rec, n)
+    for _, k in ipairs(keys) do
+        local a = per_frame[k]
+        rec[k] = a and a[n] or nil
+    end
+end
+
+-- nb: the number of keys of b (counted once, when b was kept).
 local function alike(a, b, nb)
-    if a.wd_age ~= b.wd_age or a.pci_age ~= b.pci_age or a.pco_age ~= b.pco_age then return false end
     local n = 0
     for k, v in pairs(a) do
         if b[k] ~= v then return false end
@@ -440,7 +467,9 @@ local function keys(t)
     return n
 end
 
-local function shared_record(rec)
+local function shared_record(rec, n)
+    local per = systems.decoder(rec.plan.system).per_frame
+    if per then keep_per_frame(per, rec, n) end
     if rec.findings ~= record.NO_FINDINGS then return rec end
     local recent = last_rec[rec.plan]
     if not recent then
@@ -501,7 +530,7 @@ local function settle(res)
                 "Cyclic data layout inferred from frames %d..%d (no Connect in the capture); to pin it, "
                 .. "add to mcmb2.layouts: %s", res.first, res.last, res.entry))
         end
-        frames[f[1]] = rec and shared_record(rec)
+        frames[f[1]] = rec and shared_record(rec, f[1])
     end
 end
 
@@ -600,7 +629,7 @@ local function first_pass(fid, tvb, pinfo)
     if not plan then return nil end
     if plan.refused then return refused_note(plan) end
     local rec = analysed(plan, tvb:raw(base, size), pinfo.abs_ts, pinfo.number)
-    return rec and shared_record(rec)
+    return rec and shared_record(rec, pinfo.number)
 end
 
 local function show(rec, tvb, pinfo, tree)
@@ -653,6 +682,8 @@ local function cyclic(tvb, pinfo, tree, view)
         end
     end
     if rec then
+        local per = rec.plan and systems.decoder(rec.plan.system).per_frame
+        if per then load_per_frame(per, rec, pinfo.number) end
         if not view then
             show(rec, tvb, pinfo, tree)
         elseif not view.quiet then
