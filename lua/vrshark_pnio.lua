@@ -82,6 +82,7 @@ local frames      -- frame number -> record (shared by frames that analyse alike
 local per_frame   -- record key -> { [frame number] = value or false, n = highest number filled }
 local last_rec    -- plan -> its latest distinct records (shared_record)
 local ars         -- AR UUID -> parsed Connect
+local not_ours    -- expected submodule blocks (expected_key) -> true: no system of ours
 local runs        -- vrshark.pnio_infer state: the runs of FrameIDs without a layout
 local addr_of     -- station key of pnio_infer (tostring of an Ethernet address) -> Address
 local hint_recs   -- hint of pnio_infer -> the record of its candidate frames
@@ -183,7 +184,7 @@ end
 local function init()
     if not C then own_ethertype() end
     for port in pairs(cm_ports or {}) do udp_table:remove(port, carrier) end
-    by_fid, pending_down, tries, frames, ars, cm_ports = {}, {}, {}, {}, {}, {}
+    by_fid, pending_down, tries, frames, ars, cm_ports, not_ours = {}, {}, {}, {}, {}, {}, {}
     runs = infer.new()
     addr_of, hint_recs, unsettled = {}, {}, nil
     last_rec, per_frame = {}, {}
@@ -222,26 +223,71 @@ local function connect_blocks(tvb)
     local args = u32(p + 4)
     local start, stop = p + 20, math.min(p + 20 + args, tvb:len())
     local list = {}
+    -- the block headers read from one string, not a TvbRange each
+    local s = (stop > start) and tvb:raw(start, stop - start) or ""
+    local i = 1
     while start + 6 <= stop do
-        list[#list + 1] = { source = tvb, offset = start, value = tvb:range(start, 2):uint() }
-        start = start + 4 + tvb:range(start + 2, 2):uint()
+        local t1, t2, l1, l2 = string.byte(s, i, i + 3)
+        list[#list + 1] = { source = tvb, offset = start, value = t1 * 256 + t2 }
+        local step = 4 + l1 * 256 + l2
+        start, i = start + step, i + step
     end
     return list, ptype == 0
+end
+
+-- The blocks read, and (true) those read first: the AR and the expected
+-- submodules of a request, the AR of a response. A Connect not of ours
+-- stops there (its submodules are no system of ours, or the response's AR
+-- is not known): its IOCRs, hundreds of entries on a large device, are
+-- never read.
+local BLOCKS = { [0x0101] = true, [0x0104] = true, [0x8101] = true, [0x0102] = false, [0x8102] = false }
+
+-- The expected submodule blocks of a request, as one string: the key of
+-- not_ours (a controller connects the same devices again and again).
+local function expected_key(blocks)
+    local parts
+    for _, fi in ipairs(blocks) do
+        if fi.value == 0x0104 then
+            local tvb, off = fi.source, fi.offset
+            if off + 4 > tvb:len() then return nil end
+            local len = math.min(4 + tvb:range(off + 2, 2):uint(), tvb:len() - off)
+            parts = parts or {}
+            parts[#parts + 1] = tvb:raw(off, len)
+        end
+    end
+    return parts and table.concat(parts)
 end
 
 local function learn_connect(pinfo, blocks)
     local ar = {}
     local any = false
-    for _, fi in ipairs(blocks) do
-        local v = fi.value
-        if v == 0x0101 or v == 0x0102 or v == 0x0104 or v == 0x8101 or v == 0x8102 then
-            local src = fi.source
-            if src then
-                if layout.parse_block(ar, src, fi.offset) then any = true end
+    local key = expected_key(blocks)
+    local function parse(first)
+        for _, fi in ipairs(blocks) do
+            if BLOCKS[fi.value] == first and not (key and not_ours[key] and fi.value == 0x0104)
+                    and layout.parse_block(ar, fi.source, fi.offset) then
+                any = true
             end
         end
     end
-    if not any or not ar.uuid then return nil end
+    parse(true)
+    if not ar.uuid then return nil end
+    local cls
+    if key and not_ours[key] then
+        ars[ar.uuid] = nil -- (a new Connect of the AR replaces the one before)
+        return nil
+    elseif ar.subs then
+        cls = layout.classify(ar.subs)
+        if not cls then
+            if key then not_ours[key] = true end
+            ars[ar.uuid] = nil
+            return nil
+        end
+    elseif not ars[ar.uuid] then
+        return nil
+    end
+    parse(false)
+    if not any then return nil end
     local known = ars[ar.uuid]
     -- The senders of the cyclic frames: the Ethernet addresses of the two
     -- ends of the Connect (compared with those of the cyclic frames).
@@ -251,14 +297,14 @@ local function learn_connect(pinfo, blocks)
         ar.frame = pinfo.number
         ars[ar.uuid] = ar
         known = ar
-    elseif known and (ar.res_fids or ar.dev_mac) then
+    elseif known and (ar.res_fids or ar.response) then
         known.res_fids = ar.res_fids or known.res_fids
         known.dev_mac = pinfo.dl_src
     else
         return nil
     end
     if not known.subs or not known.iocrs then return nil end
-    local cls = layout.classify(known.subs)
+    cls = cls or layout.classify(known.subs)
     if not cls then return nil end
     local up, down = layout.plans_from_ar(known, cls, "Connect in frame " .. known.frame)
     register(up)
@@ -395,7 +441,8 @@ local function recognise(fid, tvb, base, size, pinfo, entry)
     if entry and entry.dir == "down" then return nil end -- waits for its uplink
     local n = tries[fid] or 0
     if n >= HEUR_TRIES then return nil end
-    local h = layout.polled_header(get, size)
+    s = s or tvb:raw(base, size)
+    local h = layout.polled_header(get, size, s)
     if not h then
         tries[fid] = n + 1
         return nil
