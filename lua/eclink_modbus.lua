@@ -312,6 +312,7 @@ proto.prefs_changed = prefs_changed
 -- Per-capture state
 ------------------------------------------------------------------------
 local conns      -- connection key -> connection state
+local keys_by_ports -- client port * 65536 + server port -> { { client Address, server Address, key }, ... }
 local adus       -- ADU key -> what the first pass worked out for it (but plain records: below)
 
 -- seconds (a difference of pcap timestamps) as an NSTime, to the microsecond
@@ -357,7 +358,7 @@ local TWO32 = 4294967296
 
 local function init_state()
     read_prefs()
-    conns = {}
+    conns, keys_by_ports = {}, {}
     adus = {}
     at_key, at_age, at_link, at_time, at_acc = {}, {}, {}, {}, {}
 end
@@ -423,11 +424,30 @@ proto.init = function()
 end
 init_state()
 
+-- "client:port>server:port". The text is made once per connection: the
+-- connections of a port pair are told apart by comparing addresses (no
+-- string made per frame).
 local function conn_key(pinfo, is_request)
+    local src, dst = pinfo.src, pinfo.dst
+    local ca, cp, sa, sp
     if is_request then
-        return tostring(pinfo.src) .. ":" .. pinfo.src_port .. ">" .. tostring(pinfo.dst) .. ":" .. pinfo.dst_port
+        ca, cp, sa, sp = src, pinfo.src_port, dst, pinfo.dst_port
+    else
+        ca, cp, sa, sp = dst, pinfo.dst_port, src, pinfo.src_port
     end
-    return tostring(pinfo.dst) .. ":" .. pinfo.dst_port .. ">" .. tostring(pinfo.src) .. ":" .. pinfo.src_port
+    local pk = cp * 65536 + sp
+    local list = keys_by_ports[pk]
+    if list then
+        for _, e in ipairs(list) do
+            if e[1] == ca and e[2] == sa then return e[3] end
+        end
+    else
+        list = {}
+        keys_by_ports[pk] = list
+    end
+    local key = tostring(ca) .. ":" .. cp .. ">" .. tostring(sa) .. ":" .. sp
+    list[#list + 1] = { ca, sa, key }
+    return key
 end
 
 local function get_conn(key)
