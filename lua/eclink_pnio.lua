@@ -61,7 +61,12 @@ eef.learned = ProtoExpert.new("eclink_pnio.layout.learned", "Cyclic data layout 
     expert.group.SEQUENCE, expert.severity.CHAT)
 eef.inferred = ProtoExpert.new("eclink_pnio.layout.inferred", "Cyclic data layout inferred from the cyclic frames",
     expert.group.SEQUENCE, expert.severity.NOTE)
-for _, k in ipairs({ "iops_bad", "short", "learned", "inferred" }) do eclp_experts[#eclp_experts + 1] = eef[k] end
+eef.pn_malformed = ProtoExpert.new("eclink_pnio.pn_malformed",
+    "Malformed to Wireshark's PROFINET dissector, but the layout fits the frame: decoded",
+    expert.group.PROTOCOL, expert.severity.NOTE)
+for _, k in ipairs({ "iops_bad", "short", "learned", "inferred", "pn_malformed" }) do
+    eclp_experts[#eclp_experts + 1] = eef[k]
+end
 eclp.experts = eclp_experts
 
 ------------------------------------------------------------------------
@@ -146,7 +151,7 @@ local function show(rec, tvb, pinfo, tree)
     pinfo.cols.protocol = "EC-Link"
     if rec.size < plan.need then
         pinfo.cols.info = "EC-Link: C-SDU too short for the layout"
-        return
+        return root
     end
     local o = plan.image
     local info = image.dissect(tvb, pinfo, root, { kind = up and "input" or "output", offset = base + o.off,
@@ -172,6 +177,7 @@ local function show(rec, tvb, pinfo, tree)
     pinfo.cols.info = (up and "Input image " or "Output image ") .. ((info and info.summary) or "")
         .. ((info and info.tags) or "") .. eclink_handshake.tags(rec.pci_age, rec.pco_age)
         .. (unacked and " [unacked]" or "") .. (rec.late_ack and " [late ack]" or "")
+    return root
 end
 
 ------------------------------------------------------------------------
@@ -240,6 +246,7 @@ local function show_connect(rec, tvb, tree, text)
 end
 
 systems.register({ "eclink" }, { proto = eclp, short = eef.short, inferred = eef.inferred,
+                                 pn_malformed = eef.pn_malformed,
                                  per_frame = { "pci_age", "pco_age" }, analyse = analyse,
                                  show = show, sparse = sparse,
                                  show_connect = show_connect })

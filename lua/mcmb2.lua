@@ -156,6 +156,9 @@ local ef = {
     ambiguous = expert_new("mcmb2.layout.ambiguous",
         "More than one layout fits these cyclic frames: none is decoded until one is left",
         expert.group.SEQUENCE, expert.severity.NOTE),
+    pn_malformed = expert_new("mcmb2.pn_malformed",
+        "Malformed to Wireshark's PROFINET dissector, but the layout fits the frame: decoded",
+        expert.group.PROTOCOL, expert.severity.NOTE),
     candidate = expert_new("mcmb2.candidate",
         "Looks like an MC-MB2-PN base or EC-Link BU whose layout was not inferred: a layout-table entry decodes it",
         expert.group.UNDECODED, expert.severity.NOTE),
@@ -163,7 +166,7 @@ local ef = {
 mcmb2.experts = { ef.status_undefined, ef.slot_status_undefined, ef.terminal_not_zero, ef.not_valid, ef.e010,
                   ef.data_not_zero, ef.uplink_stalled, ef.downlink_stalled, ef.terminal_changed,
                   ef.layout_mismatch, ef.iops_bad, ef.iocs_bad, ef.reserved_not_zero, ef.short, ef.learned,
-                  ef.inferred, ef.ambiguous, ef.candidate }
+                  ef.inferred, ef.ambiguous, ef.pn_malformed, ef.candidate }
 
 ------------------------------------------------------------------------
 -- Preferences
@@ -600,7 +603,7 @@ local function show(rec, tvb, pinfo, tree)
     pinfo.cols.protocol = "MC-MB2"
     if rec.size < plan.need then
         pinfo.cols.info = "MC-MB2-PN: C-SDU too short for the layout"
-        return
+        return root
     end
     local h = base + plan.header.off
     local hr, wr = tvb:range(h, 1), tvb:range(h + 1, 1)
@@ -622,6 +625,7 @@ local function show(rec, tvb, pinfo, tree)
     record.add_ioxs(root, rec, tvb, pf.iops, pf.iocs)
     record.finish(rec, root)
     pinfo.cols.info = info_text(rec, { tvb:raw(h, plan.header.len):byte(1, -1) }, info_tags(rec))
+    return root
 end
 
 ------------------------------------------------------------------------
@@ -760,5 +764,6 @@ local function show_candidate(rec, tvb, tree)
 end
 
 systems.register({ "duplex", "polled" }, { proto = mcmb2, short = ef.short, inferred = ef.inferred,
+                                          pn_malformed = ef.pn_malformed,
                                           analyse = analyse, show = show, sparse = sparse,
                                           show_connect = show_connect, show_candidate = show_candidate })

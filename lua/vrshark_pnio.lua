@@ -688,8 +688,7 @@ local function show(rec, tvb, pinfo, tree)
         return
     end
     if rec.kind ~= "connect" then
-        systems.decoder(rec.plan.system).show(rec, tvb, pinfo, tree)
-        return
+        return systems.decoder(rec.plan.system).show(rec, tvb, pinfo, tree)
     end
     local function fid(plan)
         if not plan or not plan.fid then return "none" end
@@ -703,18 +702,51 @@ local function show(rec, tvb, pinfo, tree)
     systems.decoder(rec.system).show_connect(rec, tvb, tree, text)
 end
 
+-- A frame of ours that Wireshark's PN-RT or PNIO reported as malformed
+-- (the exception is in the tree): when the layout fits the frame, the
+-- decode stands and this note says why both are there. Wireshark 4.6 reads
+-- an RT_CLASS_1 frame (FrameID 0x8000-0xBFFF) as secured when C-SDU bytes
+-- 6-7 hold the C-SDU length less 20 (PN-RT) or less 4 (PNIO), and PNIO,
+-- knowing the IOCR from the Connect, then runs out of bytes: any data byte
+-- pair of a device can do that.
+local function pn_malformed_note(rec, tvb, root)
+    local plan, size = rec.plan, rec.size
+    if not plan or size < plan.need then return end -- the decoder's "short" finding says it
+    local who = "PROFINET dissector"
+    if size >= 8 then
+        local v = tvb:range(rec.base + 6, 2):uint()
+        if v == size - 20 or v == size - 4 then
+            who = string.format("%s (C-SDU bytes 6-7, %d, read as a SecurityLength)", v == size - 20 and "PN-RT"
+                or "PNIO", v)
+        end
+    end
+    root:add_proto_expert_info(systems.decoder(plan.system).pn_malformed, string.format(
+        "Malformed to Wireshark's %s, but the layout from %s fits its %d-byte C-SDU: decoded", who, plan.source,
+        size))
+end
+
 -- EtherType 0x8892: Wireshark's PN-RT first, then our cyclic data. With
 -- the C front end PN-RT has run already; 0 tells it the frame is not ours;
 -- view: what the front end says is looked at (vrshark/frontends.luam view():
 -- nil everything, quiet nothing, or sparse: the decoder's sparse() adds
 -- only that, or says it needs show()).
-local function cyclic(tvb, pinfo, tree, view)
+-- thrown: PN-RT (or PNIO below it) raised an exception on this frame.
+local function cyclic(tvb, pinfo, tree, view, thrown)
     local consumed = 0
     if not C then
         consumed = wrap.call(pn_rt, tvb, pinfo, tree)
-        -- a malformed PN-RT frame: Wireshark's report stands, nothing of ours
-        if consumed == nil then return tvb:len() end
+        -- A malformed PN-RT frame: Wireshark's report stands. A FrameID of
+        -- ours is decoded all the same (pn_malformed_note); others are not.
+        if consumed == nil then
+            if pinfo.visited and not frames[pinfo.number] then return tvb:len() end
+            if not pinfo.visited and (tvb:len() < 2 or not by_fid[tvb:range(0, 2):uint()]) then
+                return tvb:len()
+            end
+            thrown, consumed = true, tvb:len()
+        end
     end
+    -- (the note is an expert item: everything is shown)
+    if thrown then view = nil end
     local rec
     if pinfo.visited then
         rec = frames[pinfo.number]
@@ -735,7 +767,8 @@ local function cyclic(tvb, pinfo, tree, view)
         local per = rec.plan and systems.decoder(rec.plan.system).per_frame
         if per then load_per_frame(per, rec, pinfo.number) end
         if not view then
-            show(rec, tvb, pinfo, tree)
+            local root = show(rec, tvb, pinfo, tree)
+            if thrown and root then pn_malformed_note(rec, tvb, root) end
         elseif not view.quiet then
             local dec = rec.plan and systems.decoder(rec.plan.system)
             if not (dec and dec.sparse and dec.sparse(rec, tvb, pinfo, tree, view)) then
@@ -788,7 +821,7 @@ function carrier.dissector(tvb, pinfo, tree)
     if C then
         local how = pinfo.match_string
         if how == "connect" then return connect(tvb, pinfo, tree) end
-        return cyclic(tvb, pinfo, tree, fe.view(how))
+        return cyclic(tvb, pinfo, tree, fe.view(how), how == "frame_id.malformed")
     end
     -- No controller port is ever 0x8892 (see connect), so match_uint tells
     -- the two tables apart.

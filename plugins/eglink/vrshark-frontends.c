@@ -63,7 +63,8 @@
  * it. VRSHARK_FULL_TREE in the environment turns this off (everything).
  *
  * Exceptions of the wrapped dissectors propagate as they would without the
- * front end.
+ * front end, except PN-RT's on a known FrameID (call_pn_rt_known): shown,
+ * and the frame still goes to the decoder as "frame_id.malformed".
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -77,6 +78,7 @@
 #include <epan/prefs.h>
 #include <epan/to_str.h>
 #include <epan/proto_data.h>
+#include <epan/show_exception.h>
 
 #include "vrshark-frontends.h"
 
@@ -276,24 +278,53 @@ lua_view_free(lua_view_t *v)
 
 /* ---- PROFINET cyclic frames (EtherType 0x8892) ------------------------- */
 
+/* PN-RT (and PNIO below it) on a frame of a FrameID the Lua side knows: an
+ * exception is shown where it happened and the frame still goes to the
+ * decoder, as hook "frame_id.malformed" (everything shown). Wireshark 4.6
+ * reads an RT_CLASS_1 frame as secured when two C-SDU bytes equal a length
+ * it expects, and PNIO, knowing the IOCR from the Connect, then throws; the
+ * Connect's layout fits the frame all the same (the decoder says so). */
+static int
+call_pn_rt_known(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data, gboolean *thrown)
+{
+    volatile int consumed = 0;
+
+    *thrown = FALSE;
+    if (!pn_rt_handle)
+        return 0;
+    TRY {
+        consumed = call_dissector_only(pn_rt_handle, tvb, pinfo, tree, data);
+    }
+    CATCH_NONFATAL_ERRORS {
+        show_exception(tvb, pinfo, tree, EXCEPT_CODE, GET_MESSAGE);
+        *thrown = TRUE;
+    }
+    ENDTRY;
+    return consumed;
+}
+
 static int
 dissect_pn_cyclic(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
 {
-    int consumed = pn_rt_handle ? call_dissector_only(pn_rt_handle, tvb, pinfo, tree, data) : 0;
+    int consumed;
     guint16 fid;
     guint idx;
 
+    if (tvb_captured_length(tvb) >= 2 && dissector_get_uint_handle(pn_frame_id_table, tvb_get_ntohs(tvb, 0))) {
+        const char *saved = pinfo->match_string;
+        gboolean thrown;
+
+        fid = tvb_get_ntohs(tvb, 0);
+        consumed = call_pn_rt_known(tvb, pinfo, tree, data, &thrown);
+        pinfo->match_string = thrown ? "frame_id.malformed" : lua_view(&view_pn, pinfo, tree);
+        dissector_try_uint_with_data(pn_frame_id_table, fid, tvb, pinfo, tree, FALSE, NULL);
+        pinfo->match_string = saved;
+        return thrown ? (int)tvb_captured_length(tvb) : consumed;
+    }
+    consumed = pn_rt_handle ? call_dissector_only(pn_rt_handle, tvb, pinfo, tree, data) : 0;
     if (tvb_captured_length(tvb) < 2)
         return consumed;
     fid = tvb_get_ntohs(tvb, 0);
-    if (dissector_get_uint_handle(pn_frame_id_table, fid)) {
-        const char *saved = pinfo->match_string;
-
-        pinfo->match_string = lua_view(&view_pn, pinfo, tree);
-        dissector_try_uint_with_data(pn_frame_id_table, fid, tvb, pinfo, tree, FALSE, NULL);
-        pinfo->match_string = saved;
-        return consumed;
-    }
     if (fid < PN_CANDIDATE_FIRST || fid > PN_CANDIDATE_LAST || pinfo->fd->visited)
         return consumed;
     idx = fid - PN_CANDIDATE_FIRST;

@@ -100,6 +100,7 @@ EXPERTS = {
     "mcmb2.short": (ERROR, "finding", "C-SDU shorter than the layout"),
     "mcmb2.layout.inferred": (NOTE, "finding", "layout inferred from the cyclic frames (no Connect)"),
     "mcmb2.layout.ambiguous": (NOTE, "finding", "more than one layout fits the cyclic frames"),
+    "mcmb2.pn_malformed": (NOTE, "finding", "malformed to Wireshark's PROFINET dissector, decoded by the layout"),
     "mcmb2.candidate": (WARNING, "candidate",
                         "look like an MC-MB2-PN or EC-Link device but were not recognised"),
     # EC-Link images (both transports)
@@ -127,6 +128,8 @@ EXPERTS = {
     "eclink_pnio.iops.bad": (WARNING, "finding", "IOPS not GOOD"),
     "eclink_pnio.short": (ERROR, "finding", "C-SDU shorter than the layout"),
     "eclink_pnio.layout.inferred": (NOTE, "finding", "layout inferred from the cyclic frames (no Connect)"),
+    "eclink_pnio.pn_malformed": (NOTE, "finding",
+                                 "malformed to Wireshark's PROFINET dissector, decoded by the layout"),
 }
 
 # The EC-Link handshake findings, the same on both transports.
