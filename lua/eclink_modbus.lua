@@ -1167,6 +1167,70 @@ end
 -- As), this plugin calls mbtcp itself.
 local HOOKS = { heuristic = true, always = true, server = true }
 
+------------------------------------------------------------------------
+-- A BU's server on a TCP port nobody reads as Modbus/TCP
+------------------------------------------------------------------------
+-- Its frames reach TCP's heuristics only (no port dissector took them). A
+-- request whose MBAP headers fill the segment exactly and which reads a
+-- whole input image or writes an output image (the accesses a BU's
+-- evidence needs: modbus_detect.luam) gets the candidate note, with the
+-- setting under which the detection judges its server (eclink_modbus.port:
+-- an ordinary IO device is polled the same way). Nothing is kept: one pass
+-- and two agree.
+-- With the C plugin its front end checks the same in C and calls hook
+-- "port_hint"; without it this is a heuristic of TCP. Either way it is asked
+-- before Wireshark's own TCP heuristics (rpcap takes some Modbus requests
+-- for its own and fails on them). Off with detection off.
+local function image_request(tvb)
+    local n, off, shaped = tvb:len(), 0, false
+    if n < 12 or n > 4096 then return false end
+    while off < n do
+        if off + 12 > n then return false end
+        local _, _, p1, p2, l1, l2, _, fc, s1, s2, c1, c2 = tvb:raw(off, 12):byte(1, 12)
+        local adu = 6 + l1 * 256 + l2
+        if p1 ~= 0 or p2 ~= 0 or adu < 12 or off + adu > n then return false end
+        local start, count = s1 * 256 + s2, c1 * 256 + c2
+        if (fc == 4 and start == 0 and count >= 32 and adu == 12)
+            or (fc == 3 and start <= 2048 and start + count >= 2080 and adu == 12)
+            or (fc == 2 and start == 0 and count >= 512 and adu == 12)
+            or (fc == 16 and start == 0 and (count == 10 or count == 112) and adu == 13 + 2 * count) then
+            shaped = true
+        elseif fc == 23 and adu >= 17 then
+            -- read and write: the input image read, or the output image written
+            local w1, w2, wc1, wc2 = tvb:raw(off + 12, 4):byte(1, 4)
+            local wstart, wcount = w1 * 256 + w2, wc1 * 256 + wc2
+            if adu == 17 + 2 * wcount and ((start <= 2048 and start + count >= 2080)
+                                           or (wstart == 0 and (wcount == 10 or wcount == 112))) then
+                shaped = true
+            end
+        end
+        off = off + adu
+    end
+    return shaped
+end
+
+local data_dissector = Dissector.get("data")
+
+local function port_hint(tvb, pinfo, tree)
+    if opt.detection == DETECT_OFF or not image_request(tvb) then return 0 end
+    local port = pinfo.dst_port
+    -- (a port some dissector sits on had its turn, or has it next: TCP's
+    -- "try heuristic sub-dissectors first")
+    if tcp_port_table:get_dissector(port) then return 0 end
+    -- (the port, not the server: the detection then judges it, as on 502)
+    local setting = "eclink_modbus.port:" .. port
+    data_dissector:call(tvb, pinfo, tree)
+    local item = tree:add(pf.candidate_setting, tvb(), setting)
+    item:set_generated()
+    item:add_proto_expert_info(ef.candidate, string.format("Looks like a request to a BU's Modbus/TCP server "
+        .. "(an image access) on TCP port %d, which Wireshark does not read as Modbus/TCP: not decoded; "
+        .. "to decode it: %s", port, setting))
+    pinfo.cols.protocol = "Modbus/TCP?"
+    pinfo.cols.info = string.format("Modbus/TCP request? to port %d, which is not read as Modbus/TCP "
+        .. "[to decode: %s]", port, setting)
+    return tvb:len()
+end
+
 -- The note on an ADU of a connection with a BU's shape, not accepted: the
 -- setting in a field of its own, on the parent tree (the protocol item
 -- stays for decoded ADUs: "eclink_modbus" keeps matching those alone).
@@ -1179,6 +1243,7 @@ end
 function proto.dissector(tvb, pinfo, tree)
     local consumed = 0
     local how = C and pinfo.match_string
+    if how == "port_hint" then return port_hint(tvb, pinfo, tree) end
     local via_front = how and HOOKS[how:match("^[%w_]+")] or false
     local view = via_front and fe.view(how)
     local quiet = view and view.quiet
@@ -1263,4 +1328,9 @@ function proto.dissector(tvb, pinfo, tree)
 end
 
 tcp_port_table:add_for_decode_as(proto)
+if C then
+    fe.mb_hook:add("port_hint", proto)
+else
+    proto:register_heuristic("tcp", function(tvb, pinfo, tree) return port_hint(tvb, pinfo, tree) > 0 end)
+end
 prefs_changed()

@@ -172,6 +172,32 @@ def test_port_preference_one_setting(tshark, capture_file):
     assert tshark.frames(cap, ["eclink.image"], display_filter="eclink") == {}
 
 
+def test_port_not_set_says_which_setting(tshark, capture_file):
+    """Neither setting names port 5020: each request that reads the input
+    image or writes the output image carries the candidate note naming the
+    port's setting; the responses and the handshake stay plain TCP. One
+    pass and two agree; with the setting the note is gone and the BU
+    decoded."""
+    cap = capture_file("eclink_modbus_port5020.pcap")
+    note = ("Looks like a request to a BU's Modbus/TCP server (an image access) on TCP port 5020, which Wireshark "
+            "does not read as Modbus/TCP: not decoded; to decode it: eclink_modbus.port:5020")
+    fields = ["tcp.dstport", "eclink_modbus.candidate_setting", "_ws.expert.message", "_ws.col.Protocol"]
+    for two_pass in (False, True):
+        got = tshark.frames(cap, fields, two_pass=two_pass)
+        requests = [n for n, row in got.items() if row["tcp.dstport"] == "5020" and n > 3]
+        assert len(requests) == 8
+        for n, row in got.items():
+            if n in requests:
+                assert row == {"tcp.dstport": "5020", "eclink_modbus.candidate_setting": "eclink_modbus.port:5020",
+                               "_ws.expert.message": note, "_ws.col.Protocol": "Modbus/TCP?"}, n
+            else:
+                assert (row["eclink_modbus.candidate_setting"], row["_ws.col.Protocol"]) == ("", "TCP"), n
+    decoded = tshark.frames(cap, ["eclink_modbus.candidate", "eclink.image"], prefs={"eclink_modbus.port": "5020"},
+                            two_pass=True)
+    assert [r["eclink_modbus.candidate"] for r in decoded.values()] == [""] * len(decoded)
+    assert sum(1 for r in decoded.values() if r["eclink.image"]) == 8   # 4 input images read, 4 outputs written
+
+
 def _poll_gap_capture(work_dir):
     """A BU read every 125 ms; the controller stops reading for 1.090 s once."""
     traffic = Traffic()

@@ -128,13 +128,15 @@ def summary(cap):
 # --- --expect ------------------------------------------------------------------------
 
 def test_expect_missing_protocol(cmd):
-    """The plant on port 5020: without the rule no EC-Link device, exit 1, one line."""
+    """The plant on port 5020: without the rule no EC-Link device, exit 1, one
+    line naming the setting its candidate notes give."""
     proc = run(cmd, "--json", "--expect", "eclink", PORT5020)
     assert proc.returncode == 1
     assert proc.stderr.splitlines() == [
-        "vrshark-report: %s: expected EC-Link, none found (19 frames read; %s)" % (PORT5020, HINT_ECLINK)]
+        "vrshark-report: %s: expected EC-Link, none found (19 frames read; not recognised, to decode: "
+        "-o eclink_modbus.port:5020)" % PORT5020]
     cap = captures(proc)[0]
-    assert (cap["devices"], cap["missing"]) == ([], ["eclink"])
+    assert ([d["kind"] for d in cap["devices"]], cap["missing"]) == (["candidate"], ["eclink"])
     assert json.loads(proc.stdout)["expect"] == ["eclink"]
     # With the rule the BU is there: one device, clean.
     proc = run(cmd, "--json", "--expect", "eclink", "-d", "tcp.port==5020,eclink_modbus", PORT5020)
@@ -220,8 +222,10 @@ def test_expect_junit(cmd, work):
         assert suite.get("name") == capture
         case = suite.find("testcase[@name='expected EC-Link']")
         assert case.find("failure").get("message").startswith("expected EC-Link, none found (")
-    assert [c.get("name") for c in suites[0].findall("testcase")] == ["expected EC-Link"]
-    assert [(s.get("tests"), s.get("failures")) for s in suites] == [("1", "1"), ("2", "2")]
+    # (the plant on port 5020 is a candidate: its own failing case, with the setting)
+    assert [c.get("name") for c in suites[0].findall("testcase")] == [
+        "Modbus/TCP server 192.168.2.41:5020, not decoded", "expected EC-Link"]
+    assert [(s.get("tests"), s.get("failures")) for s in suites] == [("2", "2"), ("2", "2")]
 
 
 def test_expect_usage(cmd):

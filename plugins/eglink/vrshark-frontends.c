@@ -40,6 +40,12 @@
  *                      handed to "heuristic" on the first pass go there
  *                      again, for the notes on its candidate frames (the
  *                      decoder adds nothing else to them).
+ *   TCP heuristic      a request on a port no dissector took whose MBAP
+ *   (any other port)   headers fill the segment and that carries a BU's
+ *                      evidence (mb_evidence_request): Lua hook "port_hint"
+ *                      (the note with the setting that decodes its server).
+ *                      Asked before Wireshark's own TCP heuristics (rpcap
+ *                      takes some Modbus requests for its own and fails).
  *
  * Table entries are taken again when each file starts (own_pn_rt,
  * own_pn_cm, own_mb_port): the order of plugin hand-offs depends on the
@@ -725,6 +731,50 @@ dissect_mbtcp_front(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *d
     return consumed;
 }
 
+/* ---- A BU's server on a TCP port nobody reads as Modbus/TCP ---------------- */
+
+/* TCP offers the segments no port dissector took to its heuristics. A
+ * request whose MBAP headers fill the segment exactly and that carries a
+ * BU's evidence (mb_evidence_request) goes to Lua hook "port_hint", which
+ * notes the setting that decodes its server (eclink_modbus.lua port_hint,
+ * the same check again); anything else never enters Lua. */
+static gboolean
+mb_exact_adus(tvbuff_t *tvb)
+{
+    guint len = tvb_captured_length(tvb), off = 0;
+
+    if (len < 12 || len > 4096 || tvb_reported_length(tvb) != len)
+        return FALSE;
+    while (off < len) {
+        guint adu;
+
+        if (off + 12 > len || tvb_get_ntohs(tvb, off + 2) != 0)
+            return FALSE;
+        adu = 6 + tvb_get_ntohs(tvb, off + 4);
+        if (adu < 12 || off + adu > len)
+            return FALSE;
+        off += adu;
+    }
+    return TRUE;
+}
+
+static dissector_table_t tcp_port_table;
+
+static eglink_heur_bool_t
+dissect_mb_port_hint(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data _U_)
+{
+    /* (a port some dissector sits on had its turn, or has it next: TCP's
+     * "try heuristic sub-dissectors first") */
+    if (!mb_exact_adus(tvb) || !mb_evidence_request(tvb) ||
+        dissector_get_uint_handle(tcp_port_table, pinfo->destport) ||
+        !dissector_get_string_handle(mb_hook_table, "port_hint"))
+        return FALSE;
+    /* the note's protocol in the layer list, not the front end's, as
+     * without the C plugin */
+    leave_layer_list(pinfo);
+    return dissector_try_string_with_data(mb_hook_table, "port_hint", tvb, pinfo, tree, TRUE, NULL) != 0;
+}
+
 /* ---- Registration ----------------------------------------------------------- */
 
 static void
@@ -792,6 +842,9 @@ proto_reg_handoff_vrshark_frontends(void)
     pn_rt_handle = find_dissector_add_dependency("pn_rt", proto_vrshark_pnio);
     mbtcp_handle = find_dissector_add_dependency("mbtcp", proto_vrshark_mbtcp);
     udp_heur_list = find_heur_dissector_list("udp");
+    tcp_port_table = find_dissector_table("tcp.port");
+    heur_dissector_add("tcp", dissect_mb_port_hint, "EC-Link BU server on a TCP port not read as Modbus/TCP",
+                       "vrshark_mbtcp_port_hint", proto_vrshark_mbtcp, HEURISTIC_ENABLE);
     /* taken again when each file starts: own_pn_rt() */
     own_pn_rt();
     dissector_add_uint("udp.port", UDP_PORT_PNIO_CM, pn_cm_handle);

@@ -43,7 +43,8 @@ def listed(words):
 # Candidates (traffic with the shape of ours that was not recognised) by the
 # protocols they may be: a Modbus/TCP server is an EC-Link BU, a PROFINET run
 # an MC-MB2-PN base or an EC-Link BU.
-CANDIDATE_FOR = {"eclink_modbus.servers": {"eclink"}, "mcmb2.layouts": {"eclink", "mcmb2"}}
+CANDIDATE_FOR = {"eclink_modbus.servers": {"eclink"}, "eclink_modbus.port": {"eclink"},
+                 "mcmb2.layouts": {"eclink", "mcmb2"}}
 
 
 def settings(rep, name):
