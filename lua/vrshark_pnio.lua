@@ -721,7 +721,7 @@ local function pn_malformed_note(rec, tvb, root)
         end
     end
     root:add_proto_expert_info(systems.decoder(plan.system).pn_malformed, string.format(
-        "Malformed to Wireshark's %s, but the layout from %s fits its %d-byte C-SDU: decoded", who, plan.source,
+        "Malformed to Wireshark's %s, but the layout (%s) fits its %d-byte C-SDU: decoded", who, plan.source,
         size))
 end
 

@@ -121,7 +121,7 @@ def test_a_frame_wireshark_reads_as_secured_is_decoded_by_the_connect_layout_and
                 value, less, size = values[n]
                 assert notes == [
                     "Malformed to Wireshark's %s (C-SDU bytes 6-7, %d, read as a SecurityLength), but the layout "
-                    "from Connect in frame 1 fits its %d-byte C-SDU: decoded" % (WHO[less], value, size)], n
+                    "(Connect in frame 1) fits its %d-byte C-SDU: decoded" % (WHO[less], value, size)], n
             else:
                 assert notes == [], n
         # the note is one of ours: filterable by its name
