@@ -1186,23 +1186,16 @@ local function image_request(tvb)
     if n < 12 or n > 4096 then return false end
     while off < n do
         if off + 12 > n then return false end
-        local _, _, p1, p2, l1, l2, _, fc, s1, s2, c1, c2 = tvb:raw(off, 12):byte(1, 12)
+        local _, _, p1, p2, l1, l2, _, fc = tvb:raw(off, 8):byte(1, 8)
         local adu = 6 + l1 * 256 + l2
         if p1 ~= 0 or p2 ~= 0 or adu < 12 or off + adu > n then return false end
-        local start, count = s1 * 256 + s2, c1 * 256 + c2
-        if (fc == 4 and start == 0 and count >= 32 and adu == 12)
-            or (fc == 3 and start <= 2048 and start + count >= 2080 and adu == 12)
-            or (fc == 2 and start == 0 and count >= 512 and adu == 12)
-            or (fc == 16 and start == 0 and (count == 10 or count == 112) and adu == 13 + 2 * count) then
+        -- the heuristic's own tests (look()): a whole input image read, the output image written
+        local tname = FC_TABLE[fc]
+        local r = tname and parse_request_pdu(tvb, off + 7, adu - 7, fc)
+        if r and ((READS[fc] and r.count and full_input(tname, r.start, r.count))
+                  or (r.wstart and full_output_write({ write = true, tname = tname, start = r.wstart,
+                                                        count = r.wcount }))) then
             shaped = true
-        elseif fc == 23 and adu >= 17 then
-            -- read and write: the input image read, or the output image written
-            local w1, w2, wc1, wc2 = tvb:raw(off + 12, 4):byte(1, 4)
-            local wstart, wcount = w1 * 256 + w2, wc1 * 256 + wc2
-            if adu == 17 + 2 * wcount and ((start <= 2048 and start + count >= 2080)
-                                           or (wstart == 0 and (wcount == 10 or wcount == 112))) then
-                shaped = true
-            end
         end
         off = off + adu
     end
