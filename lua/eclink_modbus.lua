@@ -67,6 +67,9 @@ local detect = require("vrshark.modbus_detect")
 local servers = require("vrshark.modbus_servers")
 local record = require("vrshark.pnio_record") -- add_time(): times to the ms, as over PROFINET
 local iodata = require("vrshark.iodata") -- vrshark_io hook
+-- (methods called as functions on the per-frame paths: vrshark/api.luam says why)
+local api = require("vrshark.api")
+local add, set_generated, append_text, tvb_len, tvb_raw = api.add, api.set_generated, api.append_text, api.len, api.raw
 
 image.proto()  -- the single Proto("eclink"), shared with the other EC-Link plugins
 local proto = Proto("eclink_modbus", "EC-Link over Modbus/TCP")
@@ -1038,6 +1041,11 @@ local function add_adu_tags(infos, rec, visited)
 end
 
 -- sp: a sparse plan (sparse_plan()) or nil: the full tree.
+-- The handshake links and latencies of an ADU (rec.links), in display order.
+local LINK_NAMES = { "pci_since", "pco_since", "cmd_from_ru_in", "cao_in", "cmd_to_ru_in", "cai_in", "deadline_in",
+                     "periodic_reassembled_in" }
+local LATENCY_NAMES = { "cmd_from_ru_latency", "cmd_to_ru_latency" }
+
 local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp)
     local fc = bit.band(fcb, 0x7F)
     local r
@@ -1048,7 +1056,7 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
     end
     if sp then
         local c = { rec = rec, tree = tree, pinfo = pinfo, is_request = is_request }
-        for _, add in ipairs(sp.adders) do add(c) end
+        for _, adder in ipairs(sp.adders) do adder(c) end
         local infos = {}
         for _, a in ipairs(adu_accesses(tvb, off, adu_len, fcb, is_request, r)) do
             for _, p in ipairs(mapped(a, tvb, off)) do
@@ -1066,7 +1074,7 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
         return infos, rec.poll_gap
     end
     local server = server_text(pinfo, is_request)
-    local item = tree:add(proto, tvb(off, adu_len))
+    local item = add(tree, proto, tvb(off, adu_len))
     local tname = FC_TABLE[fc]
     local desc = TABLE_NAMES[tname]
     if fc == 23 and is_request and r and r.wstart then
@@ -1075,20 +1083,19 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
     elseif rec[R_START] then
         desc = string.format("%s %d-%d", desc, rec[R_START], rec[R_START] + math.max(rec[R_COUNT], 1) - 1)
     end
-    item:append_text(": " .. desc)
-    item:add(pf.table, tvb(off + 7, 1), desc):set_generated()
-    item:add(pf.server, server):set_generated()
-    if rec[R_ACCEPTED] then item:add(pf.accepted_in, rec[R_ACCEPTED]):set_generated() end
+    append_text(item, ": " .. desc)
+    set_generated(add(item, pf.table, tvb(off + 7, 1), desc))
+    set_generated(add(item, pf.server, server))
+    if rec[R_ACCEPTED] then set_generated(add(item, pf.accepted_in, rec[R_ACCEPTED])) end
     if rec[R_REQUEST] then
-        item:add(pf.request_in, rec[R_REQUEST]):set_generated()
-        item:add(pf.time, nstime(rec[R_TIME]))
-            :set_generated()
+        set_generated(add(item, pf.request_in, rec[R_REQUEST]))
+        set_generated(add(item, pf.time, nstime(rec[R_TIME])))
     end
-    if rec[R_RESPONSE] then item:add(pf.response_in, rec[R_RESPONSE]):set_generated() end
+    if rec[R_RESPONSE] then set_generated(add(item, pf.response_in, rec[R_RESPONSE])) end
     if rec.no_request then item:add_proto_expert_info(ef.no_request) end
     if rec.poll_gap then
-        item:add(pf.poll_gap_time, nstime(rec.poll_gap)):set_generated()
-        item:add(pf.poll_gap_from, rec.poll_gap_from):set_generated()
+        set_generated(add(item, pf.poll_gap_time, nstime(rec.poll_gap)))
+        set_generated(add(item, pf.poll_gap_from, rec.poll_gap_from))
     end
     local infos = {}
     for _, a in ipairs(adu_accesses(tvb, off, adu_len, fcb, is_request, r)) do
@@ -1107,7 +1114,7 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
             end
             if p.bitmask then
                 for _, bt in ipairs(bit_text(p)) do
-                    item:add(pf.bits, tvb(off, adu_len), bt[2]):set_generated()
+                    set_generated(add(item, pf.bits, tvb(off, adu_len), bt[2]))
                 end
             end
         end
@@ -1120,16 +1127,15 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
         record.add_time(item, pf.pco_age, "Time since PCO changed", rec[R_PCO_AGE], nstime(rec[R_PCO_AGE]),
                         pf.pco_age_ms)
     end
-    if rec.bu_state_prev then item:add(pf.bu_state_prev, rec.bu_state_prev):set_generated() end
+    if rec.bu_state_prev then set_generated(add(item, pf.bu_state_prev, rec.bu_state_prev)) end
     local l = rec.links or NONE
-    for _, name in ipairs({ "pci_since", "pco_since", "cmd_from_ru_in", "cao_in", "cmd_to_ru_in", "cai_in",
-                          "deadline_in", "periodic_reassembled_in" }) do
-        if l[name] then item:add(pf[name], l[name]):set_generated() end
-    end
-    for _, name in ipairs({ "cmd_from_ru_latency", "cmd_to_ru_latency" }) do
-        local v = l[name]
-        if v then
-            item:add(pf[name], nstime(v)):set_generated()
+    if l ~= NONE then
+        for _, name in ipairs(LINK_NAMES) do
+            if l[name] then set_generated(add(item, pf[name], l[name])) end
+        end
+        for _, name in ipairs(LATENCY_NAMES) do
+            local v = l[name]
+            if v then set_generated(add(item, pf[name], nstime(v))) end
         end
     end
     for _, fd in ipairs(rec.findings or NONE) do
@@ -1140,7 +1146,7 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
     if rec.periodic then
         local ba = ByteArray.new(rec.periodic.data, true)
         local rtvb = ba:tvb("Reassembled periodic data")
-        local pt = item:add(pf.periodic_data, rtvb())
+        local pt = add(item, pf.periodic_data, rtvb())
         iodata.decode("periodic.to_ru", -- vrshark_io hook
             { server = tostring(is_request and pinfo.dst or pinfo.src) }, rtvb(), pt, pinfo) -- vrshark_io hook
         pt:set_generated()
@@ -1213,7 +1219,7 @@ local function port_hint(tvb, pinfo, tree)
     -- (the port, not the server: the detection then judges it, as on 502)
     local setting = "eclink_modbus.port:" .. port
     data_dissector:call(tvb, pinfo, tree)
-    local item = tree:add(pf.candidate_setting, tvb(), setting)
+    local item = add(tree, pf.candidate_setting, tvb(), setting)
     item:set_generated()
     item:add_proto_expert_info(ef.candidate, string.format("Looks like a request to a BU's Modbus/TCP server "
         .. "(an image access) on TCP port %d, which Wireshark does not read as Modbus/TCP: not decoded; "
@@ -1240,13 +1246,14 @@ function proto.dissector(tvb, pinfo, tree)
     local via_front = how and HOOKS[how:match("^[%w_]+")] or false
     local view = via_front and fe.view(how)
     local quiet = view and view.quiet
-    local is_request = (pinfo.dst_port == pinfo.match_uint) and (pinfo.src_port ~= pinfo.match_uint)
+    local port = pinfo.match_uint
+    local is_request = (pinfo.dst_port == port) and (pinfo.src_port ~= port)
     if not via_front then
         -- let mbtcp use TCP desegmentation as if TCP had called it directly
         if pinfo.can_desegment > 0 then pinfo.can_desegment = pinfo.can_desegment + 1 end
         -- mbtcp tells queries from responses by its own port: show it the BU's as that
         local sp, dp = pinfo.src_port, pinfo.dst_port
-        local moved = pinfo.match_uint ~= mbtcp_port and (sp == pinfo.match_uint) ~= (dp == pinfo.match_uint)
+        local moved = port ~= mbtcp_port and (sp == port) ~= (dp == port)
             and sp ~= mbtcp_port and dp ~= mbtcp_port
         if moved then
             if is_request then pinfo.dst_port = mbtcp_port else pinfo.src_port = mbtcp_port end
@@ -1261,31 +1268,32 @@ function proto.dissector(tvb, pinfo, tree)
     local gaps = {}
     local found = {}
     local sp = sparse_plan(view)
-    local n = tvb:len()
+    local n = tvb_len(tvb)
     local off = 0
     local infos = {}
+    local number, rl = pinfo.number, nil
     while off + 8 <= n do
-        local t1, t2, p1, p2, l1, l2, unit, fcb = tvb:raw(off, 8):byte(1, 8)
+        local t1, t2, p1, p2, l1, l2, unit, fcb = tvb_raw(tvb, off, 8):byte(1, 8)
         local plen = l1 * 256 + l2
         if p1 ~= 0 or p2 ~= 0 or plen < 2 then break end
         local adu_len = 6 + plen
         if off + adu_len > n then break end
         -- one entry per ADU: a number key (frame, length of the buffer) for the
         -- usual first ADU of a buffer, a string key for the others
-        local rl = tvb:reported_len()
+        rl = rl or tvb:reported_len()
         local key
         if off == 0 and rl < 1048576 then
-            key = rl * 4294967296 + pinfo.number
+            key = rl * 4294967296 + number
         else
-            key = pinfo.number .. ":" .. rl .. ":" .. off
+            key = number .. ":" .. rl .. ":" .. off
         end
-        local rec = load_rec(key, pinfo.number, rl, off, is_request)
+        local rec = load_rec(key, number, rl, off, is_request)
         -- (the C front end hands a candidate's later frames over again for
         -- the notes: one the first pass did not see stays Modbus's)
         if not rec and pinfo.visited and via_front then rec = NOT_DECODED end
         if not rec then
             rec = first_pass(tvb, pinfo, off, adu_len, is_request, t1 * 256 + t2, unit, fcb)
-            store_rec(key, pinfo.number, rl, off, rec, is_request)
+            store_rec(key, number, rl, off, rec, is_request)
         end
         found[#found + 1] = { off, adu_len, rec, fcb }
         off = off + adu_len

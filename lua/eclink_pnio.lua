@@ -30,6 +30,9 @@ image.proto()  -- the single Proto("eclink"), shared with the other EC-Link plug
 
 local add_finding, attach = record.add_finding, record.attach
 local byte = string.byte
+-- (methods called as functions on the per-frame paths: vrshark/api.luam says why)
+local api = require("vrshark.api")
+local add, range, set_generated = api.add, api.range, api.set_generated
 
 local eclp = Proto("eclink_pnio", "EC-Link over PROFINET IO")
 
@@ -78,6 +81,9 @@ function eclp.init()
     devs = {}
 end
 
+-- The handshake's links to a command's frame, kept on the record.
+local CMD_LINKS = { "cmd_from_ru_in", "cmd_to_ru_in" }
+
 ------------------------------------------------------------------------
 -- First pass
 ------------------------------------------------------------------------
@@ -115,7 +121,7 @@ local function analyse(rec, ba, t, frame)
             links[#links + 1] = { f[3], f[4] }
         end
     end
-    for _, name in ipairs({ "cmd_from_ru_in", "cmd_to_ru_in" }) do
+    for _, name in ipairs(CMD_LINKS) do
         if r.links[name] then
             links = links or {}
             links[#links + 1] = { name, r.links[name] }
@@ -144,13 +150,14 @@ local function show(rec, tvb, pinfo, tree)
     local plan, base = rec.plan, rec.base
     local up = plan.dir == "up"
     local root = record.root(rec, tvb, tree, eclp, up and ", input image" or ", output image")
-    root:add(epf.layout, plan.source):set_generated()
-    if plan.entry then root:add(epf.layout_entry, plan.entry):set_generated() end
-    root:add(epf.frame_id, tvb:range(0, 2))
+    set_generated(add(root, epf.layout, plan.source))
+    if plan.entry then set_generated(add(root, epf.layout_entry, plan.entry)) end
+    add(root, epf.frame_id, range(tvb, 0, 2))
     attach(rec, "top", root)
-    pinfo.cols.protocol = "EC-Link"
+    local cols = pinfo.cols -- (each pinfo.cols makes a Columns object)
+    cols.protocol = "EC-Link"
     if rec.size < plan.need then
-        pinfo.cols.info = "EC-Link: C-SDU too short for the layout"
+        cols.info = "EC-Link: C-SDU too short for the layout"
         return root
     end
     local o = plan.image
@@ -174,7 +181,7 @@ local function show(rec, tvb, pinfo, tree)
     end
     record.add_ioxs(root, rec, tvb, epf.iops, epf.iocs)
     record.finish(rec, nil)
-    pinfo.cols.info = (up and "Input image " or "Output image ") .. ((info and info.summary) or "")
+    cols.info = (up and "Input image " or "Output image ") .. ((info and info.summary) or "")
         .. ((info and info.tags) or "") .. eclink_handshake.tags(rec.pci_age, rec.pco_age)
         .. (unacked and " [unacked]" or "") .. (rec.late_ack and " [late ack]" or "")
     return root
@@ -215,7 +222,7 @@ local function sparse(rec, tvb, pinfo, tree, view)
     if #p.adders > 0 then
         local c = ctx
         c.rec, c.tvb, c.tree, c.plan = rec, tvb, tree, plan
-        for _, add in ipairs(p.adders) do add(c) end
+        for _, adder in ipairs(p.adders) do adder(c) end
     end
     local up = plan.dir == "up"
     local o = plan.image
@@ -230,8 +237,9 @@ local function sparse(rec, tvb, pinfo, tree, view)
                 if ex == eef.cmd_from_ru_late or ex == eef.cmd_to_ru_late then unacked = true end
             end
         end
-        pinfo.cols.protocol = "EC-Link"
-        pinfo.cols.info = (up and "Input image " or "Output image ") .. info.summary .. info.tags
+        local cols = pinfo.cols
+        cols.protocol = "EC-Link"
+        cols.info = (up and "Input image " or "Output image ") .. info.summary .. info.tags
             .. eclink_handshake.tags(rec.pci_age, rec.pco_age)
             .. (unacked and " [unacked]" or "") .. (rec.late_ack and " [late ack]" or "")
     end

@@ -36,6 +36,9 @@ local frontends = require("vrshark.frontends")
 
 local add_finding, attach, nstime = record.add_finding, record.attach, record.nstime
 local byte = string.byte
+-- (methods called as functions on the per-frame paths: vrshark/api.luam says why)
+local api = require("vrshark.api")
+local add, range, set_generated, tvb_raw = api.add, api.range, api.set_generated, api.raw
 
 local mcmb2 = systems.mcmb2_proto()
 
@@ -440,7 +443,7 @@ end
 -- are not contiguous).
 local function data_range(tvb, base, objs, name)
     if #objs == 0 then return nil end
-    if #objs == 1 then return tvb:range(base + objs[1].off, objs[1].len) end
+    if #objs == 1 then return range(tvb, base + objs[1].off, objs[1].len) end
     local parts = {}
     for i, o in ipairs(objs) do parts[i] = tvb:raw(base + o.off, o.len) end
     return ByteArray.new(table.concat(parts), true):tvb(name):range()
@@ -454,12 +457,12 @@ local function slot_group(rec, k)
     return nil
 end
 
-local function add_watchdog(root, rec, field, range)
-    local wd = root:add(field, range)
+local function add_watchdog(root, rec, field, wr)
+    local wd = add(root, field, wr)
     if rec.wd_age then
         record.add_time(wd, pf.watchdog_age, "Watchdog unchanged for", rec.wd_age, nil, pf.watchdog_ms)
     end
-    if rec.wd_since then wd:add(pf.watchdog_since, rec.wd_since):set_generated() end
+    if rec.wd_since then set_generated(add(wd, pf.watchdog_since, rec.wd_since)) end
     attach(rec, "wd", wd)
 end
 
@@ -511,34 +514,67 @@ local function info_text(rec, hb, tags)
     return string.format("Downlink polled: watchdog %d, %d slot(s)", hb[2], #(rec.groups or {})) .. tags
 end
 
+-- The Info text of a frame, made once per header bytes and tags of a plan
+-- (a polled downlink's also per slot count): the header changes only in
+-- its watchdog from one frame to the next, so the same few hundred texts
+-- come back. A plan's memo is emptied when it grows past INFO_MEMO texts.
+local INFO_MEMO = 1024
+local function frame_info(rec, tvb, h, tags)
+    local plan = rec.plan
+    local memo = plan.info_memo
+    if not memo then
+        memo = { n = 0 }
+        plan.info_memo = memo
+    end
+    local key = tags
+    if plan.dir ~= "up" and plan.system ~= "duplex" then key = tags .. "|" .. #(rec.groups or {}) end
+    local by_hdr = memo[key]
+    if not by_hdr then
+        by_hdr = {}
+        memo[key] = by_hdr
+    end
+    local hdr = tvb_raw(tvb, h, plan.header.len)
+    local text = by_hdr[hdr]
+    if not text then
+        text = info_text(rec, { hdr:byte(1, -1) }, tags)
+        if memo.n >= INFO_MEMO then
+            memo = { n = 0, [key] = {} }
+            plan.info_memo, by_hdr = memo, memo[key]
+        end
+        by_hdr[hdr] = text
+        memo.n = memo.n + 1
+    end
+    return text
+end
+
 local function show_duplex_up(rec, tvb, root, hr, wr, pinfo) -- vrshark_io hook: pinfo
     local sb = hr:uint()
-    root:add(pf.terminal, hr)
+    add(root, pf.terminal, hr)
     add_watchdog(root, rec, pf.uplink_watchdog, wr)
     local r = data_range(tvb, rec.base, rec.plan.modules, "MC-MB2 uplink data")
-    if r then attach(rec, "data", root:add(pf.uplink_data, r)) end
+    if r then attach(rec, "data", add(root, pf.uplink_data, r)) end
     if r and iodata.areas["mcmb2.up"] then iodata.decode("mcmb2.up", -- vrshark_io hook
         { terminal = bit.rshift(sb, 4), frame_id = tvb(0, 2):uint() }, r, root, pinfo) end -- vrshark_io hook
 end
 
 local function show_polled_up(rec, tvb, root, h, pinfo) -- vrshark_io hook: pinfo
-    local hr, wr = tvb:range(h, 1), tvb:range(h + 1, 1)
-    root:add(pf.terminal, hr)
+    local hr, wr = range(tvb, h, 1), range(tvb, h + 1, 1)
+    add(root, pf.terminal, hr)
     add_watchdog(root, rec, pf.uplink_watchdog, wr)
-    local yr, zr = tvb:range(h + 2, 1), tvb:range(h + 3, 1)
-    attach(rec, "size", root:add(pf.uplink_size, yr))
-    root:add(pf.downlink_size, zr)
+    local yr, zr = range(tvb, h + 2, 1), range(tvb, h + 3, 1)
+    attach(rec, "size", add(root, pf.uplink_size, yr))
+    add(root, pf.downlink_size, zr)
     for k = 1, 4 do
-        local sr = tvb:range(h + 3 + k, 1)
+        local sr = range(tvb, h + 3 + k, 1)
         local s = sr:uint()
-        local st = root:add(sr, slot_label(k, s))
-        st:add(pf.slot, k):set_generated()
-        st:add(pf.slot_status, sr)
-        st:add(pf.slot_terminal, sr)
+        local st = add(root, sr, slot_label(k, s))
+        set_generated(add(st, pf.slot, k))
+        add(st, pf.slot_status, sr)
+        add(st, pf.slot_terminal, sr)
         local g = slot_group(rec, k)
         if g then
             local r = data_range(tvb, rec.base, g, "MC-MB2 slot " .. k .. " uplink data")
-            if r then st:add(pf.slot_uplink_data, r) end
+            if r then add(st, pf.slot_uplink_data, r) end
             if r and iodata.areas["mcmb2.up"] then iodata.decode("mcmb2.up", -- vrshark_io hook
                 { terminal = bit.rshift(s, 4), slot = k, frame_id = tvb(0, 2):uint() }, -- vrshark_io hook
                 r, st, pinfo) end -- vrshark_io hook
@@ -550,14 +586,14 @@ end
 local function show_down(rec, tvb, root, hr, wr, pinfo) -- vrshark_io hook: pinfo
     local duplex = rec.plan.system == "duplex"
     if duplex then
-        root:add(pf.base_unit, hr)
+        add(root, pf.base_unit, hr)
     else
-        attach(rec, "reserved", root:add(pf.reserved, hr))
+        attach(rec, "reserved", add(root, pf.reserved, hr))
     end
     add_watchdog(root, rec, pf.downlink_watchdog, wr)
     if duplex then
         local r = data_range(tvb, rec.base, rec.plan.modules, "MC-MB2 downlink data")
-        if r then root:add(pf.downlink_data, r) end
+        if r then add(root, pf.downlink_data, r) end
         if r and iodata.areas["mcmb2.down"] then -- vrshark_io hook
             iodata.decode("mcmb2.down", { frame_id = tvb(0, 2):uint() }, r, root, pinfo) -- vrshark_io hook
         end -- vrshark_io hook
@@ -567,9 +603,9 @@ local function show_down(rec, tvb, root, hr, wr, pinfo) -- vrshark_io hook: pinf
         local k = rec.slots and rec.slots[i] or i
         local r = data_range(tvb, rec.base, g, "MC-MB2 slot " .. k .. " downlink data")
         if r then
-            local st = root:add(r, string.format("Slot %d", k))
-            st:add(pf.slot, k):set_generated()
-            st:add(pf.slot_downlink_data, r)
+            local st = add(root, r, string.format("Slot %d", k))
+            set_generated(add(st, pf.slot, k))
+            add(st, pf.slot_downlink_data, r)
             if iodata.areas["mcmb2.down"] then -- vrshark_io hook
                 iodata.decode("mcmb2.down", { slot = k, frame_id = tvb(0, 2):uint() }, r, st, pinfo) -- vrshark_io hook
             end -- vrshark_io hook
@@ -594,21 +630,22 @@ local function show(rec, tvb, pinfo, tree)
     local up = plan.dir == "up"
     if not plan.title then plan.title = string.format(", %s %s", plan.system, up and "uplink" or "downlink") end
     local root = record.root(rec, tvb, tree, mcmb2, plan.title)
-    root:add(pf.system, plan.system):set_generated()
-    root:add(pf.direction, up and "uplink" or "downlink"):set_generated()
-    root:add(pf.layout, plan.source):set_generated()
-    if plan.entry then root:add(pf.layout_entry, plan.entry):set_generated() end
-    root:add(pf.frame_id, tvb:range(0, 2))
+    set_generated(add(root, pf.system, plan.system))
+    set_generated(add(root, pf.direction, up and "uplink" or "downlink"))
+    set_generated(add(root, pf.layout, plan.source))
+    if plan.entry then set_generated(add(root, pf.layout_entry, plan.entry)) end
+    add(root, pf.frame_id, range(tvb, 0, 2))
     attach(rec, "top", root)
-    pinfo.cols.protocol = "MC-MB2"
+    local cols = pinfo.cols -- (each pinfo.cols makes a Columns object)
+    cols.protocol = "MC-MB2"
     if rec.size < plan.need then
-        pinfo.cols.info = "MC-MB2-PN: C-SDU too short for the layout"
+        cols.info = "MC-MB2-PN: C-SDU too short for the layout"
         return root
     end
     local h = base + plan.header.off
-    local hr, wr = tvb:range(h, 1), tvb:range(h + 1, 1)
+    local hr, wr = range(tvb, h, 1), range(tvb, h + 1, 1)
     if up then
-        local item = root:add(pf.status, hr)
+        local item = add(root, pf.status, hr)
         local known = (plan.system == "duplex") and DUPLEX_OK or POLLED_OK
         if not known[bit.band(hr:uint(), 0x0F)] then
             item:append_text(" [undefined on a " .. plan.system .. " system]")
@@ -624,7 +661,7 @@ local function show(rec, tvb, pinfo, tree)
     end
     record.add_ioxs(root, rec, tvb, pf.iops, pf.iocs)
     record.finish(rec, root)
-    pinfo.cols.info = info_text(rec, { tvb:raw(h, plan.header.len):byte(1, -1) }, info_tags(rec))
+    cols.info = frame_info(rec, tvb, h, info_tags(rec))
     return root
 end
 
@@ -728,12 +765,13 @@ local function sparse(rec, tvb, pinfo, tree, view)
     if #p.adders > 0 then
         local c = ctx
         c.rec, c.tvb, c.tree, c.plan, c.up, c.h = rec, tvb, tree, plan, plan.dir == "up", h
-        for _, add in ipairs(p.adders) do add(c) end
+        for _, adder in ipairs(p.adders) do adder(c) end
     end
     if p.experts then record.finish(rec, tree) end
     if p.cols then
-        pinfo.cols.protocol = "MC-MB2"
-        pinfo.cols.info = info_text(rec, { tvb:raw(h, plan.header.len):byte(1, -1) }, info_tags(rec))
+        local cols = pinfo.cols
+        cols.protocol = "MC-MB2"
+        cols.info = frame_info(rec, tvb, h, info_tags(rec))
     end
     return true
 end

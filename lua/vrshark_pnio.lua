@@ -57,6 +57,9 @@ local infer = require("vrshark.pnio_infer")
 local record = require("vrshark.pnio_record")
 local systems = require("vrshark.pnio_systems")
 local wrap = require("vrshark.wrap")
+-- (methods called as functions: vrshark/api.luam says why)
+local api = require("vrshark.api")
+local tvb_len, tvb_raw = api.len, api.raw
 local fe = require("vrshark.frontends")
 
 -- With the C front ends the C plugin is "vrshark_pnio"; the carrier is then
@@ -476,7 +479,8 @@ local RECENT = 8
 -- Frames not of ours are filled with false, so that each array stays a
 -- Lua array (16 bytes a frame) rather than a hash (40 bytes an entry).
 local function keep_per_frame(keys, rec, n)
-    for _, k in ipairs(keys) do
+    for j = 1, #keys do
+        local k = keys[j]
         local a = per_frame[k]
         if not a then
             a = { n = 0 }
@@ -492,7 +496,8 @@ end
 -- Puts the per_frame values of frame `n` back into its (maybe shared)
 -- record, before the record is shown.
 local function load_per_frame(keys, rec, n)
-    for _, k in ipairs(keys) do
+    for i = 1, #keys do
+        local k = keys[i]
         local a = per_frame[k]
         rec[k] = a and a[n] or nil
     end
@@ -660,11 +665,11 @@ local function refused_note(plan)
     return plan.note
 end
 
--- tvb: the PN-RT frame from the FrameID on.
-local function first_pass(fid, tvb, pinfo)
+-- tvb: the PN-RT frame from the FrameID on, len bytes; n: the frame number.
+local function first_pass(fid, tvb, pinfo, len, n)
     local cands = by_fid[fid]
     local base = 2
-    local size = tvb:len() - base - 4
+    local size = len - base - 4
     if size <= 0 then return nil end
     local plan = cands and lookup(cands, pinfo.dl_src)
     if plan and plan.unsettled then
@@ -678,8 +683,8 @@ local function first_pass(fid, tvb, pinfo)
     end
     if not plan then return nil end
     if plan.refused then return refused_note(plan) end
-    local rec = analysed(plan, tvb:raw(base, size), pinfo.abs_ts, pinfo.number)
-    return rec and shared_record(rec, pinfo.number)
+    local rec = analysed(plan, tvb_raw(tvb, base, size), pinfo.abs_ts, n)
+    return rec and shared_record(rec, n)
 end
 
 local function show(rec, tvb, pinfo, tree)
@@ -748,24 +753,28 @@ local function cyclic(tvb, pinfo, tree, view, thrown)
     -- (the note is an expert item: everything is shown)
     if thrown then view = nil end
     local rec
+    local n = pinfo.number
     if pinfo.visited then
-        rec = frames[pinfo.number]
+        rec = frames[n]
         -- (a one-pass early hint gives way to the hint known at the end)
         if (rec == nil or rec.early) and unsettled ~= false and tvb:len() >= 2 then
             rec = final_candidate(tvb, pinfo) or rec
         end
-    elseif tvb:len() >= 2 then
-        local fid = tvb:range(0, 2):uint()
-        if by_fid[fid] or (fid >= 0x8000 and fid <= 0xFBFF and heuristic
-                           and ((tries[fid] or 0) < HEUR_TRIES or #pending_down > 0
-                                or not infer.given_up(runs, fid, tostring(pinfo.dl_src), tostring(pinfo.dl_dst)))) then
-            rec = first_pass(fid, tvb, pinfo)
-            frames[pinfo.number] = rec
+    else
+        local len = tvb_len(tvb)
+        -- (the FrameID from the bytes: a TvbRange costs more than the frame's other reads)
+        local b1, b2 = string.byte(len >= 2 and tvb_raw(tvb, 0, 2) or "", 1, 2)
+        local fid = b1 and (b1 * 256 + b2)
+        if fid and (by_fid[fid] or (fid >= 0x8000 and fid <= 0xFBFF and heuristic
+                    and ((tries[fid] or 0) < HEUR_TRIES or #pending_down > 0
+                         or not infer.given_up(runs, fid, tostring(pinfo.dl_src), tostring(pinfo.dl_dst))))) then
+            rec = first_pass(fid, tvb, pinfo, len, n)
+            frames[n] = rec
         end
     end
     if rec then
         local per = rec.plan and systems.decoder(rec.plan.system).per_frame
-        if per then load_per_frame(per, rec, pinfo.number) end
+        if per then load_per_frame(per, rec, n) end
         if not view then
             local root = show(rec, tvb, pinfo, tree)
             if thrown and root then pn_malformed_note(rec, tvb, root) end
