@@ -517,17 +517,20 @@ end
 -- The Info text of a frame, made once per header bytes and tags of a plan
 -- (a polled downlink's also per slot count): the header changes only in
 -- its watchdog from one frame to the next, so the same few hundred texts
--- come back. A plan's memo is emptied when it grows past INFO_MEMO texts.
-local INFO_MEMO = 1024
+-- come back (256 a direction of a base). At most INFO_MEMO texts are kept
+-- for all plans together, then the memo starts again: a few bases fit, many
+-- (64 in tools/bench mcmb2_many) would hold megabytes for no gain.
+local INFO_MEMO = 2048
+local info_memo, info_memo_n = setmetatable({}, { __mode = "k" }), 0
 local function frame_info(rec, tvb, h, tags)
     local plan = rec.plan
-    local memo = plan.info_memo
-    if not memo then
-        memo = { n = 0 }
-        plan.info_memo = memo
-    end
     local key = tags
     if plan.dir ~= "up" and plan.system ~= "duplex" then key = tags .. "|" .. #(rec.groups or {}) end
+    local memo = info_memo[plan]
+    if not memo then
+        memo = {}
+        info_memo[plan] = memo
+    end
     local by_hdr = memo[key]
     if not by_hdr then
         by_hdr = {}
@@ -537,12 +540,12 @@ local function frame_info(rec, tvb, h, tags)
     local text = by_hdr[hdr]
     if not text then
         text = info_text(rec, { hdr:byte(1, -1) }, tags)
-        if memo.n >= INFO_MEMO then
-            memo = { n = 0, [key] = {} }
-            plan.info_memo, by_hdr = memo, memo[key]
+        if info_memo_n >= INFO_MEMO then
+            info_memo, info_memo_n = setmetatable({ [plan] = { [key] = {} } }, { __mode = "k" }), 0
+            by_hdr = info_memo[plan][key]
         end
         by_hdr[hdr] = text
-        memo.n = memo.n + 1
+        info_memo_n = info_memo_n + 1
     end
     return text
 end
