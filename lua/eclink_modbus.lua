@@ -1040,12 +1040,12 @@ local function add_adu_tags(infos, rec, visited)
     if late_ack then infos.tags = (infos.tags or "") .. " [late ack]" end
 end
 
--- sp: a sparse plan (sparse_plan()) or nil: the full tree.
 -- The handshake links and latencies of an ADU (rec.links), in display order.
 local LINK_NAMES = { "pci_since", "pco_since", "cmd_from_ru_in", "cao_in", "cmd_to_ru_in", "cai_in", "deadline_in",
                      "periodic_reassembled_in" }
 local LATENCY_NAMES = { "cmd_from_ru_latency", "cmd_to_ru_latency" }
 
+-- sp: a sparse plan (sparse_plan()) or nil: the full tree.
 local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp)
     local fc = bit.band(fcb, 0x7F)
     local r
@@ -1271,7 +1271,7 @@ function proto.dissector(tvb, pinfo, tree)
     local n = tvb_len(tvb)
     local off = 0
     local infos = {}
-    local number, rl = pinfo.number, nil
+    local number, rl = pinfo.number, tvb:reported_len()
     while off + 8 <= n do
         local t1, t2, p1, p2, l1, l2, unit, fcb = tvb_raw(tvb, off, 8):byte(1, 8)
         local plen = l1 * 256 + l2
@@ -1280,7 +1280,6 @@ function proto.dissector(tvb, pinfo, tree)
         if off + adu_len > n then break end
         -- one entry per ADU: a number key (frame, length of the buffer) for the
         -- usual first ADU of a buffer, a string key for the others
-        rl = rl or tvb:reported_len()
         local key
         if off == 0 and rl < 1048576 then
             key = rl * 4294967296 + number

@@ -521,7 +521,8 @@ end
 -- for all plans together, then the memo starts again: a few bases fit, many
 -- (64 in tools/bench mcmb2_many) would hold megabytes for no gain.
 local INFO_MEMO = 2048
-local info_memo, info_memo_n = setmetatable({}, { __mode = "k" }), 0
+local WEAK_KEYS = { __mode = "k" }
+local info_memo, info_memo_n = setmetatable({}, WEAK_KEYS), 0
 local function frame_info(rec, tvb, h, tags)
     local plan = rec.plan
     local key = tags
@@ -541,8 +542,8 @@ local function frame_info(rec, tvb, h, tags)
     if not text then
         text = info_text(rec, { hdr:byte(1, -1) }, tags)
         if info_memo_n >= INFO_MEMO then
-            info_memo, info_memo_n = setmetatable({ [plan] = { [key] = {} } }, { __mode = "k" }), 0
-            by_hdr = info_memo[plan][key]
+            by_hdr = {}
+            info_memo, info_memo_n = setmetatable({ [plan] = { [key] = by_hdr } }, WEAK_KEYS), 0
         end
         by_hdr[hdr] = text
         info_memo_n = info_memo_n + 1

@@ -496,8 +496,8 @@ end
 -- Puts the per_frame values of frame `n` back into its (maybe shared)
 -- record, before the record is shown.
 local function load_per_frame(keys, rec, n)
-    for i = 1, #keys do
-        local k = keys[i]
+    for j = 1, #keys do
+        local k = keys[j]
         local a = per_frame[k]
         rec[k] = a and a[n] or nil
     end
