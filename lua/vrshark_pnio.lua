@@ -415,17 +415,38 @@ local function resettle(plan, fid, tvb, base, size)
     return settle_downlink(w, fid, function(i) return string.byte(s, i + 1) end, size) or plan
 end
 
+-- The note on a frame from the controller to a device whose polled header
+-- was seen (w) that none of the downlink layouts the header allows fits:
+-- the uplink is decoded, so its downlink is not left without a word. When
+-- HEUR_TRIES such frames did not fit, the FrameID gets a placeholder plan
+-- with this note (first_pass: plan.refused), so later frames say it too.
+-- The C front end hands later passes only the FrameIDs in its table: fid
+-- goes there.
+local function down_note(w, fid)
+    if C then fe.pn_frame_id:add(fid, carrier) end
+    if not w.note then
+        local h = w.h
+        w.note = { kind = "candidate", settings = { "mcmb2.layouts" }, head = "polled downlink layout not found",
+            text = string.format("From the IO controller to the MC-MB2-PN polled base laid out by the %s, but no "
+                .. "downlink layout its header allows (Y=%d, Z=%d, %d slot(s) used) fits this frame; to decode it: "
+                .. "its layout in mcmb2.layouts", w.source, h.y, h.z, h.used) }
+    end
+    return w.note
+end
+
 -- A cyclic FrameID without a layout (entry: a placeholder of the layout
 -- table, or nil): the downlink of a device whose polled header was seen
 -- (same two MAC addresses, the other way; the FrameID of the table entry),
 -- or a polled uplink header. Bounded: HEUR_TRIES header checks per FrameID,
--- HEUR_TRIES frames per waiting downlink.
+-- HEUR_TRIES frames per waiting downlink. Returns the plan, or nil and the
+-- waiting device whose downlink layouts did not fit this frame (down_note).
 local function recognise(fid, tvb, base, size, pinfo, entry)
     local s
     local function get(i)
         s = s or tvb:raw(base, size)
         return string.byte(s, i + 1)
     end
+    local missed
     if #pending_down > 0 then
         local src, dst = pinfo.dl_src, pinfo.dl_dst
         for i, w in ipairs(pending_down) do
@@ -437,18 +458,23 @@ local function recognise(fid, tvb, base, size, pinfo, entry)
                     set_hooks()
                 end
                 if plan then return plan end
+                missed = w
+                if w.tries >= HEUR_TRIES and not lookup(by_fid[fid] or {}, src) then
+                    register({ fid = fid, sender = src, dir = "down", system = "polled", note = down_note(w, fid),
+                               refused = "no downlink layout fits" })
+                end
                 break
             end
         end
     end
-    if entry and entry.dir == "down" then return nil end -- waits for its uplink
+    if entry and entry.dir == "down" then return nil, missed end -- waits for its uplink
     local n = tries[fid] or 0
-    if n >= HEUR_TRIES then return nil end
+    if n >= HEUR_TRIES then return nil, missed end
     s = s or tvb:raw(base, size)
     local h = layout.polled_header(get, size, s)
     if not h then
         tries[fid] = n + 1
-        return nil
+        return nil, missed
     end
     local w = { h = h, up_fid = fid, dev_mac = pinfo.dl_src, ctl_mac = pinfo.dl_dst, tries = 0,
                 down_fid = entry and entry.out_fid, dev = "hdr" .. pinfo.number,
@@ -672,16 +698,17 @@ local function first_pass(fid, tvb, pinfo, len, n)
     local size = len - base - 4
     if size <= 0 then return nil end
     local plan = cands and lookup(cands, pinfo.dl_src)
+    local missed
     if plan and plan.unsettled then
         plan = resettle(plan, fid, tvb, base, size)
     elseif plan and plan.deferred then
-        plan = recognise(fid, tvb, base, size, pinfo, plan)
+        plan, missed = recognise(fid, tvb, base, size, pinfo, plan)
     elseif not plan then
         if not heuristic or fid < 0x8000 or fid > 0xFBFF then return nil end
-        plan = recognise(fid, tvb, base, size, pinfo, nil)
-        if not plan then return inferred(fid, tvb, base, size, pinfo) end
+        plan, missed = recognise(fid, tvb, base, size, pinfo, nil)
+        if not plan then return inferred(fid, tvb, base, size, pinfo) or (missed and down_note(missed, fid)) end
     end
-    if not plan then return nil end
+    if not plan then return missed and down_note(missed, fid) end
     if plan.refused then return refused_note(plan) end
     local rec = analysed(plan, tvb_raw(tvb, base, size), pinfo.abs_ts, n)
     return rec and shared_record(rec, n)

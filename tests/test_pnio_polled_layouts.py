@@ -141,3 +141,53 @@ def test_a_downlink_of_its_header_only_with_the_iocs_first(tshark, work_dir):
                                      lambda: Device(subs, mac(43), 0x8001, 0x8002, order=singles_anywhere(perms)),
                                      lambda d, cap: polled_traffic(d, cap, 6, 2, 0, 0, 1))
     assert_reads_as_with_connect(tshark, with_connect, without)
+
+
+def test_iocs_among_the_dap_iops_with_ascii_only(tshark, work_dir):
+    """DAP 2, one terminal, Y=2, no downlink data, 4 ASCII bytes; the
+    uplink's first IOCS placed between the DAP's IOPS (found by
+    test_any_polled_frame_layout on Wireshark 4.6, Lua only)."""
+    perms = {"in": [0, 2, 3, 1] + list(range(4, 60)), "out": list(range(60))}
+    subs = mcmb2_submodules("polled", 2, 2, 0, 4, 1)
+    with_connect, without = captures(work_dir, "polled_iocs_among_dap",
+                                     lambda: Device(subs, mac(44), 0x8001, 0x8002, order=singles_anywhere(perms)),
+                                     lambda d, cap: polled_traffic(d, cap, 6, 2, 0, 4, 1, 0))
+    assert_reads_as_with_connect(tshark, with_connect, without)
+
+
+class _Garbled:
+    """Adds the frames of `cap`, each downlink's last C-SDU byte set to 0x01
+    (no IOxS, no padding): no downlink layout fits."""
+    def __init__(self, cap, ctl_mac):
+        self.cap, self.ctl_mac = cap, ctl_mac
+
+    def add(self, pkt, *args):
+        if pkt.src == self.ctl_mac:
+            raw = bytearray(bytes(pkt))
+            raw[-5] = 0x01
+            pkt = type(pkt)(bytes(raw))
+        self.cap.add(pkt, *args)
+
+
+def test_a_downlink_no_layout_fits_is_said(tshark, work_dir):
+    """The uplink's polled header is decoded; the downlink frames from its
+    controller fit none of the layouts the header allows: each says so and
+    names the setting, in one pass and with -2, also after the recognition
+    has given up (70 pairs, more than it tries)."""
+    dap, up, data, ascii_, n = CASES["ascii"]
+    subs = mcmb2_submodules("polled", dap, up, data, ascii_, n)
+    _, without = captures(work_dir, "polled_garbled",
+                          lambda: Device(subs, mac(45), 0x8001, 0x8002),
+                          lambda d, cap: polled_traffic(d, _Garbled(cap, d.ctl_mac), 70, up, data, ascii_, n))
+    text = ("From the IO controller to the MC-MB2-PN polled base laid out by the polled header in frame 1, but no "
+            "downlink layout its header allows (Y=6, Z=10, 2 slot(s) used) fits this frame; to decode it: its "
+            "layout in mcmb2.layouts")
+    fields = ["mcmb2.direction", "mcmb2.layout", "mcmb2.candidate_setting", "_ws.expert.message"]
+    for two_pass in (False, True):
+        got = tshark.frames(without, fields, two_pass=two_pass)
+        assert len(got) == 140
+        for num in (2, 64, 128, 140):
+            assert got[num] == {"mcmb2.direction": "", "mcmb2.layout": "", "mcmb2.candidate_setting": "mcmb2.layouts",
+                                "_ws.expert.message": text}, (two_pass, num)
+        assert got[139]["mcmb2.direction"] == "uplink"
+        assert got[139]["mcmb2.layout"] == "polled header in frame 1"
