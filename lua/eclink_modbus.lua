@@ -70,6 +70,9 @@ local iodata = require("vrshark.iodata") -- vrshark_io hook
 -- (methods called as functions on the per-frame paths: vrshark/api.luam says why)
 local api = require("vrshark.api")
 local add, set_generated, append_text, tvb_len, tvb_raw = api.add, api.set_generated, api.append_text, api.len, api.raw
+-- (the flat records by frame number: vrshark/framemap.luam says why)
+local framemap = require("vrshark.framemap")
+local fget, fset = framemap.get, framemap.set
 
 image.proto()  -- the single Proto("eclink"), shared with the other EC-Link plugins
 local proto = Proto("eclink_modbus", "EC-Link over Modbus/TCP")
@@ -345,7 +348,7 @@ local NONE = {}
 -- Plain records, kept flat: the record of the first ADU of a frame's first
 -- buffer that has nothing but the 8 usual values (no findings, links, notes,
 -- nothing another frame still writes into) is not kept as a table of its own
--- but in these arrays, indexed by frame number. A table per ADU (about 250
+-- but in these maps by frame number (vrshark/framemap.luam says why). A table per ADU (about 250
 -- bytes with its entry in `adus`) made most of the plugin's memory, and its
 -- garbage collection most of its time, on long captures.
 --   at_key   ((rl * 4 + age kind) * 2 + has range) * 2^32 + start * 65536 + count:
@@ -370,7 +373,7 @@ end
 -- key) goes flat; it is marked so that the response that answers it later
 -- writes its link into the arrays (first_pass).
 local function store_rec(key, n, rl, off, rec, is_request)
-    if off ~= 0 or rec == NOT_DECODED or at_key[n] ~= nil or rl >= 262144 or #rec ~= 8 or next(rec, 8) ~= nil
+    if off ~= 0 or rec == NOT_DECODED or fget(at_key, n) ~= nil or rl >= 262144 or #rec ~= 8 or next(rec, 8) ~= nil
         or (rec[R_PCI_AGE] and rec[R_PCO_AGE]) then
         adus[key] = rec
         return
@@ -382,36 +385,39 @@ local function store_rec(key, n, rl, off, rec, is_request)
         kind, age = 2, rec[R_PCO_AGE]
     end
     if rec[R_START] then
-        at_key[n] = ((rl * 4 + kind) * 2 + 1) * TWO32 + rec[R_START] * 65536 + rec[R_COUNT]
+        fset(at_key, n, ((rl * 4 + kind) * 2 + 1) * TWO32 + rec[R_START] * 65536 + rec[R_COUNT])
     else
-        at_key[n] = (rl * 4 + kind) * 2 * TWO32
+        fset(at_key, n, (rl * 4 + kind) * 2 * TWO32)
     end
-    at_age[n], at_acc[n] = age, rec[R_ACCEPTED]
+    fset(at_age, n, age)
+    fset(at_acc, n, rec[R_ACCEPTED])
     if is_request then
-        at_link[n] = rec[R_RESPONSE]
+        fset(at_link, n, rec[R_RESPONSE])
     else
-        at_link[n], at_time[n] = rec[R_REQUEST], rec[R_TIME]
+        fset(at_link, n, rec[R_REQUEST])
+        fset(at_time, n, rec[R_TIME])
     end
     rec.flat = n
 end
 
 -- The record of an ADU (a table; a flat one rebuilt), or nil: not seen.
 local function load_rec(key, n, rl, off, is_request)
-    local v = off == 0 and at_key[n]
+    local v = off == 0 and fget(at_key, n)
     if v then
         local hi = math.floor(v / TWO32)
         if math.floor(hi / 8) == rl then
-            local rec = { false, false, false, false, false, false, false, at_acc[n] }
+            local rec = { false, false, false, false, false, false, false, fget(at_acc, n) }
             if hi % 2 == 1 then
                 local sc = v % TWO32
                 rec[R_START], rec[R_COUNT] = math.floor(sc / 65536), sc % 65536
             end
             local kind = math.floor(hi / 2) % 4
-            if kind == 1 then rec[R_PCI_AGE] = at_age[n] elseif kind == 2 then rec[R_PCO_AGE] = at_age[n] end
+            if kind == 1 then rec[R_PCI_AGE] = fget(at_age, n)
+            elseif kind == 2 then rec[R_PCO_AGE] = fget(at_age, n) end
             if is_request then
-                rec[R_RESPONSE] = at_link[n] or false
-            elseif at_link[n] then
-                rec[R_REQUEST], rec[R_TIME] = at_link[n], at_time[n]
+                rec[R_RESPONSE] = fget(at_link, n) or false
+            elseif fget(at_link, n) then
+                rec[R_REQUEST], rec[R_TIME] = fget(at_link, n), fget(at_time, n)
             end
             return rec
         end
@@ -825,7 +831,7 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb)
             c.pending[tkey] = nil
             rec[R_REQUEST] = r.frame
             rec[R_TIME] = t - r.t
-            if r.rec.flat then at_link[r.rec.flat] = pinfo.number else r.rec[R_RESPONSE] = pinfo.number end
+            if r.rec.flat then fset(at_link, r.rec.flat, pinfo.number) else r.rec[R_RESPONSE] = pinfo.number end
             rec[R_START], rec[R_COUNT] = r.start, r.count
         else
             rec.no_request = true

@@ -255,6 +255,6 @@ end
 
 systems.register({ "eclink" }, { proto = eclp, short = eef.short, inferred = eef.inferred,
                                  pn_malformed = eef.pn_malformed,
-                                 per_frame = { "pci_age", "pco_age" }, analyse = analyse,
+                                 per_frame = { up = "pci_age", down = "pco_age" }, analyse = analyse,
                                  show = show, sparse = sparse,
                                  show_connect = show_connect })

@@ -61,6 +61,9 @@ local wrap = require("vrshark.wrap")
 local api = require("vrshark.api")
 local tvb_len, tvb_raw = api.len, api.raw
 local fe = require("vrshark.frontends")
+-- (frames and per_frame by frame number: vrshark/framemap.luam says why)
+local framemap = require("vrshark.framemap")
+local fget, fset = framemap.get, framemap.set
 
 -- With the C front ends the C plugin is "vrshark_pnio"; the carrier is then
 -- called through the front ends' tables under mcmb2's Proto.
@@ -81,8 +84,8 @@ local by_fid      -- FrameID -> { plan, ... } (plan.sender: Ethernet source Addr
 local pending_down -- { { ctl = Address, dev = Address, plan = downlink plan waiting for its FrameID }, ... }
 local cm_ports    -- UDP port -> true: controller ports added to udp.port for Connect responses
 local tries       -- FrameID -> failed header checks
-local frames      -- frame number -> record (shared by frames that analyse alike: shared_record)
-local per_frame   -- record key -> { [frame number] = value or false, n = highest number filled }
+local frames      -- frame number -> record (shared by frames that analyse alike: shared_record), vrshark.framemap
+local per_frame   -- frame number -> the decoder's per_frame value or false, vrshark.framemap; n: highest filled
 local last_rec    -- plan -> its latest distinct records (shared_record)
 local ars         -- AR UUID -> parsed Connect
 local not_ours    -- expected submodule blocks (expected_key) -> true: no system of ours
@@ -190,7 +193,7 @@ local function init()
     by_fid, pending_down, tries, frames, ars, cm_ports, not_ours = {}, {}, {}, {}, {}, {}, {}
     runs = infer.new()
     addr_of, hint_recs, unsettled = {}, {}, nil
-    last_rec, per_frame = {}, {}
+    last_rec, per_frame = {}, { n = 0 }
     local prefs = systems.prefs()
     heuristic, learn = prefs.heuristic, prefs.connect
     if C then fe.pn_frame_id:remove_all(carrier) end
@@ -501,32 +504,24 @@ end
 -- number, and put back into it before it is shown.
 local RECENT = 8
 
--- Moves the decoder's per_frame keys of rec (frame `n`) into per_frame.
--- Frames not of ours are filled with false, so that each array stays a
--- Lua array (16 bytes a frame) rather than a hash (40 bytes an entry).
+-- Moves the decoder's per_frame key of rec (frame `n`; the key of the
+-- plan's direction, keys.up or keys.down) into per_frame. Frames not of
+-- ours are filled with false, so that each chunk stays a Lua array (16
+-- bytes a frame) rather than a hash (40 bytes an entry).
 local function keep_per_frame(keys, rec, n)
-    for j = 1, #keys do
-        local k = keys[j]
-        local a = per_frame[k]
-        if not a then
-            a = { n = 0 }
-            per_frame[k] = a
-        end
-        for i = a.n + 1, n - 1 do a[i] = false end
-        if n > a.n then a.n = n end
-        a[n] = rec[k] or false
-        rec[k] = nil
-    end
+    local k = keys[rec.plan.dir]
+    if not k then return end
+    for i = per_frame.n + 1, n - 1 do fset(per_frame, i, false) end
+    if n > per_frame.n then per_frame.n = n end
+    fset(per_frame, n, rec[k] or false)
+    rec[k] = nil
 end
 
--- Puts the per_frame values of frame `n` back into its (maybe shared)
+-- Puts the per_frame value of frame `n` back into its (maybe shared)
 -- record, before the record is shown.
 local function load_per_frame(keys, rec, n)
-    for j = 1, #keys do
-        local k = keys[j]
-        local a = per_frame[k]
-        rec[k] = a and a[n] or nil
-    end
+    local k = keys[rec.plan.dir]
+    if k then rec[k] = fget(per_frame, n) or nil end
 end
 
 -- nb: the number of keys of b (counted once, when b was kept). The
@@ -611,7 +606,7 @@ local function settle(res)
                 "Cyclic data layout inferred from frames %d..%d (no Connect in the capture); to pin it, "
                 .. "add to mcmb2.layouts: %s", res.first, res.last, res.entry))
         end
-        frames[f[1]] = rec and shared_record(rec, f[1])
+        fset(frames, f[1], rec and shared_record(rec, f[1]))
     end
 end
 
@@ -634,7 +629,7 @@ local function candidate(h, frame)
         hint_recs[h] = rec
         for _, list in ipairs(h.lists or {}) do
             for _, f in ipairs(list) do
-                if f[1] ~= frame then frames[f[1]] = rec end
+                if f[1] ~= frame then fset(frames, f[1], rec) end
             end
         end
         h.lists = nil
@@ -675,7 +670,7 @@ local function inferred(fid, tvb, base, size, pinfo)
     if not res then return nil end
     if res.kind == "candidate" then return candidate(res, pinfo.number) end
     settle(res)
-    return frames[pinfo.number]
+    return fget(frames, pinfo.number)
 end
 
 -- The frames of a direction whose Connect could not be learned
@@ -770,7 +765,7 @@ local function cyclic(tvb, pinfo, tree, view, thrown)
         -- A malformed PN-RT frame: Wireshark's report stands. A FrameID of
         -- ours is decoded all the same (pn_malformed_note); others are not.
         if consumed == nil then
-            if pinfo.visited and not frames[pinfo.number] then return tvb:len() end
+            if pinfo.visited and not fget(frames, pinfo.number) then return tvb:len() end
             if not pinfo.visited and (tvb:len() < 2 or not by_fid[tvb:range(0, 2):uint()]) then
                 return tvb:len()
             end
@@ -782,7 +777,7 @@ local function cyclic(tvb, pinfo, tree, view, thrown)
     local rec
     local n = pinfo.number
     if pinfo.visited then
-        rec = frames[n]
+        rec = fget(frames, n)
         -- (a one-pass early hint gives way to the hint known at the end)
         if (rec == nil or rec.early) and unsettled ~= false and tvb:len() >= 2 then
             rec = final_candidate(tvb, pinfo) or rec
@@ -796,7 +791,7 @@ local function cyclic(tvb, pinfo, tree, view, thrown)
                     and ((tries[fid] or 0) < HEUR_TRIES or #pending_down > 0
                          or not infer.given_up(runs, fid, tostring(pinfo.dl_src), tostring(pinfo.dl_dst))))) then
             rec = first_pass(fid, tvb, pinfo, len, n)
-            frames[n] = rec
+            fset(frames, n, rec)
         end
     end
     if rec then
@@ -829,7 +824,7 @@ local function connect(tvb, pinfo, tree)
     end
     local rec
     if pinfo.visited then
-        rec = frames[pinfo.number]
+        rec = fget(frames, pinfo.number)
     elseif learn then
         local blocks, request = connect_blocks(tvb)
         if blocks then
@@ -840,7 +835,7 @@ local function connect(tvb, pinfo, tree)
                 udp_table:add(pinfo.src_port, carrier)
             end
             rec = learn_connect(pinfo, blocks)
-            frames[pinfo.number] = rec
+            fset(frames, pinfo.number, rec)
         end
     end
     if rec then show(rec, tvb, pinfo, tree) end
