@@ -348,9 +348,10 @@ local NONE = {}
 -- Plain records, kept flat: the record of the first ADU of a frame's first
 -- buffer that has nothing but the 8 usual values (no findings, links, notes,
 -- nothing another frame still writes into) is not kept as a table of its own
--- but in these maps by frame number (vrshark/framemap.luam says why). A table per ADU (about 250
--- bytes with its entry in `adus`) made most of the plugin's memory, and its
--- garbage collection most of its time, on long captures.
+-- but in these maps by frame number (vrshark/framemap.luam says why). A
+-- table per ADU (about 250 bytes with its entry in `adus`) made most of the
+-- plugin's memory, and its garbage collection most of its time, on long
+-- captures.
 --   at_key   ((rl * 4 + age kind) * 2 + has range) * 2^32 + start * 65536 + count:
 --            rl the reported length of the buffer the values belong to
 --            (< 2^18), age kind 0 none, 1 PCI age, 2 PCO age (a record with
@@ -371,7 +372,7 @@ end
 
 -- A record with nothing beyond its array slots (next() past slot 8 finds no
 -- key) goes flat; it is marked so that the response that answers it later
--- writes its link into the arrays (first_pass).
+-- writes its link into the maps (first_pass).
 local function store_rec(key, n, rl, off, rec, is_request)
     if off ~= 0 or rec == NOT_DECODED or fget(at_key, n) ~= nil or rl >= 262144 or #rec ~= 8 or next(rec, 8) ~= nil
         or (rec[R_PCI_AGE] and rec[R_PCO_AGE]) then
