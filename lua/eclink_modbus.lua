@@ -415,10 +415,11 @@ local function load_rec(key, n, rl, off, is_request)
             local kind = math.floor(hi / 2) % 4
             if kind == 1 then rec[R_PCI_AGE] = fget(at_age, n)
             elseif kind == 2 then rec[R_PCO_AGE] = fget(at_age, n) end
+            local link = fget(at_link, n)
             if is_request then
-                rec[R_RESPONSE] = fget(at_link, n) or false
-            elseif fget(at_link, n) then
-                rec[R_REQUEST], rec[R_TIME] = fget(at_link, n), fget(at_time, n)
+                rec[R_RESPONSE] = link or false
+            elseif link then
+                rec[R_REQUEST], rec[R_TIME] = link, fget(at_time, n)
             end
             return rec
         end
