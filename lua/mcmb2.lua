@@ -754,6 +754,8 @@ local ADDERS = {
     ["mcmb2.iops"] = function(c) record.add_ioxs_sparse(c.tree, c.rec, c.tvb, pf.iops, false) end,
     ["mcmb2.iocs"] = function(c) record.add_ioxs_sparse(c.tree, c.rec, c.tvb, pf.iocs, true) end,
     ["mcmb2.frame_id"] = function(c) c.tree:add(pf.frame_id, c.tvb:range(0, 2)) end,
+    -- (only a candidate's note has it, and a candidate is always shown whole)
+    ["mcmb2.candidate_setting"] = function() end,
 }
 local SPARSE = { adders = ADDERS, experts = expert_names, prefixes = { "mcmb2", "vrshark_io", "vrshark.io" } }
 

@@ -197,13 +197,27 @@ def test_what_the_front_end_sends(tshark, work_dir):
         return hooks[0]
 
     assert view(["-V"]) == "frame_id"
-    # -T fields: a visible tree on 4.0; 4.6 keeps it invisible (no columns either)
-    assert view(["-T", "fields", "-e", "mcmb2.status"]) in ("frame_id", "frame_id.sparse::mcmb2.status")
+    assert view(["-T", "pdml"]) == "frame_id"
+    # -T fields prints only what -e names: the tree is visible on 4.0 (not on
+    # 4.6), the -e fields unmarked; the front end reads them from the command
+    # line (plugins/eglink/vrshark-output.c), the same view on every version
+    assert view(["-T", "fields", "-e", "mcmb2.status"]) == "frame_id.sparse::mcmb2.status"
+    assert view(["-Tfields", "-e", "mcmb2.status", "-e", "frame.number"]) == "frame_id.sparse::mcmb2.status"
+    assert view(["-nqT", "fields", "-emcmb2.status"]) == "frame_id.sparse::mcmb2.status"
+    assert view(["-T", "fields", "-e", "frame.number"]) == "frame_id.quiet"
+    assert view(["-T", "fields", "-e", "_ws.col.Info"]) == "frame_id.sparse:c:"
+    assert view(["-T", "fields", "-e", "_ws.expert.message"]) == "frame_id.sparse:e:"
+    assert view(["-T", "fields", "-e", "mcmb2"]) == "frame_id.sparse::mcmb2"
+    assert view(["-T", "fields", "-e", "mcmb2.status"], full=True) == "frame_id"
     assert view(["-Y", "mcmb2.status == 1"]) == "frame_id.sparse:c:mcmb2.status"
     assert view(["-q", "-z", "expert"]) == "frame_id.sparse:e:"
-    # (tshark -q alone does not dissect at all; a tap without a filter does,
-    # with nothing looked at)
-    assert view(["-q", "-z", "io,stat,0"]) == "frame_id.quiet"
+    # (a tap that wants the protocol tree may walk it: -z io,phs counts the
+    # protocol items; io,stat asks for the tree too)
+    assert view(["-q", "-z", "io,phs"]) == "frame_id"
+    assert view(["-q", "-z", "io,stat,0"]) == "frame_id"
+    # (tshark -q alone does not dissect at all; a tap that wants no tree
+    # does, with nothing looked at)
+    assert view(["-q", "-z", "conv,eth"]) == "frame_id.quiet"
     assert view(["-Y", "mcmb2.status == 1"], full=True) == "frame_id"
     both = view(["-Y", "mcmb2.status == 1 || mcmb2.uplink_watchdog > 3"])
     assert both.startswith("frame_id.sparse:c:")
@@ -348,3 +362,59 @@ def test_the_sparse_display_serves_the_eclink_pnio_frames(tshark, work_dir):
     assert shown == decoded
     for flt in ["eclink_pnio", "eclink.relays_open", "eclink_pnio.cmd_from_ru_in"]:
         assert _image_probe(tshark, work_dir, ECLINK_PNIO, ["-2", "-Y", flt]) == [], flt
+
+
+# -T fields prints only what -e names; on 4.0 its tree is visible, and the
+# front end reads the -e fields from tshark's command line
+# (plugins/eglink/vrshark-output.c). Per protocol, the fields its sparse
+# display adds itself, and the captures that carry it.
+FIELDS_CASES = {
+    "mcmb2": (MCMB2_CAPTURES + PUBLIC, lambda tshark: _fields(tshark)),
+    "eclink_pnio": (ECLINK_PNIO_CAPTURES, lambda tshark: _fields(tshark, "eclink") + ECLINK_PNIO_SPARSE),
+    "eclink_modbus": (MODBUS_CAPTURES, lambda tshark: _fields(tshark, "eclink") + MODBUS_SPARSE),
+}
+COLUMNS_AND_EXPERTS = ["_ws.col.Protocol", "_ws.col.Info", "_ws.expert.message", "_ws.expert.severity"]
+
+
+@needs_c
+@pytest.mark.parametrize("proto,name", [(p, n) for p, (names, _) in FIELDS_CASES.items() for n in names])
+@pytest.mark.parametrize("what", ["fields", "fields+columns+experts", "fields+columns+experts -2"])
+def test_fields_output_is_that_of_the_full_tree(tshark, proto, name, what):
+    """tshark -T fields with the fields the sparse display adds (and the
+    columns and expert messages): every line as with the full tree."""
+    names = sorted(set(FIELDS_CASES[proto][1](tshark)))
+    if "columns" in what:
+        names += COLUMNS_AND_EXPERTS
+    args = ["-n", "-r", str(_capture(name)), "-T", "fields", "-E", "header=y", "-e", "frame.number"]
+    for n in names:
+        args += ["-e", n]
+    args += _prefs(name) + (["-2"] if what.endswith("-2") else [])
+    sparse = _run(tshark, args)
+    assert sparse.splitlines() == _run(tshark, args, full=True).splitlines()
+
+
+@needs_c
+def test_fields_output_is_served_sparsely(tshark, work_dir):
+    """tshark -T fields -e mcmb2.status: the sparse display serves every
+    cyclic frame (on 4.0 too, where the tree is visible); -T pdml does not."""
+    cyclic = tshark.field(DUPLEX, "frame.number", display_filter="mcmb2 && pn_rt")
+    _, served = _probe(tshark, work_dir, DUPLEX, ["-T", "fields", "-e", "mcmb2.status", "-e", "_ws.col.Info"])
+    assert served == cyclic
+    _, served = _probe(tshark, work_dir, DUPLEX, ["-T", "pdml"])
+    assert served == []
+
+
+@needs_c
+@pytest.mark.parametrize("name", ["mcmb2_duplex_connect.pcap", "eclink_pnio_connect.pcap", "eclink_modbus_basic.pcap"])
+def test_protocol_hierarchy_is_that_of_the_full_tree(tshark, name):
+    """Protocol Hierarchy (-z io,phs) counts protocol items, which a tree
+    that fakes none keeps: the decoders show their full tree there."""
+    args = ["-n", "-q", "-r", str(CAPTURES / name), "-z", "io,phs"] + _prefs(name)
+    sparse = _run(tshark, args)
+    assert sparse == _run(tshark, args, full=True)
+    # (the protocol under the cyclic frames' or the Modbus/TCP branch)
+    carrier, proto = {"mcmb2_duplex_connect.pcap": ("pn_rt", "mcmb2"),
+                      "eclink_pnio_connect.pcap": ("pn_rt", "eclink_pnio"),
+                      "eclink_modbus_basic.pcap": ("mbtcp", "eclink_modbus")}[name]
+    words = [line.split()[0] for line in sparse.splitlines() if line.strip()]
+    assert proto in words[words.index(carrier):], sparse

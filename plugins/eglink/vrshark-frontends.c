@@ -87,6 +87,7 @@
 #include <epan/show_exception.h>
 
 #include "vrshark-frontends.h"
+#include "vrshark-output.h"
 
 #define ETHERTYPE_PNRT          0x8892
 #define UDP_PORT_PNIO_CM        34964
@@ -155,6 +156,8 @@ static lua_view_t view_mb_heuristic = { "heuristic", mb_lua_protos, { 0 }, NULL,
 static lua_view_t view_mb_server = { "server", mb_lua_protos, { 0 }, NULL, NULL, FALSE, FALSE, NULL };
 
 static GArray *view_scratch;   /* lua_view()'s list of this frame */
+static GArray *named_fields;   /* tshark -T fields: its -e fields (header_field_info *) */
+static gboolean named_other;   /* ... and a -e value that is no field name: everything */
 static int expert_tap;         /* 0 until found (find_tap_id's "not registered") */
 static int proto_ws_expert;    /* id + 1; 0: not looked up yet */
 static gboolean full_tree_always;   /* VRSHARK_FULL_TREE set: every view is "everything" */
@@ -201,14 +204,76 @@ collect_refs(lua_view_t *v, GArray *refs)
     }
 }
 
+/* tshark -T fields: the fields its -e options name, resolved once (the
+ * Lua plugins have registered theirs by the first frame). tshark marks
+ * them referenced only on an invisible tree; columns (_ws.col.*) come
+ * with pinfo->cinfo. */
+static void
+resolve_named(void)
+{
+    const GPtrArray *names = vrshark_fields_named();
+    guint i;
+
+    named_fields = g_array_new(FALSE, FALSE, sizeof(header_field_info *));
+    for (i = 0; i < names->len; i++) {
+        const char *name = (const char *)g_ptr_array_index(names, i);
+        header_field_info *hfinfo;
+
+        if (g_str_has_prefix(name, "_ws.col."))
+            continue;
+        hfinfo = proto_registrar_get_byname(name);
+        if (hfinfo)
+            g_array_append_val(named_fields, hfinfo);
+        else
+            named_other = TRUE;
+    }
+}
+
+/* Is hfinfo the protocol id or one of its fields? */
+static gboolean
+of_protocol(const header_field_info *hfinfo, int id)
+{
+    return id >= 0 && (hfinfo->id == id || hfinfo->parent == id);
+}
+
+/* The -e fields of the view's protocols into refs; TRUE in *experts when
+ * one is an expert info field. FALSE: a -e value was no field name (an
+ * expression, say), so that what it reads is not known. */
+static gboolean
+collect_named(lua_view_t *v, GArray *refs, int ws_expert, gboolean *experts)
+{
+    guint i;
+    int p;
+
+    if (!named_fields)
+        resolve_named();
+    if (named_other)
+        return FALSE;
+    for (i = 0; i < named_fields->len; i++) {
+        header_field_info *hfinfo = g_array_index(named_fields, header_field_info *, i);
+
+        if (of_protocol(hfinfo, ws_expert))
+            *experts = TRUE;
+        for (p = 0; v->protos[p]; p++) {
+            if (of_protocol(hfinfo, lookup_proto(&v->ids[p], v->protos[p]))) {
+                g_array_append_val(refs, hfinfo);
+                break;
+            }
+        }
+    }
+    return TRUE;
+}
+
 /* pinfo->match_string for the Lua decoder behind hook v->hook:
  *   v->hook                   everything: the tree is visible (a packet's
- *                             details, -V, -T pdml/json), or VRSHARK_FULL_TREE
+ *                             details, -V, -T pdml/json), protocols are not
+ *                             faked (Protocol Hierarchy), or VRSHARK_FULL_TREE
  *   v->hook ".quiet"          nothing can be seen: no column information, no
  *                             expert info wanted, none of the Lua protocols'
  *                             fields referenced; the decoder keeps its state
- *   v->hook ".sparse:FLAGS:LIST"  an invisible tree (the packet list, -T
- *                             fields, -Y): only what is asked for. FLAGS: "c"
+ *   v->hook ".sparse:FLAGS:LIST"  an invisible tree (the packet list, -Y),
+ *                             or tshark -T fields (vrshark-output.c): only
+ *                             what is asked for. FLAGS: "c"
  *                             column information wanted, "e" expert info
  *                             wanted (an expert tap, a _ws.expert field
  *                             referenced); LIST: the filter names of the
@@ -220,11 +285,22 @@ static const char *
 lua_view(lua_view_t *v, packet_info *pinfo, proto_tree *tree)
 {
     GArray *refs;
-    gboolean cols, experts;
+    gboolean cols, experts, fields_only = FALSE;
     guint i;
 
-    if (full_tree_always || (tree && PTREE_DATA(tree)->visible))
+    /* A visible tree is seen whole, but for tshark -T fields (only what
+     * -e names is printed). A tap that wants the protocol tree may walk
+     * it (-z io,phs counts the protocol items), and so may a dissection
+     * that fakes no protocols (Statistics > Protocol Hierarchy): everything
+     * then too. */
+    if (full_tree_always || (tree && !PTREE_DATA(tree)->fake_protocols) ||
+        (union_of_tap_listener_flags() & TL_REQUIRES_PROTO_TREE))
         return v->hook;
+    if (tree && PTREE_DATA(tree)->visible) {
+        if (!vrshark_fields_only())
+            return v->hook;
+        fields_only = TRUE;
+    }
     /* Looked up here, not at hand-off: the expert tap is registered after
      * the plugins' hand-off, and find_tap_id() says 0 until then. */
     if (expert_tap <= 0)
@@ -238,9 +314,13 @@ lua_view(lua_view_t *v, packet_info *pinfo, proto_tree *tree)
     if (tree) {
         int ws_expert = lookup_proto(&proto_ws_expert, "_ws.expert");
 
-        if (ws_expert >= 0 && proto_field_is_referenced(tree, ws_expert))
+        /* (the protocol's own mark: proto_field_is_referenced() says yes
+         * to anything on a visible tree) */
+        if (ws_expert >= 0 && proto_registrar_get_nth(ws_expert)->ref_type != HF_REF_TYPE_NONE)
             experts = TRUE;
         collect_refs(v, refs);
+        if (fields_only && !collect_named(v, refs, ws_expert, &experts))
+            return v->hook;
     }
     if (!cols && !experts && refs->len == 0) {
         if (!v->quiet)
@@ -803,6 +883,9 @@ frontends_shutdown(void)
     if (view_scratch)
         g_array_free(view_scratch, TRUE);
     view_scratch = NULL;
+    if (named_fields)
+        g_array_free(named_fields, TRUE);
+    named_fields = NULL;
 }
 
 void
