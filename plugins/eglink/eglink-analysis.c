@@ -268,12 +268,12 @@ typedef enum {
 #define FF_DELTA        0x0004  /* delta_ns is set */
 #define FF_RETRANS      0x0008  /* VRCI/VRCO retransmission */
 #define FF_FIRST_ACK    0x0010  /* first VRAO/VRAI of its command */
-#define FF_PREV_STATE   0x0020  /* prev_bu_state is set (VRPI after a VRPI) */
 #define FF_BURST_LAST   0x0040  /* the last fragment of its burst */
 #define FF_FLAGS_MASK   0x00FF  /* the flags above (the full record's) */
 /* Only in the compact record: */
 #define FF_USED         0x0100  /* the slot holds a frame's record */
 #define FF_FULL         0x0200  /* the full record is in p_add_proto_data */
+#define FF_LAYER_SHIFT  10      /* the layer in bits 10, 11 and 15 (below) */
 #define FF_STATUS_SHIFT 12      /* serial_status in bits 12-14 */
 
 /* The full record of one EG-Link layer of a frame. */
@@ -288,24 +288,38 @@ typedef struct {
     guint16 expected_serial;
     guint16 bu_origin;
     guint8 serial_status;
-    guint8 prev_bu_state;
 } eglink_frame_t;
 
-/* What most frames store: 16 bytes in a table indexed by frame number. Only
+/* What most frames store: 12 bytes in a table indexed by frame number. Only
  * the first EG-Link layer of a frame has a slot; the record of any other
  * layer, and of a frame whose full record does not fit, is stored with
- * p_add_proto_data (FF_FULL). */
+ * p_add_proto_data (FF_FULL). The expected serial is not kept: it is the
+ * packet's own serial after a packet in sequence (SERIAL_OK) and 0 before
+ * the first; a frame after a gap keeps its full record. */
 typedef struct {
     guint32 unit;               /* BU index, or SLOT_CTRL | controller index */
     guint32 delta_ns;           /* delta_ns of the full record when FF_DELTA */
-    guint16 flags;              /* FF_*, serial_status << FF_STATUS_SHIFT */
-    guint16 expected_serial;
+    guint16 flags;              /* FF_*, the layer (slot_layer_bits), serial_status << FF_STATUS_SHIFT */
     guint16 bu_origin;
-    guint8 layer;               /* pinfo->curr_layer_num of the layer stored */
-    guint8 prev_bu_state;
 } eglink_slot_t;
 
-#define SLOT_CTRL 0x80000000u
+#define SLOT_CTRL        0x80000000u
+/* pinfo->curr_layer_num, 1 to 8, as 0 to 7 in flags bits 10, 11 and 15 */
+#define SLOT_LAYER_MAX   8
+
+static guint16
+slot_layer_bits(int layer)
+{
+    guint v = (guint)(layer - 1);
+
+    return (guint16)(((v & 3) << FF_LAYER_SHIFT) | ((v & 4) << 13));
+}
+
+static int
+slot_layer(guint16 flags)
+{
+    return (int)(((flags >> FF_LAYER_SHIFT) & 3) | ((flags >> 13) & 4)) + 1;
+}
 
 #define EGLINK_SLOT_PAGE_BITS 12
 #define EGLINK_SLOT_PAGE_SIZE (1u << EGLINK_SLOT_PAGE_BITS)
@@ -361,47 +375,55 @@ eglink_slot(guint32 frame, gboolean create)
     return &eglink_slot_pages[page][frame & (EGLINK_SLOT_PAGE_SIZE - 1)];
 }
 
-static gboolean
-eglink_frame_is_compact(const eglink_frame_t *fd)
+/* The expected serial a slot stands for (see eglink_slot_t). */
+static guint16
+slot_expected_serial(guint8 serial_status, guint16 serial)
 {
-    return !fd->findings && !fd->cmd && !fd->burst_id &&
-           (!(fd->flags & FF_DELTA) || (fd->delta_ns >= 0 && fd->delta_ns <= G_MAXUINT32));
+    return serial_status == SERIAL_OK ? serial : 0;
 }
 
-/* Stores the record of the current layer, computed on the first pass. */
+static gboolean
+eglink_frame_is_compact(const eglink_frame_t *fd, int layer, guint16 serial)
+{
+    return !fd->findings && !fd->cmd && !fd->burst_id &&
+           (!(fd->flags & FF_DELTA) || (fd->delta_ns >= 0 && fd->delta_ns <= G_MAXUINT32)) &&
+           fd->expected_serial == slot_expected_serial(fd->serial_status, serial) &&
+           layer >= 1 && layer <= SLOT_LAYER_MAX;
+}
+
+/* Stores the record of the current layer (of a packet with this serial),
+ * computed on the first pass. */
 static void
-eglink_frame_store(packet_info *pinfo, guint32 key, const eglink_frame_t *fd)
+eglink_frame_store(packet_info *pinfo, guint32 key, guint16 serial, const eglink_frame_t *fd)
 {
     eglink_slot_t *slot = eglink_slot(pinfo->num, TRUE);
-    gboolean compact = eglink_frame_is_compact(fd);
+    int layer = pinfo->curr_layer_num;
 
     if (!(slot->flags & FF_USED)) {
-        slot->flags = FF_USED | (compact ? 0 : FF_FULL);
-        slot->layer = (guint8)pinfo->curr_layer_num;
-        if (compact) {
-            slot->flags |= (guint16)((fd->flags & FF_FLAGS_MASK) |
-                                     (fd->serial_status << FF_STATUS_SHIFT));
+        if (eglink_frame_is_compact(fd, layer, serial)) {
+            slot->flags = (guint16)(FF_USED | slot_layer_bits(layer) | (fd->flags & FF_FLAGS_MASK) |
+                                    (fd->serial_status << FF_STATUS_SHIFT));
             slot->unit = fd->bu ? fd->bu->index : (SLOT_CTRL | fd->ctrl->index);
             slot->delta_ns = (fd->flags & FF_DELTA) ? (guint32)fd->delta_ns : 0;
-            slot->expected_serial = fd->expected_serial;
             slot->bu_origin = fd->bu_origin;
-            slot->prev_bu_state = fd->prev_bu_state;
             return;
         }
+        /* (the layer is not kept: a full record is looked up by its key) */
+        slot->flags = FF_USED | FF_FULL;
     }
     p_add_proto_data(wmem_file_scope(), pinfo, proto_eglink, key,
                      wmem_memdup(wmem_file_scope(), fd, sizeof(*fd)));
 }
 
-/* The record of the current layer, or NULL if it has none (yet). A compact
- * one is expanded into *buf. */
+/* The record of the current layer (of a packet with this serial), or NULL
+ * if it has none (yet). A compact one is expanded into *buf. */
 static const eglink_frame_t *
-eglink_frame_fetch(packet_info *pinfo, guint32 key, eglink_frame_t *buf)
+eglink_frame_fetch(packet_info *pinfo, guint32 key, guint16 serial, eglink_frame_t *buf)
 {
     const eglink_slot_t *slot = eglink_slot(pinfo->num, FALSE);
 
     if (slot && (slot->flags & FF_USED) && !(slot->flags & FF_FULL) &&
-        slot->layer == (guint8)pinfo->curr_layer_num) {
+        slot_layer(slot->flags) == pinfo->curr_layer_num) {
         memset(buf, 0, sizeof(*buf));
         if (slot->unit & SLOT_CTRL)
             buf->ctrl = *(eglink_ctrl_t **)wmem_array_index(eglink_ctrl_by_index, slot->unit & ~SLOT_CTRL);
@@ -410,9 +432,8 @@ eglink_frame_fetch(packet_info *pinfo, guint32 key, eglink_frame_t *buf)
         buf->delta_ns = slot->delta_ns;
         buf->flags = slot->flags & FF_FLAGS_MASK;
         buf->serial_status = (guint8)((slot->flags >> FF_STATUS_SHIFT) & 0x7);
-        buf->expected_serial = slot->expected_serial;
+        buf->expected_serial = slot_expected_serial(buf->serial_status, serial);
         buf->bu_origin = slot->bu_origin;
-        buf->prev_bu_state = slot->prev_bu_state;
         return buf;
     }
     if (!slot || !(slot->flags & FF_USED))
@@ -966,8 +987,6 @@ track_vrpi(eglink_bu_t *bu, eglink_frame_t *fd, packet_info *pinfo, const eglink
     track_interval(&bu->s, fd, pinfo, pref_vrpi_gap_ms, FND_VRPI_GAP);
     if (info->has_bu_state) {
         if (bu->have_bu_state) {
-            fd->prev_bu_state = bu->bu_state;
-            fd->flags |= FF_PREV_STATE;
             /* The finding carries the length of the period that ends here
              * (for Statistics > EG-Link). */
             if (bu->bu_state != info->bu_state) {
@@ -1495,13 +1514,13 @@ eglink_analysis_dissect(tvbuff_t *tvb, packet_info *pinfo, proto_tree *eglink_tr
     if (info->type == EGLINK_TYPE_UNKNOWN || pinfo->flags.in_error_pkt)
         return;
 
-    fd = eglink_frame_fetch(pinfo, key, &buf);
+    fd = eglink_frame_fetch(pinfo, key, info->serial, &buf);
     if (!fd) {
         if (PINFO_FD_VISITED(pinfo))
             return;
         memset(&buf, 0, sizeof(buf));
         analyse_packet(pinfo, info, &buf);
-        eglink_frame_store(pinfo, key, &buf);
+        eglink_frame_store(pinfo, key, info->serial, &buf);
         fd = &buf;
     }
 
