@@ -1063,6 +1063,8 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
         r = { start = rec[R_START], count = rec[R_COUNT] }
     end
     if sp then
+        -- (a tap that walks the tree's top level, -z io,phs, counts the protocol)
+        if sp.protos then add(tree, proto, tvb(off, adu_len)) end
         local c = { rec = rec, tree = tree, pinfo = pinfo, is_request = is_request }
         for _, adder in ipairs(sp.adders) do adder(c) end
         local infos = {}

@@ -219,6 +219,8 @@ local function sparse(rec, tvb, pinfo, tree, view)
     local p = fe.plan(view, SPARSE)
     -- machine data can add findings and Info tags of its own
     if not p or rec.size < plan.need or (p.cols and next(iodata.areas)) then return false end
+    -- (a tap that walks the tree's top level, -z io,phs, counts the protocol)
+    if p.protos then record.root(rec, tvb, tree, eclp, "") end
     if #p.adders > 0 then
         local c = ctx
         c.rec, c.tvb, c.tree, c.plan = rec, tvb, tree, plan

@@ -768,6 +768,8 @@ local function sparse(rec, tvb, pinfo, tree, view)
     -- machine data can add findings and Info tags of its own
     if (p.cols or p.experts) and (iodata.areas["mcmb2.up"] or iodata.areas["mcmb2.down"]) then return false end
     local h = rec.base + plan.header.off
+    -- (a tap that walks the tree's top level, -z io,phs, counts the protocol)
+    if p.protos then record.root(rec, tvb, tree, mcmb2, "") end
     if #p.adders > 0 then
         local c = ctx
         c.rec, c.tvb, c.tree, c.plan, c.up, c.h = rec, tvb, tree, plan, plan.dir == "up", h

@@ -211,10 +211,11 @@ def test_what_the_front_end_sends(tshark, work_dir):
     assert view(["-T", "fields", "-e", "mcmb2.status"], full=True) == "frame_id"
     assert view(["-Y", "mcmb2.status == 1"]) == "frame_id.sparse:c:mcmb2.status"
     assert view(["-q", "-z", "expert"]) == "frame_id.sparse:e:"
-    # (a tap that wants the protocol tree may walk it: -z io,phs counts the
-    # protocol items; io,stat asks for the tree too)
-    assert view(["-q", "-z", "io,phs"]) == "frame_id"
-    assert view(["-q", "-z", "io,stat,0"]) == "frame_id"
+    # (a tap that wants the protocol tree may walk its top level: -z io,phs
+    # counts the protocol items; io,stat asks for the tree too)
+    assert view(["-q", "-z", "io,phs"]) == "frame_id.sparse:p:"
+    assert view(["-q", "-z", "io,stat,0"]) == "frame_id.sparse:p:"
+    assert view(["-Y", "mcmb2.status == 1", "-z", "io,phs"]) == "frame_id.sparse:cp:mcmb2.status"
     # (tshark -q alone does not dissect at all; a tap that wants no tree
     # does, with nothing looked at)
     assert view(["-q", "-z", "conv,eth"]) == "frame_id.quiet"
@@ -407,8 +408,8 @@ def test_fields_output_is_served_sparsely(tshark, work_dir):
 @needs_c
 @pytest.mark.parametrize("name", ["mcmb2_duplex_connect.pcap", "eclink_pnio_connect.pcap", "eclink_modbus_basic.pcap"])
 def test_protocol_hierarchy_is_that_of_the_full_tree(tshark, name):
-    """Protocol Hierarchy (-z io,phs) counts protocol items, which a tree
-    that fakes none keeps: the decoders show their full tree there."""
+    """Protocol Hierarchy (-z io,phs) counts the protocol items at the
+    tree's top level: the sparse display adds its protocol's item there."""
     args = ["-n", "-q", "-r", str(CAPTURES / name), "-z", "io,phs"] + _prefs(name)
     sparse = _run(tshark, args)
     assert sparse == _run(tshark, args, full=True)

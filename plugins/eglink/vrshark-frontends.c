@@ -146,14 +146,14 @@ typedef struct {
     int ids[VIEW_MAX_PROTOS];       /* protocol id + 1; 0: not looked up yet */
     char *quiet;                    /* hook ".quiet" */
     GArray *refs;                   /* header_field_info * of the last sparse view */
-    gboolean cols, experts;         /* ... and its flags */
+    gboolean cols, experts, items;  /* ... and its flags (items: protocol items wanted) */
     char *sparse;                   /* hook ".sparse:FLAGS:LIST" of that view */
 } lua_view_t;
 
-static lua_view_t view_pn = { "frame_id", pn_lua_protos, { 0 }, NULL, NULL, FALSE, FALSE, NULL };
-static lua_view_t view_mb_always = { "always", mb_lua_protos, { 0 }, NULL, NULL, FALSE, FALSE, NULL };
-static lua_view_t view_mb_heuristic = { "heuristic", mb_lua_protos, { 0 }, NULL, NULL, FALSE, FALSE, NULL };
-static lua_view_t view_mb_server = { "server", mb_lua_protos, { 0 }, NULL, NULL, FALSE, FALSE, NULL };
+static lua_view_t view_pn = { "frame_id", pn_lua_protos, { 0 }, NULL, NULL, FALSE, FALSE, FALSE, NULL };
+static lua_view_t view_mb_always = { "always", mb_lua_protos, { 0 }, NULL, NULL, FALSE, FALSE, FALSE, NULL };
+static lua_view_t view_mb_heuristic = { "heuristic", mb_lua_protos, { 0 }, NULL, NULL, FALSE, FALSE, FALSE, NULL };
+static lua_view_t view_mb_server = { "server", mb_lua_protos, { 0 }, NULL, NULL, FALSE, FALSE, FALSE, NULL };
 
 static GArray *view_scratch;   /* lua_view()'s list of this frame */
 static GArray *named_fields;   /* tshark -T fields: its -e fields (header_field_info *) */
@@ -276,7 +276,8 @@ collect_named(lua_view_t *v, GArray *refs, int ws_expert, gboolean *experts)
  *                             what is asked for. FLAGS: "c"
  *                             column information wanted, "e" expert info
  *                             wanted (an expert tap, a _ws.expert field
- *                             referenced); LIST: the filter names of the
+ *                             referenced), "p" the protocol items wanted (a
+ *                             tap wants the tree); LIST: the filter names of the
  *                             referenced fields of the Lua protocols (display
  *                             filter, -e, colouring rule, Lua Field), comma
  *                             separated, in registration order.
@@ -285,16 +286,13 @@ static const char *
 lua_view(lua_view_t *v, packet_info *pinfo, proto_tree *tree)
 {
     GArray *refs;
-    gboolean cols, experts, fields_only = FALSE;
+    gboolean cols, experts, protos, fields_only = FALSE;
     guint i;
 
     /* A visible tree is seen whole, but for tshark -T fields (only what
-     * -e names is printed). A tap that wants the protocol tree may walk
-     * it (-z io,phs counts the protocol items), and so may a dissection
-     * that fakes no protocols (Statistics > Protocol Hierarchy): everything
-     * then too. */
-    if (full_tree_always || (tree && !PTREE_DATA(tree)->fake_protocols) ||
-        (union_of_tap_listener_flags() & TL_REQUIRES_PROTO_TREE))
+     * -e names is printed); so is one that fakes no protocols (Statistics >
+     * Protocol Hierarchy in the GUI). */
+    if (full_tree_always || (tree && !PTREE_DATA(tree)->fake_protocols))
         return v->hook;
     if (tree && PTREE_DATA(tree)->visible) {
         if (!vrshark_fields_only())
@@ -307,6 +305,10 @@ lua_view(lua_view_t *v, packet_info *pinfo, proto_tree *tree)
         expert_tap = find_tap_id("expert");
     cols = pinfo->cinfo != NULL;
     experts = have_tap_listener(expert_tap);
+    /* A tap that wants the protocol tree may walk its top level: -z io,phs
+     * counts the protocol items there (a Lua Listener and -z io,stat ask
+     * for the tree too). Protocol items at the top are never faked. */
+    protos = tree && (union_of_tap_listener_flags() & TL_REQUIRES_PROTO_TREE);
     if (!view_scratch)
         view_scratch = g_array_new(FALSE, FALSE, sizeof(header_field_info *));
     refs = view_scratch;
@@ -322,19 +324,19 @@ lua_view(lua_view_t *v, packet_info *pinfo, proto_tree *tree)
         if (fields_only && !collect_named(v, refs, ws_expert, &experts))
             return v->hook;
     }
-    if (!cols && !experts && refs->len == 0) {
+    if (!cols && !experts && !protos && refs->len == 0) {
         if (!v->quiet)
             v->quiet = g_strconcat(v->hook, ".quiet", NULL);
         return v->quiet;
     }
     /* (an empty GArray may have no data: memcmp() must not see it) */
-    if (v->sparse && v->cols == cols && v->experts == experts && v->refs->len == refs->len &&
+    if (v->sparse && v->cols == cols && v->experts == experts && v->items == protos && v->refs->len == refs->len &&
         (refs->len == 0 || memcmp(v->refs->data, refs->data, refs->len * sizeof(header_field_info *)) == 0))
         return v->sparse;
     {
         GString *text = g_string_new(v->hook);
 
-        g_string_append_printf(text, ".sparse:%s%s:", cols ? "c" : "", experts ? "e" : "");
+        g_string_append_printf(text, ".sparse:%s%s%s:", cols ? "c" : "", experts ? "e" : "", protos ? "p" : "");
         for (i = 0; i < refs->len; i++)
             g_string_append_printf(text, "%s%s", i ? "," : "",
                                    g_array_index(refs, header_field_info *, i)->abbrev);
@@ -348,6 +350,7 @@ lua_view(lua_view_t *v, packet_info *pinfo, proto_tree *tree)
         g_array_append_vals(v->refs, refs->data, refs->len);
     v->cols = cols;
     v->experts = experts;
+    v->items = protos;
     return v->sparse;
 }
 
