@@ -286,7 +286,7 @@ static const char *
 lua_view(lua_view_t *v, packet_info *pinfo, proto_tree *tree)
 {
     GArray *refs;
-    gboolean cols, experts, protos, fields_only = FALSE;
+    gboolean cols, experts, items, fields_only = FALSE;
     guint i;
 
     /* A visible tree is seen whole, but for tshark -T fields (only what
@@ -308,7 +308,7 @@ lua_view(lua_view_t *v, packet_info *pinfo, proto_tree *tree)
     /* A tap that wants the protocol tree may walk its top level: -z io,phs
      * counts the protocol items there (a Lua Listener and -z io,stat ask
      * for the tree too). Protocol items at the top are never faked. */
-    protos = tree && (union_of_tap_listener_flags() & TL_REQUIRES_PROTO_TREE);
+    items = tree && (union_of_tap_listener_flags() & TL_REQUIRES_PROTO_TREE);
     if (!view_scratch)
         view_scratch = g_array_new(FALSE, FALSE, sizeof(header_field_info *));
     refs = view_scratch;
@@ -324,19 +324,19 @@ lua_view(lua_view_t *v, packet_info *pinfo, proto_tree *tree)
         if (fields_only && !collect_named(v, refs, ws_expert, &experts))
             return v->hook;
     }
-    if (!cols && !experts && !protos && refs->len == 0) {
+    if (!cols && !experts && !items && refs->len == 0) {
         if (!v->quiet)
             v->quiet = g_strconcat(v->hook, ".quiet", NULL);
         return v->quiet;
     }
     /* (an empty GArray may have no data: memcmp() must not see it) */
-    if (v->sparse && v->cols == cols && v->experts == experts && v->items == protos && v->refs->len == refs->len &&
+    if (v->sparse && v->cols == cols && v->experts == experts && v->items == items && v->refs->len == refs->len &&
         (refs->len == 0 || memcmp(v->refs->data, refs->data, refs->len * sizeof(header_field_info *)) == 0))
         return v->sparse;
     {
         GString *text = g_string_new(v->hook);
 
-        g_string_append_printf(text, ".sparse:%s%s%s:", cols ? "c" : "", experts ? "e" : "", protos ? "p" : "");
+        g_string_append_printf(text, ".sparse:%s%s%s:", cols ? "c" : "", experts ? "e" : "", items ? "p" : "");
         for (i = 0; i < refs->len; i++)
             g_string_append_printf(text, "%s%s", i ? "," : "",
                                    g_array_index(refs, header_field_info *, i)->abbrev);
@@ -350,7 +350,7 @@ lua_view(lua_view_t *v, packet_info *pinfo, proto_tree *tree)
         g_array_append_vals(v->refs, refs->data, refs->len);
     v->cols = cols;
     v->experts = experts;
-    v->items = protos;
+    v->items = items;
     return v->sparse;
 }
 
