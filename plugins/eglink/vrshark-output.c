@@ -41,8 +41,11 @@ static gboolean parsed;
 static gboolean fields_only;
 static GPtrArray *named;    /* the -e values (char *, owned) */
 
-gboolean
-vrshark_fields_only_args(int argc, char **argv, GPtrArray *names)
+/* TRUE when the command line argv (argv[0] the program) is tshark's with
+ * -T fields as its output format; the values of its -e options are added
+ * to names (copies). */
+static gboolean
+fields_only_args(int argc, char **argv, GPtrArray *names)
 {
     const char *prog, *output = NULL;
     int i;
@@ -70,7 +73,7 @@ vrshark_fields_only_args(int argc, char **argv, GPtrArray *names)
             value = a[k + 1] ? a + k + 1 : (i + 1 < argc ? argv[++i] : NULL);
             if (a[k] == 'T')
                 output = value;
-            else if (a[k] == 'e' && value && names)
+            else if (a[k] == 'e' && value)
                 g_ptr_array_add(names, g_strdup(value));
             break;
         }
@@ -95,7 +98,7 @@ parse_own_command_line(void)
             g_ptr_array_add(args, text + at);
             at += strlen(text + at) + 1;
         }
-        fields_only = vrshark_fields_only_args((int)args->len, (char **)args->pdata, named);
+        fields_only = fields_only_args((int)args->len, (char **)args->pdata, named);
         g_ptr_array_free(args, TRUE);
     }
     g_free(text);

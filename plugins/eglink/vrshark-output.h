@@ -8,13 +8,9 @@
 
 #include <glib.h>
 
-/* TRUE when the command line argv (argv[0] the program) is tshark's with
- * -T fields as its output format; the values of its -e options are added
- * to names (copies, char *), when names is not NULL. */
-gboolean vrshark_fields_only_args(int argc, char **argv, GPtrArray *names);
-
-/* The same for this process (its command line read once); FALSE where the
- * command line cannot be read. */
+/* TRUE when this process is tshark with -T fields as its output format
+ * (its command line read once); FALSE where the command line cannot be
+ * read. */
 gboolean vrshark_fields_only(void);
 
 /* This process's -e values (tshark does not mark them referenced when its
