@@ -546,16 +546,17 @@ end
 -- swapping the register bytes anew). Kept for the call's tvb only, compared
 -- with rawequal: a Tvb of an earlier call has expired, and its __eq says
 -- so; the reference kept here stops its address being taken by another.
-local map_memo = { tvb = false }
+-- One entry (an ADU has one image access; a buffer of several ADUs works
+-- each out again): upvalues, no table a call.
+local memo_tvb, memo_at, memo_a, memo_pieces = false, false, false, false
 local function mapped(a, tvb, off)
-    if not rawequal(map_memo.tvb, tvb) then map_memo = { tvb = tvb } end
     local at = off + a.data
-    local m = map_memo[at]
-    if m and m.tname == a.tname and m.start == a.start and m.count == a.count and m.coil == a.coil then
-        return m.pieces
+    if rawequal(memo_tvb, tvb) and memo_at == at and (rawequal(memo_a, a) or memo_a.tname == a.tname
+        and memo_a.start == a.start and memo_a.count == a.count and memo_a.coil == a.coil) then
+        return memo_pieces
     end
     local pieces = map_access(a.tname, a.start, a.count, tvb, at, a.coil)
-    map_memo[at] = { tname = a.tname, start = a.start, count = a.count, coil = a.coil, pieces = pieces }
+    memo_tvb, memo_at, memo_a, memo_pieces = tvb, at, a, pieces
     return pieces
 end
 
@@ -631,8 +632,12 @@ local function store_piece(c, p)
         end
         img.data = string.char(unpack(t))
     elseif p.length > 0 then
-        local d = img.data
-        img.data = d:sub(1, p.first) .. p.data .. d:sub(p.first + p.length + 1)
+        if p.length == img.len then
+            img.data = p.data  -- the whole image (the usual poll): no pieces cut and joined
+        else
+            local d = img.data
+            img.data = d:sub(1, p.first) .. p.data .. d:sub(p.first + p.length + 1)
+        end
         if img.nknown < img.len then
             for i = p.first, p.first + p.length - 1 do
                 if mask[i] ~= 255 then
@@ -678,15 +683,15 @@ local function set_link(rec, name, v)
     rec.links[name] = v
 end
 
-local function analyse(c, rec, t, frame, touched)
+local function analyse(c, rec, t, frame, touched_in, touched_out)
     local inp, out = c.input, c.output
     local iv, ov
-    if touched.input then
+    if touched_in then
         iv = {}
         if known(inp, 0, 4) then iv.pci, iv.cci, iv.cai = val(inp, 0), val(inp, 1), val(inp, 3) end
         if known(inp, 20, 1) then iv.bu = val(inp, 20) end
     end
-    if touched.output and known(out, 0, 4) then
+    if touched_out and known(out, 0, 4) then
         ov = { pco = val(out, 0), cco = val(out, 1), cao = val(out, 3) }
     end
     local r = handshake.update(c.hs, iv, ov, t, frame, rec)
@@ -701,7 +706,7 @@ local function analyse(c, rec, t, frame, touched)
     end
     rec[R_PCI_AGE], rec[R_PCO_AGE], rec.bu_state_prev = r.pci_age or false, r.pco_age or false, r.bu_state_prev
     -- periodic output multiplexing
-    if touched.output and known(out, 0, 1) and known(out, 20, 3) then
+    if touched_out and known(out, 0, 1) and known(out, 20, 3) then
         local size = val(out, 20) * 256 + val(out, 21)
         local block = val(out, 22)
         local pco = val(out, 0)
@@ -782,24 +787,42 @@ end
 -- The image accesses of an ADU: r is its parsed request PDU (a request) or
 -- { start =, count = } of its request (a response), nil when unknown.
 -- Worked out again for the tree rather than stored per frame.
+-- The lists are made once per kind of access (a controller polls the same
+-- ranges again and again) and shared: nobody changes them.
+local access_memo, access_memo_n = {}, 0
+local function access_list(fc, start, count, data, coil, write)
+    local k = ((((fc * 64 + data) * 4 + (coil or 2)) * 2 + (write and 1 or 0)) * 65536 + start) * 65536 + count
+    local l = access_memo[k]
+    if not l then
+        l = { { tname = FC_TABLE[fc], start = start, count = count, data = data, coil = coil, write = write } }
+        if data < 64 then
+            if access_memo_n >= 4096 then access_memo, access_memo_n = {}, 0 end
+            access_memo[k], access_memo_n = l, access_memo_n + 1
+        end
+    end
+    return l
+end
+
 local function adu_accesses(tvb, off, adu_len, fcb, is_request, r)
     if not r then return NONE end
     local fc = bit.band(fcb, 0x7F)
-    local tname = FC_TABLE[fc]
     if is_request then
         if r.wstart then
-            return { { tname = tname, start = r.wstart, count = r.wcount, data = r.wdata - off, coil = r.coil,
-                write = true } }
+            return access_list(fc, r.wstart, r.wcount, r.wdata - off, r.coil, true)
         end
     elseif bit.band(fcb, 0x80) == 0 and (fc <= 4 or fc == 23) and adu_len >= 9 then
-        local bc = tvb(off + 8, 1):uint()
+        local bc = tvb_raw(tvb, off + 8, 1):byte()
         local need = (fc <= 2) and math.ceil(r.count / 8) or 2 * r.count
         if bc >= need and adu_len - 7 >= 2 + need then
-            return { { tname = tname, start = r.start, count = r.count, data = 9 } }
+            return access_list(fc, r.start, r.count, 9, nil, nil)
         end
     end
     return NONE
 end
+
+-- The accesses of the ADU the first pass worked out last: the view of the
+-- same dissector call takes them (rawequal: see mapped()).
+local fp_tvb, fp_off, fp_accesses = false, false, NONE
 
 -- First pass: work out what this ADU means and update the connection.
 local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb)
@@ -840,6 +863,7 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb)
         end
     end
     local accesses = adu_accesses(tvb, off, adu_len, fcb, is_request, r)
+    fp_tvb, fp_off, fp_accesses = tvb, off, accesses
     -- detection: from the first evidence on, a candidate's ADUs are analysed
     -- like an accepted connection's, and shown once it is accepted
     -- a listed server: decoded from the first frame, as with "always"
@@ -891,14 +915,16 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb)
         end
         c.last_read, c.last_read_frame = t, pinfo.number
     end
-    local touched = {}
-    for _, a in ipairs(accesses) do
-        for _, p in ipairs(mapped(a, tvb, off)) do
+    local touched_in, touched_out = false, false
+    for i = 1, #accesses do
+        local pieces = mapped(accesses[i], tvb, off)
+        for j = 1, #pieces do
+            local p = pieces[j]
             store_piece(c, p)
-            touched[p.kind] = true
+            if p.kind == "input" then touched_in = true else touched_out = true end
         end
     end
-    analyse(c, rec, t, pinfo.number, touched)
+    analyse(c, rec, t, pinfo.number, touched_in, touched_out)
     if opt.assembled then
         rec.snap_in = snapshot(c, "input")
         rec.snap_out = snapshot(c, "output")
@@ -1054,34 +1080,64 @@ local LINK_NAMES = { "pci_since", "pco_since", "cmd_from_ru_in", "cao_in", "cmd_
 local LATENCY_NAMES = { "cmd_from_ru_latency", "cmd_to_ru_latency" }
 
 -- sp: a sparse plan (sparse_plan()) or nil: the full tree.
+-- The request's start and count as parse_request_pdu() gives them (a
+-- response's accesses need no more).
+local function request_of(rec)
+    return { start = rec[R_START], count = rec[R_COUNT] }
+end
+
+-- The sparse view's context for its adders, and the options of its images:
+-- one table each, filled anew for every ADU (nobody keeps them).
+local sparse_ctx = {}
+local sparse_opts = {}
+
 local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp)
     local fc = bit.band(fcb, 0x7F)
-    local r
-    if is_request then
-        r = parse_request_pdu(tvb, off + 7, adu_len - 7, fc)
-    elseif rec[R_REQUEST] then
-        r = { start = rec[R_START], count = rec[R_COUNT] }
-    end
     if sp then
         -- (a tap that walks the tree's top level, -z io,phs, counts the protocol)
         if sp.protos then add(tree, proto, tvb(off, adu_len)) end
-        local c = { rec = rec, tree = tree, pinfo = pinfo, is_request = is_request }
-        for _, adder in ipairs(sp.adders) do adder(c) end
+        local adders = sp.adders
+        if #adders > 0 then
+            local c = sparse_ctx
+            c.rec, c.tree, c.pinfo, c.is_request = rec, tree, pinfo, is_request
+            for i = 1, #adders do adders[i](c) end
+            c.rec, c.tree, c.pinfo = false, false, false
+        end
         local infos = {}
-        for _, a in ipairs(adu_accesses(tvb, off, adu_len, fcb, is_request, r)) do
-            for _, p in ipairs(mapped(a, tvb, off)) do
+        local accesses
+        if rawequal(fp_tvb, tvb) and fp_off == off then
+            accesses = fp_accesses  -- worked out by the first pass of this call
+        elseif is_request then
+            accesses = adu_accesses(tvb, off, adu_len, fcb, true, parse_request_pdu(tvb, off + 7, adu_len - 7, fc))
+        else
+            accesses = adu_accesses(tvb, off, adu_len, fcb, false, rec[R_REQUEST] and request_of(rec))
+        end
+        local o = sparse_opts
+        o.only = sp.only
+        for i = 1, #accesses do
+            local pieces = mapped(accesses[i], tvb, off)
+            for j = 1, #pieces do
+                local p = pieces[j]
                 if p.length > 0 then
                     local src, soff = piece_source(tvb, p)
-                    local info = image.dissect(src, pinfo, tree, { kind = p.kind, offset = soff, first = p.first,
-                        length = p.length, swap = p.swap, only = sp.only, data = p.data,
-                        image_len = (p.kind == "input") and 64 or 224 })
+                    o.kind, o.offset, o.first, o.length = p.kind, soff, p.first, p.length
+                    o.swap, o.data = p.swap, p.data
+                    o.image_len = (p.kind == "input") and 64 or 224
+                    local info = image.dissect(src, pinfo, tree, o)
                     infos[#infos + 1] = p.kind .. " " .. info.summary
                     if info.tags ~= "" then infos.tags = (infos.tags or "") .. info.tags end
                 end
             end
         end
+        o.data = false
         add_adu_tags(infos, rec, pinfo.visited)
         return infos, rec.poll_gap
+    end
+    local r
+    if is_request then
+        r = parse_request_pdu(tvb, off + 7, adu_len - 7, fc)
+    elseif rec[R_REQUEST] then
+        r = request_of(rec)
     end
     local server = server_text(pinfo, is_request)
     local item = add(tree, proto, tvb(off, adu_len))
@@ -1249,6 +1305,11 @@ local function show_hint(tvb, tree, off, adu_len, rec)
     item:add_proto_expert_info(ef.candidate, rec.hint)
 end
 
+-- The ADUs of a buffer (offset, length, record, function code byte, each),
+-- one array used again by every call: the ADUs are worked out before any is
+-- shown, and nothing shown calls this dissector again.
+local found_scratch = {}
+
 function proto.dissector(tvb, pinfo, tree)
     local consumed = 0
     local how = C and pinfo.match_string
@@ -1275,12 +1336,12 @@ function proto.dissector(tvb, pinfo, tree)
     end
     if opt.detection == DETECT_OFF and not opt.any_servers then return consumed end
     local decoded = false
-    local gaps = {}
-    local found = {}
+    local gaps
+    local found, nf = found_scratch, 0
     local sp = sparse_plan(view)
     local n = tvb_len(tvb)
     local off = 0
-    local infos = {}
+    local infos
     local number, rl = pinfo.number, tvb:reported_len()
     while off + 8 <= n do
         local t1, t2, p1, p2, l1, l2, unit, fcb = tvb_raw(tvb, off, 8):byte(1, 8)
@@ -1304,30 +1365,40 @@ function proto.dissector(tvb, pinfo, tree)
             rec = first_pass(tvb, pinfo, off, adu_len, is_request, t1 * 256 + t2, unit, fcb)
             store_rec(key, number, rl, off, rec, is_request)
         end
-        found[#found + 1] = { off, adu_len, rec, fcb }
+        found[nf + 1], found[nf + 2], found[nf + 3], found[nf + 4] = off, adu_len, rec, fcb
+        nf = nf + 4
         off = off + adu_len
     end
     -- shown after all ADUs of the buffer are worked out: one that recognizes the
     -- connection shows the earlier ones of its frame too, in one pass as in two
-    for _, f in ipairs(found) do
-        local rec = f[3]
+    for i = 1, nf, 4 do
+        local f_off, f_len, rec, f_fcb = found[i], found[i + 1], found[i + 2], found[i + 3]
+        found[i + 2] = false
         -- a candidate's ADU is shown once the connection is accepted
         local shown = rec ~= NOT_DECODED and (rec[R_ACCEPTED] or not rec.pending)
         if shown and quiet then
             decoded = true
         elseif shown then
             decoded = true
-            local adu_infos, gap = show_adu(tvb, pinfo, tree, f[1], f[2], rec, is_request, f[4], sp)
-            for _, s in ipairs(adu_infos) do infos[#infos + 1] = s end
-            if adu_infos.tags then infos.tags = (infos.tags or "") .. adu_infos.tags end
-            if gap then gaps[#gaps + 1] = string.format(" [poll gap %.3f s]", gap) end
+            local adu_infos, gap = show_adu(tvb, pinfo, tree, f_off, f_len, rec, is_request, f_fcb, sp)
+            if not infos then
+                infos = adu_infos  -- (the usual buffer: one ADU)
+            else
+                for _, s in ipairs(adu_infos) do infos[#infos + 1] = s end
+                if adu_infos.tags then infos.tags = (infos.tags or "") .. adu_infos.tags end
+            end
+            if gap then
+                gaps = gaps or {}
+                gaps[#gaps + 1] = string.format(" [poll gap %.3f s]", gap)
+            end
         elseif rec.hint and not rec[R_ACCEPTED] and not quiet then
-            show_hint(tvb, tree, f[1], f[2], rec)
+            show_hint(tvb, tree, f_off, f_len, rec)
         end
     end
+    infos = infos or NONE
     -- the tags first: after Modbus's own long text they stay in view in a
     -- packet list column that cannot show the whole image summary too
-    local tags = (infos.tags or "") .. table.concat(gaps)
+    local tags = (infos.tags or "") .. (gaps and table.concat(gaps) or "")
     if #infos > 0 then
         pinfo.cols.info:append(tags .. " [EC-Link " .. table.concat(infos, "; ") .. "]")
     elseif tags ~= "" then
