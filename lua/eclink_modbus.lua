@@ -363,11 +363,15 @@ local NONE = {}
 local at_key, at_age, at_link, at_time, at_acc
 local TWO32 = 4294967296
 
+-- access_list()'s lists by kind of access
+local access_memo, access_memo_n
+
 local function init_state()
     read_prefs()
     conns, keys_by_ports = {}, {}
     adus = {}
     at_key, at_age, at_link, at_time, at_acc = {}, {}, {}, {}, {}
+    access_memo, access_memo_n = {}, 0
 end
 
 -- A record with nothing beyond its array slots (next() past slot 8 finds no
@@ -555,7 +559,27 @@ local function mapped(a, tvb, off)
         and memo_a.start == a.start and memo_a.count == a.count and memo_a.coil == a.coil) then
         return memo_pieces
     end
-    local pieces = map_access(a.tname, a.start, a.count, tvb, at, a.coil)
+    local pieces
+    if IS_BITS[a.tname] then
+        pieces = map_access(a.tname, a.start, a.count, tvb, at, a.coil)
+    else
+        -- registers: where the pieces lie is worked out once per access (a is
+        -- shared, access_list()); their bytes are put in anew on each call
+        pieces = a.pieces
+        if pieces and a.pieces_swap == opt.swap then
+            for i = 1, #pieces do
+                local p = pieces[i]
+                p.tvb_off = at + p.rel
+                local d = tvb_raw(tvb, p.tvb_off, p.length)
+                if p.swap then d = image.swap_pairs(d) end
+                p.data = d
+            end
+        else
+            pieces = map_access(a.tname, a.start, a.count, tvb, at, a.coil)
+            for i = 1, #pieces do pieces[i].rel = pieces[i].tvb_off - at end
+            a.pieces, a.pieces_swap = pieces, opt.swap
+        end
+    end
     memo_tvb, memo_at, memo_a, memo_pieces = tvb, at, a, pieces
     return pieces
 end
@@ -788,8 +812,8 @@ end
 -- { start =, count = } of its request (a response), nil when unknown.
 -- Worked out again for the tree rather than stored per frame.
 -- The lists are made once per kind of access (a controller polls the same
--- ranges again and again) and shared: nobody changes them.
-local access_memo, access_memo_n = {}, 0
+-- ranges again and again) and shared: nobody changes them but mapped(),
+-- which keeps the places of their pieces on them (access_memo: init_state).
 local function access_list(fc, start, count, data, coil, write)
     local k = ((((fc * 64 + data) * 4 + (coil or 2)) * 2 + (write and 1 or 0)) * 65536 + start) * 65536 + count
     local l = access_memo[k]
