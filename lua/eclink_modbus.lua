@@ -357,11 +357,25 @@ local NONE = {}
 --            (< 2^18), age kind 0 none, 1 PCI age, 2 PCO age (a record with
 --            both stays a table), has range: start and count known
 --   at_age   that age (R_PCI_AGE or R_PCO_AGE)
---   at_link  a request: its response's frame; a response: its request's
+--   at_la    accepted * LINK_SPAN + link, both relative to the frame n:
+--            accepted 0 none, else n - R_ACCEPTED + 1 (<= n: a record
+--            accepted later stays a table); link 0 none, else how far the
+--            linked frame lies (a request: its response's, after it; a
+--            response: its request's, before it), LINK_FAR: in far_links[n]
 --   at_time  a response: time since its request
---   at_acc   R_ACCEPTED
-local at_key, at_age, at_link, at_time, at_acc
+local at_key, at_age, at_la, at_time, far_links
 local TWO32 = 4294967296
+local LINK_SPAN = 2097152
+local LINK_FAR = LINK_SPAN - 1
+
+-- the link part of at_la for frame n linked to frame `to` (nil: none)
+local function link_code(n, to, is_request)
+    if not to then return 0 end
+    local d = is_request and to - n or n - to
+    if d > 0 and d < LINK_FAR then return d end
+    far_links[n] = to
+    return LINK_FAR
+end
 
 -- access_list()'s lists by kind of access
 local access_memo, access_memo_n
@@ -370,7 +384,7 @@ local function init_state()
     read_prefs()
     conns, keys_by_ports = {}, {}
     adus = {}
-    at_key, at_age, at_link, at_time, at_acc = {}, {}, {}, {}, {}
+    at_key, at_age, at_la, at_time, far_links = {}, {}, {}, {}, {}
     access_memo, access_memo_n = {}, 0
 end
 
@@ -378,8 +392,9 @@ end
 -- key) goes flat; it is marked so that the response that answers it later
 -- writes its link into the maps (first_pass).
 local function store_rec(key, n, rl, off, rec, is_request)
+    local acc = rec[R_ACCEPTED]
     if off ~= 0 or rec == NOT_DECODED or fget(at_key, n) ~= nil or rl >= 262144 or #rec ~= 8 or next(rec, 8) ~= nil
-        or (rec[R_PCI_AGE] and rec[R_PCO_AGE]) then
+        or (rec[R_PCI_AGE] and rec[R_PCO_AGE]) or (acc and acc > n) then
         adus[key] = rec
         return
     end
@@ -395,11 +410,11 @@ local function store_rec(key, n, rl, off, rec, is_request)
         fset(at_key, n, (rl * 4 + kind) * 2 * TWO32)
     end
     fset(at_age, n, age)
-    fset(at_acc, n, rec[R_ACCEPTED])
+    local la = acc and (n - acc + 1) * LINK_SPAN or 0
     if is_request then
-        fset(at_link, n, rec[R_RESPONSE])
+        fset(at_la, n, la + link_code(n, rec[R_RESPONSE] or nil, true))
     else
-        fset(at_link, n, rec[R_REQUEST])
+        fset(at_la, n, la + link_code(n, rec[R_REQUEST] or nil, false))
         fset(at_time, n, rec[R_TIME])
     end
     rec.flat = n
@@ -411,7 +426,9 @@ local function load_rec(key, n, rl, off, is_request)
     if v then
         local hi = math.floor(v / TWO32)
         if math.floor(hi / 8) == rl then
-            local rec = { false, false, false, false, false, false, false, fget(at_acc, n) }
+            local la = fget(at_la, n)
+            local acc, lc = math.floor(la / LINK_SPAN), la % LINK_SPAN
+            local rec = { false, false, false, false, false, false, false, acc > 0 and n - acc + 1 }
             if hi % 2 == 1 then
                 local sc = v % TWO32
                 rec[R_START], rec[R_COUNT] = math.floor(sc / 65536), sc % 65536
@@ -419,7 +436,7 @@ local function load_rec(key, n, rl, off, is_request)
             local kind = math.floor(hi / 2) % 4
             if kind == 1 then rec[R_PCI_AGE] = fget(at_age, n)
             elseif kind == 2 then rec[R_PCO_AGE] = fget(at_age, n) end
-            local link = fget(at_link, n)
+            local link = (lc == LINK_FAR) and far_links[n] or (lc > 0 and (is_request and n + lc or n - lc)) or nil
             if is_request then
                 rec[R_RESPONSE] = link or false
             elseif link then
@@ -880,7 +897,14 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb)
             c.pending[tkey] = nil
             rec[R_REQUEST] = r.frame
             rec[R_TIME] = t - r.t
-            if r.rec.flat then fset(at_link, r.rec.flat, pinfo.number) else r.rec[R_RESPONSE] = pinfo.number end
+            local flat = r.rec.flat
+            if flat then
+                -- (a flat request: its response's frame goes into at_la)
+                local la = fget(at_la, flat)
+                fset(at_la, flat, la - la % LINK_SPAN + link_code(flat, pinfo.number, true))
+            else
+                r.rec[R_RESPONSE] = pinfo.number
+            end
             rec[R_START], rec[R_COUNT] = r.start, r.count
         else
             rec.no_request = true
