@@ -70,6 +70,7 @@ local iodata = require("vrshark.iodata") -- vrshark_io hook
 -- (methods called as functions on the per-frame paths: vrshark/api.luam says why)
 local api = require("vrshark.api")
 local add, set_generated, append_text, tvb_len, tvb_raw = api.add, api.set_generated, api.append_text, api.len, api.raw
+local tvb_reported_len = api.reported_len
 -- (the flat records by frame number: vrshark/framemap.luam says why)
 local framemap = require("vrshark.framemap")
 local fget, fset = framemap.get, framemap.set
@@ -459,18 +460,20 @@ init_state()
 -- "client:port>server:port". The text is made once per connection: the
 -- connections of a port pair are told apart by comparing addresses (no
 -- string made per frame).
-local function conn_key(pinfo, is_request)
+local function conn_key(pinfo, is_request, src_port, dst_port)
     local src, dst = pinfo.src, pinfo.dst
+    src_port, dst_port = src_port or pinfo.src_port, dst_port or pinfo.dst_port
     local ca, cp, sa, sp
     if is_request then
-        ca, cp, sa, sp = src, pinfo.src_port, dst, pinfo.dst_port
+        ca, cp, sa, sp = src, src_port, dst, dst_port
     else
-        ca, cp, sa, sp = dst, pinfo.dst_port, src, pinfo.src_port
+        ca, cp, sa, sp = dst, dst_port, src, src_port
     end
     local pk = cp * 65536 + sp
     local list = keys_by_ports[pk]
     if list then
-        for _, e in ipairs(list) do
+        for i = 1, #list do
+            local e = list[i]
             if e[1] == ca and e[2] == sa then return e[3] end
         end
     else
@@ -603,7 +606,9 @@ end
 
 -- Does an access cover a whole input image (the heuristic looks at those)?
 local function full_input(tname, start, count)
-    for _, r in ipairs(REGIONS[tname]) do
+    local regions = REGIONS[tname]
+    for i = 1, #regions do
+        local r = regions[i]
         if r[1] == "input" and start <= r[2] and start + count - 1 >= r[3] then return true end
     end
     return false
@@ -628,10 +633,13 @@ end
 -- The heuristic's look at an ADU of a connection not accepted yet.
 local function look(c, accesses, tvb, off, t)
     local yes = false
-    for _, a in ipairs(accesses) do
+    for i = 1, #accesses do
+        local a = accesses[i]
         local inp, outp = full_input(a.tname, a.start, a.count), full_output_write(a)
         if inp or outp then
-            for _, p in ipairs(mapped(a, tvb, off)) do
+            local pieces = mapped(a, tvb, off)
+            for j = 1, #pieces do
+                local p = pieces[j]
                 if inp and p.kind == "input" and p.length == 64 then
                     yes = detect.input(c.det, p.data, t) or yes
                 elseif outp and p.kind == "output" then
@@ -646,9 +654,12 @@ end
 -- An accepted connection's full input images, watched: false once
 -- detect.DROP_IMAGES of them in a row were invalid.
 local function still_valid(c, accesses, tvb, off)
-    for _, a in ipairs(accesses) do
+    for i = 1, #accesses do
+        local a = accesses[i]
         if full_input(a.tname, a.start, a.count) then
-            for _, p in ipairs(mapped(a, tvb, off)) do
+            local pieces = mapped(a, tvb, off)
+            for j = 1, #pieces do
+                local p = pieces[j]
                 if p.kind == "input" and p.length == 64 and not detect.still_valid(c.watch, p.data) then
                     return false
                 end
@@ -736,12 +747,18 @@ local function analyse(c, rec, t, frame, touched_in, touched_out)
         ov = { pco = val(out, 0), cco = val(out, 1), cao = val(out, 3) }
     end
     local r = handshake.update(c.hs, iv, ov, t, frame, rec)
-    for _, fd in ipairs(r.findings) do
+    -- (numeric loops: the lists are empty on most frames)
+    local fds, back = r.findings, r.back
+    for i = 1, #fds do
+        local fd = fds[i]
         add_finding(rec, { ef[fd[1]] or false, fd[2], once = fd.once and { ef[fd.once[1]], fd.once[2] } })
         if fd[3] then set_link(rec, fd[3], fd[4]) end
     end
-    for k, v in pairs(r.links) do set_link(rec, k, v) end
-    for _, b in ipairs(r.back) do
+    if next(r.links) then
+        for k, v in pairs(r.links) do set_link(rec, k, v) end
+    end
+    for i = 1, #back do
+        local b = back[i]
         set_link(b[1], b[2], b[3])
         if b[4] then add_finding(b[1], { ef[b[4][1]], b[4][2] }) end
     end
@@ -866,12 +883,12 @@ end
 local fp_tvb, fp_off, fp_accesses = false, false, NONE
 
 -- First pass: work out what this ADU means and update the connection.
-local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb)
+local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb, number, src_port, dst_port)
     local fc = bit.band(fcb, 0x7F)
     local pdu, plen = off + 7, adu_len - 7
     local tname = FC_TABLE[fc]
     if not tname then return NOT_DECODED end
-    local c = get_conn(conn_key(pinfo, is_request))
+    local c = get_conn(conn_key(pinfo, is_request, src_port, dst_port))
     if c.pinned == nil then
         -- the server: named in eclink_modbus.servers?
         local addr = tostring(is_request and pinfo.dst or pinfo.src)
@@ -887,7 +904,7 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb)
     if is_request then
         r = parse_request_pdu(tvb, pdu, plen, fc)
         if r then
-            r.frame, r.t, r.rec = pinfo.number, t, rec
+            r.frame, r.t, r.rec = number, t, rec
             c.pending[tkey] = r
             rec[R_START], rec[R_COUNT] = r.start, r.count
         end
@@ -901,9 +918,9 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb)
             if flat then
                 -- (a flat request: its response's frame goes into at_la)
                 local la = fget(at_la, flat)
-                fset(at_la, flat, la - la % LINK_SPAN + link_code(flat, pinfo.number, true))
+                fset(at_la, flat, la - la % LINK_SPAN + link_code(flat, number, true))
             else
-                r.rec[R_RESPONSE] = pinfo.number
+                r.rec[R_RESPONSE] = number
             end
             rec[R_START], rec[R_COUNT] = r.start, r.count
         else
@@ -922,8 +939,8 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb)
         c.tries = c.tries + 1
         c.det.shaped = nil
         if look(c, accesses, tvb, off, t) then
-            c.accepted = pinfo.number
-            for _, pr in ipairs(c.pre) do pr[R_ACCEPTED] = pinfo.number end
+            c.accepted = number
+            for _, pr in ipairs(c.pre) do pr[R_ACCEPTED] = number end
             c.pre = nil
         elseif detect.candidate(c.det) then
             rec.pending = true
@@ -943,7 +960,7 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb)
     -- accepted, but the input images stopped being valid: the connection is
     -- judged afresh from the next ADU on; this one says so (a note, instead
     -- of alarms on every frame of a device that is not, or no longer, a BU)
-    if det == DETECT_HEURISTIC and c.accepted and c.accepted ~= pinfo.number
+    if det == DETECT_HEURISTIC and c.accepted and c.accepted ~= number
         and not still_valid(c, accesses, tvb, off) then
         add_finding(rec, { ef.dropped, string.format(
             "%d input images in a row not valid: connection (recognized in frame %d) no longer taken for a BU's; "
@@ -961,7 +978,7 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb)
             add_finding(rec, { ef.poll_gap, string.format("Input image not read for %.3f s (PCI timeout %.3f s)",
                 gap, opt.pci_timeout) })
         end
-        c.last_read, c.last_read_frame = t, pinfo.number
+        c.last_read, c.last_read_frame = t, number
     end
     local touched_in, touched_out = false, false
     for i = 1, #accesses do
@@ -972,7 +989,7 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb)
             if p.kind == "input" then touched_in = true else touched_out = true end
         end
     end
-    analyse(c, rec, t, pinfo.number, touched_in, touched_out)
+    analyse(c, rec, t, number, touched_in, touched_out)
     if opt.assembled then
         rec.snap_in = snapshot(c, "input")
         rec.snap_out = snapshot(c, "output")
@@ -1113,8 +1130,9 @@ local function add_adu_tags(infos, rec, visited)
     local stalled = handshake.tags(rec[R_PCI_AGE], rec[R_PCO_AGE])
     if stalled ~= "" then infos.tags = (infos.tags or "") .. stalled end
     local unacked, late_ack
-    for _, fd in ipairs(rec.findings or NONE) do
-        local ex = handshake.shown(fd, visited)
+    local fds = rec.findings or NONE
+    for i = 1, #fds do
+        local ex = handshake.shown(fds[i], visited)
         if ex == ef.cmd_from_ru_late or ex == ef.cmd_to_ru_late then unacked = true end
         if ex == ef.cmd_from_ru_late_ack or ex == ef.cmd_to_ru_late_ack then late_ack = true end
     end
@@ -1357,21 +1375,33 @@ end
 -- one array used again by every call: the ADUs are worked out before any is
 -- shown, and nothing shown calls this dissector again.
 local found_scratch = {}
+-- the hook a match_string names (HOOKS) or false, by match_string
+local front_of, front_of_n = {}, 0
 
 function proto.dissector(tvb, pinfo, tree)
     local consumed = 0
     local how = C and pinfo.match_string
     if how == "port_hint" then return port_hint(tvb, pinfo, tree) end
-    local via_front = how and HOOKS[how:match("^[%w_]+")] or false
+    local via_front = false
+    if how then
+        via_front = front_of[how]
+        if via_front == nil then
+            -- (a view string names its hook first; a few strings in all)
+            if front_of_n >= 256 then front_of, front_of_n = {}, 0 end
+            via_front = HOOKS[how:match("^[%w_]+")] or false
+            front_of[how], front_of_n = via_front, front_of_n + 1
+        end
+    end
     local view = via_front and fe.view(how)
     local quiet = view and view.quiet
     local port = pinfo.match_uint
-    local is_request = (pinfo.dst_port == port) and (pinfo.src_port ~= port)
+    local src_port, dst_port = pinfo.src_port, pinfo.dst_port
+    local is_request = (dst_port == port) and (src_port ~= port)
     if not via_front then
         -- let mbtcp use TCP desegmentation as if TCP had called it directly
         if pinfo.can_desegment > 0 then pinfo.can_desegment = pinfo.can_desegment + 1 end
         -- mbtcp tells queries from responses by its own port: show it the BU's as that
-        local sp, dp = pinfo.src_port, pinfo.dst_port
+        local sp, dp = src_port, dst_port
         local moved = port ~= mbtcp_port and (sp == port) ~= (dp == port)
             and sp ~= mbtcp_port and dp ~= mbtcp_port
         if moved then
@@ -1390,7 +1420,7 @@ function proto.dissector(tvb, pinfo, tree)
     local n = tvb_len(tvb)
     local off = 0
     local infos
-    local number, rl = pinfo.number, tvb:reported_len()
+    local number, rl = pinfo.number, tvb_reported_len(tvb)
     while off + 8 <= n do
         local t1, t2, p1, p2, l1, l2, unit, fcb = tvb_raw(tvb, off, 8):byte(1, 8)
         local plen = l1 * 256 + l2
@@ -1410,7 +1440,7 @@ function proto.dissector(tvb, pinfo, tree)
         -- the notes: one the first pass did not see stays Modbus's)
         if not rec and pinfo.visited and via_front then rec = NOT_DECODED end
         if not rec then
-            rec = first_pass(tvb, pinfo, off, adu_len, is_request, t1 * 256 + t2, unit, fcb)
+            rec = first_pass(tvb, pinfo, off, adu_len, is_request, t1 * 256 + t2, unit, fcb, number, src_port, dst_port)
             store_rec(key, number, rl, off, rec, is_request)
         end
         found[nf + 1], found[nf + 2], found[nf + 3], found[nf + 4] = off, adu_len, rec, fcb
