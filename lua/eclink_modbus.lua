@@ -735,16 +735,24 @@ local function set_link(rec, name, v)
     rec.links[name] = v
 end
 
+-- the image values handshake.update() reads (it keeps none of the tables)
+local in_values, out_values = { pci = false, cci = false, cai = false, bu = false }, { pco = 0, cco = 0, cao = 0 }
+
 local function analyse(c, rec, t, frame, touched_in, touched_out)
     local inp, out = c.input, c.output
     local iv, ov
     if touched_in then
-        iv = {}
-        if known(inp, 0, 4) then iv.pci, iv.cci, iv.cai = val(inp, 0), val(inp, 1), val(inp, 3) end
-        if known(inp, 20, 1) then iv.bu = val(inp, 20) end
+        iv = in_values
+        if known(inp, 0, 4) then
+            iv.pci, iv.cci, iv.cai = val(inp, 0), val(inp, 1), val(inp, 3)
+        else
+            iv.pci, iv.cci, iv.cai = nil, nil, nil
+        end
+        iv.bu = known(inp, 20, 1) and val(inp, 20) or nil
     end
     if touched_out and known(out, 0, 4) then
-        ov = { pco = val(out, 0), cco = val(out, 1), cao = val(out, 3) }
+        ov = out_values
+        ov.pco, ov.cco, ov.cao = val(out, 0), val(out, 1), val(out, 3)
     end
     local r = handshake.update(c.hs, iv, ov, t, frame, rec)
     -- (numeric loops: the lists are empty on most frames)
@@ -762,7 +770,9 @@ local function analyse(c, rec, t, frame, touched_in, touched_out)
         set_link(b[1], b[2], b[3])
         if b[4] then add_finding(b[1], { ef[b[4][1]], b[4][2] }) end
     end
-    rec[R_PCI_AGE], rec[R_PCO_AGE], rec.bu_state_prev = r.pci_age or false, r.pco_age or false, r.bu_state_prev
+    rec[R_PCI_AGE], rec[R_PCO_AGE] = r.pci_age or false, r.pco_age or false
+    -- (a nil stored under a new key would make the record a hash part)
+    if r.bu_state_prev ~= nil then rec.bu_state_prev = r.bu_state_prev end
     -- periodic output multiplexing
     if touched_out and known(out, 0, 1) and known(out, 20, 3) then
         local size = val(out, 20) * 256 + val(out, 21)
@@ -824,9 +834,10 @@ local function parse_request_pdu(tvb, off, len, fc)
         r.wstart, r.wcount, r.wdata = r.start, 1, off + 3
     elseif fc == 15 or fc == 16 then
         if len < 6 then return nil end
-        r.start, r.count = tvb(off + 1, 2):uint(), tvb(off + 3, 2):uint()
+        local a1, a2, c1, c2, bc = tvb_raw(tvb, off + 1, 5):byte(1, 5)
+        r.start, r.count = a1 * 256 + a2, c1 * 256 + c2
         local need = (fc == 15) and math.ceil(r.count / 8) or 2 * r.count
-        if len >= 6 + need and tvb(off + 5, 1):uint() >= need then
+        if len >= 6 + need and bc >= need then
             r.wstart, r.wcount, r.wdata = r.start, r.count, off + 6
         end
     elseif fc == 23 then
