@@ -462,7 +462,6 @@ init_state()
 -- string made per frame).
 local function conn_key(pinfo, is_request, src_port, dst_port)
     local src, dst = pinfo.src, pinfo.dst
-    src_port, dst_port = src_port or pinfo.src_port, dst_port or pinfo.dst_port
     local ca, cp, sa, sp
     if is_request then
         ca, cp, sa, sp = src, src_port, dst, dst_port
@@ -508,8 +507,11 @@ end
 ------------------------------------------------------------------------
 -- Mapping Modbus accesses to image bytes
 ------------------------------------------------------------------------
--- Image bytes of one access: list of pieces { kind, first, length, bytes = {[i] = value},
--- bits = {[bytepos] = {mask, value}} , reg = {tvb offset of first data byte} }
+-- Image bytes of one access: list of pieces { kind, first, length, data =
+-- the image bytes as a string, tvb_off = tvb offset of the first data byte,
+-- bitmask = {[bytepos] = {mask, value}} (bits) }. A register piece gets
+-- only its place here (rel: its offset from the access's data); mapped()
+-- puts in its bytes.
 local function map_access(tname, start, count, tvb, data_off, coil_value)
     local pieces = {}
     local swap = opt.swap
@@ -522,11 +524,8 @@ local function map_access(tname, start, count, tvb, data_off, coil_value)
             if not IS_BITS[tname] then
                 p.first = 2 * (lo - lo_a)
                 p.length = 2 * (hi - lo + 1)
-                p.tvb_off = data_off + 2 * (lo - start)
+                p.rel = 2 * (lo - start)
                 p.swap = swap
-                -- the image bytes first .. first + length - 1, as one string
-                p.data = tvb:raw(p.tvb_off, p.length)
-                if swap then p.data = image.swap_pairs(p.data) end
             else
                 -- bits lo..hi (addresses) = image bits (lo - lo_a) .. (hi - lo_a)
                 local b0, b1 = lo - lo_a, hi - lo_a
@@ -575,29 +574,25 @@ end
 local memo_tvb, memo_at, memo_a, memo_pieces = false, false, false, false
 local function mapped(a, tvb, off)
     local at = off + a.data
-    if rawequal(memo_tvb, tvb) and memo_at == at and (rawequal(memo_a, a) or memo_a.tname == a.tname
-        and memo_a.start == a.start and memo_a.count == a.count and memo_a.coil == a.coil) then
-        return memo_pieces
-    end
+    -- (the access lists are shared, access_list(): the same access is the same table)
+    if rawequal(memo_tvb, tvb) and memo_at == at and rawequal(memo_a, a) then return memo_pieces end
     local pieces
     if IS_BITS[a.tname] then
         pieces = map_access(a.tname, a.start, a.count, tvb, at, a.coil)
     else
-        -- registers: where the pieces lie is worked out once per access (a is
-        -- shared, access_list()); their bytes are put in anew on each call
+        -- registers: where the pieces lie is worked out once per access and
+        -- kept on it; their bytes are put in anew on each call
         pieces = a.pieces
-        if pieces and a.pieces_swap == opt.swap then
-            for i = 1, #pieces do
-                local p = pieces[i]
-                p.tvb_off = at + p.rel
-                local d = tvb_raw(tvb, p.tvb_off, p.length)
-                if p.swap then d = image.swap_pairs(d) end
-                p.data = d
-            end
-        else
+        if not pieces or a.pieces_swap ~= opt.swap then
             pieces = map_access(a.tname, a.start, a.count, tvb, at, a.coil)
-            for i = 1, #pieces do pieces[i].rel = pieces[i].tvb_off - at end
             a.pieces, a.pieces_swap = pieces, opt.swap
+        end
+        for i = 1, #pieces do
+            local p = pieces[i]
+            p.tvb_off = at + p.rel
+            local d = tvb_raw(tvb, p.tvb_off, p.length)
+            if p.swap then d = image.swap_pairs(d) end
+            p.data = d
         end
     end
     memo_tvb, memo_at, memo_a, memo_pieces = tvb, at, a, pieces
@@ -977,7 +972,7 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb, 
             "%d input images in a row not valid: connection (recognized in frame %d) no longer taken for a BU's; "
             .. "left to Modbus/TCP until it is recognized again", detect.DROP_IMAGES, c.accepted) })
         rec[R_ACCEPTED] = c.accepted
-        conns[conn_key(pinfo, is_request)] = nil
+        conns[conn_key(pinfo, is_request, src_port, dst_port)] = nil
         return rec
     end
     rec[R_ACCEPTED] = c.accepted or false
