@@ -87,6 +87,10 @@ local CMD_LINKS = { "cmd_from_ru_in", "cmd_to_ru_in" }
 ------------------------------------------------------------------------
 -- First pass
 ------------------------------------------------------------------------
+-- The image values handed to the handshake, one table each direction
+-- filled anew for every frame (the handshake reads them at once).
+local in_values, out_values = {}, {}
+
 -- ba: the C-SDU as a Lua string (byte i at byte(ba, i + 1)).
 local function analyse(rec, ba, t, frame)
     local plan = rec.plan
@@ -100,10 +104,12 @@ local function analyse(rec, ba, t, frame)
     local inp, out
     if plan.dir == "up" then
         local pci, cci, _, cai = byte(ba, o + 1, o + 4)
-        inp = { pci = pci, cci = cci, cai = cai, bu = byte(ba, o + 21) }
+        inp = in_values
+        inp.pci, inp.cci, inp.cai, inp.bu = pci, cci, cai, byte(ba, o + 21)
     else
         local pco, cco, _, cao = byte(ba, o + 1, o + 4)
-        out = { pco = pco, cco = cco, cao = cao }
+        out = out_values
+        out.pco, out.cco, out.cao = pco, cco, cao
     end
     local r = eclink_handshake.update(hs, inp, out, t, frame, rec)
     local links
@@ -211,8 +217,9 @@ image.own_fields(ADDERS, function() end)
 -- no expert names: any referenced expert means the full tree
 local SPARSE = { adders = ADDERS, experts = {}, prefixes = { "eclink_pnio", "eclink", "vrshark_io", "vrshark.io" } }
 
--- false: show() is needed instead. One context table, refilled per frame.
-local ctx = {}
+-- false: show() is needed instead. One context table and one table of the
+-- image's options, refilled per frame (nobody keeps them).
+local ctx, image_opts = {}, {}
 local function sparse(rec, tvb, pinfo, tree, view)
     if view.experts then return false end
     local plan = rec.plan
@@ -228,8 +235,10 @@ local function sparse(rec, tvb, pinfo, tree, view)
     end
     local up = plan.dir == "up"
     local o = plan.image
-    local info = image.dissect(tvb, pinfo, tree, { kind = up and "input" or "output", offset = rec.base + o.off,
-        length = o.len, image_len = o.len, only = view.fields })
+    local opts = image_opts
+    opts.kind, opts.offset, opts.length, opts.image_len = up and "input" or "output", rec.base + o.off, o.len, o.len
+    opts.only = view.fields
+    local info = image.dissect(tvb, pinfo, tree, opts)
     if p.cols then
         -- a command's deadline: in one pass the command's warning, as show()
         local unacked = rec.unacked

@@ -87,6 +87,7 @@ local tries       -- FrameID -> failed header checks
 local frames      -- frame number -> record (shared by frames that analyse alike: shared_record), vrshark.framemap
 local per_frame   -- frame number -> the decoder's per_frame value or false, vrshark.framemap; n: highest filled
 local last_rec    -- plan -> its latest distinct records (shared_record)
+local spare       -- an emptied record table for the next frame (new_record), or nil
 local ars         -- AR UUID -> parsed Connect
 local not_ours    -- expected submodule blocks (expected_key) -> true: no system of ours
 local runs        -- vrshark.pnio_infer state: the runs of FrameIDs without a layout
@@ -190,10 +191,12 @@ end
 local function init()
     if not C then own_ethertype() end
     for port in pairs(cm_ports or {}) do udp_table:remove(port, carrier) end
-    by_fid, pending_down, tries, frames, ars, cm_ports, not_ours = {}, {}, {}, {}, {}, {}, {}
+    by_fid, pending_down, tries, ars, cm_ports, not_ours = {}, {}, {}, {}, {}, {}
     runs = infer.new()
     addr_of, hint_recs, unsettled = {}, {}, nil
-    last_rec, per_frame = {}, { n = 0 }
+    -- (packed: vrshark/framemap.luam says why; the ages are rounded to the ms)
+    frames, per_frame = framemap.packed_refs(), framemap.packed_ms()
+    last_rec, per_frame.n, spare = {}, 0, nil
     local prefs = systems.prefs()
     heuristic, learn = prefs.heuristic, prefs.connect
     if C then fe.pn_frame_id:remove_all(carrier) end
@@ -543,6 +546,18 @@ local function keys(t)
     return n
 end
 
+-- A record that shared_record() found alike to a recent one is not kept:
+-- it is emptied and made the next frame's record (`spare`). Most frames of
+-- a healthy device end so, and a record table (with the hash part its keys
+-- grow twice) was most of what a frame allocated.
+local function new_record(plan, base, size)
+    local rec = spare
+    if not rec then return record.new(plan, base, size) end
+    spare = nil
+    rec.plan, rec.base, rec.size, rec.findings = plan, base, size, record.NO_FINDINGS
+    return rec
+end
+
 local function shared_record(rec, n)
     local per = systems.decoder(rec.plan.system).per_frame
     if per then keep_per_frame(per, rec, n) end
@@ -554,7 +569,14 @@ local function shared_record(rec, n)
     end
     local counts = recent.n
     for i = 1, #recent do
-        if alike(rec, recent[i], counts[i]) then return recent[i] end
+        local r = recent[i]
+        if alike(rec, r, counts[i]) then
+            -- (nothing else holds rec: a decoder hands its record on only
+            -- with a finding, such as a command's, and such a record is kept)
+            for k in next, rec do rec[k] = nil end
+            spare = rec
+            return r
+        end
     end
     recent[recent.next] = rec
     counts[recent.next] = keys(rec)
@@ -566,7 +588,7 @@ end
 local function analysed(plan, s, t, frame)
     local dec = systems.decoder(plan.system)
     if not dec then return nil end
-    local rec = record.new(plan, 2, #s)
+    local rec = new_record(plan, 2, #s)
     if #s < plan.need then
         record.add_finding(rec, "top", dec.short, string.format(
             "C-SDU has %d bytes, the layout needs %d", #s, plan.need))
