@@ -216,34 +216,6 @@ local function is_dcerpc_dg(tvb)
     return ptype == 0 or ptype == 2
 end
 
--- The PNIO blocks of an unfragmented Connect request/response (opnum 0) in
--- a DCE/RPC datagram: { { source = tvb, offset = o, value = block type }, ... },
--- and whether it is the request.
-local function connect_blocks(tvb)
-    if tvb:len() < 80 + 20 then return nil end
-    local ptype = tvb:range(1, 1):uint()
-    if bit.band(tvb:range(2, 1):uint(), 0x04) ~= 0 then return nil end -- a fragment
-    local le = bit.band(tvb:range(4, 1):uint(), 0x10) ~= 0
-    local function u16(o) return le and tvb:range(o, 2):le_uint() or tvb:range(o, 2):uint() end
-    local function u32(o) return le and tvb:range(o, 4):le_uint() or tvb:range(o, 4):uint() end
-    if u16(68) ~= 0 then return nil end -- opnum 0: Connect
-    local p = 80
-    if ptype == 2 and u32(p) ~= 0 then return nil end -- PNIO status not OK
-    local args = u32(p + 4)
-    local start, stop = p + 20, math.min(p + 20 + args, tvb:len())
-    local list = {}
-    -- the block headers read from one string, not a TvbRange each
-    local s = (stop > start) and tvb:raw(start, stop - start) or ""
-    local i = 1
-    while start + 6 <= stop do
-        local t1, t2, l1, l2 = string.byte(s, i, i + 3)
-        list[#list + 1] = { source = tvb, offset = start, value = t1 * 256 + t2 }
-        local step = 4 + l1 * 256 + l2
-        start, i = start + step, i + step
-    end
-    return list, ptype == 0
-end
-
 -- The blocks read, and (true) those read first: the AR and the expected
 -- submodules of a request, the AR of a response. A Connect not of ours
 -- stops there (its submodules are no system of ours, or the response's AR
@@ -251,30 +223,70 @@ end
 -- never read.
 local BLOCKS = { [0x0101] = true, [0x0104] = true, [0x8101] = true, [0x0102] = false, [0x8102] = false }
 
--- The expected submodule blocks of a request, as one string: the key of
--- not_ours (a controller connects the same devices again and again).
-local function expected_key(blocks)
-    local parts
-    for _, fi in ipairs(blocks) do
-        if fi.value == 0x0104 then
-            local tvb, off = fi.source, fi.offset
-            if off + 4 > tvb:len() then return nil end
-            local len = math.min(4 + tvb:range(off + 2, 2):uint(), tvb:len() - off)
-            parts = parts or {}
-            parts[#parts + 1] = tvb:raw(off, len)
-        end
+-- A number of n bytes at (0-based) offset o of the string h, little-endian
+-- when le (the DCE/RPC header's byte order).
+local function num(h, o, n, le)
+    local v = 0
+    if le then
+        for k = n, 1, -1 do v = v * 256 + string.byte(h, o + k) end
+    else
+        for k = 1, n do v = v * 256 + string.byte(h, o + k) end
     end
-    return parts and table.concat(parts)
+    return v
+end
+
+-- The PNIO blocks of an unfragmented Connect request/response (opnum 0) in
+-- a DCE/RPC datagram that learn_connect() reads (BLOCKS), each as its bytes
+-- from the block type on, flat: { type1, bytes1, type2, bytes2, ...,
+-- key = the expected submodule blocks as one string (the key of not_ours;
+-- a controller connects the same devices again and again) }, and whether it
+-- is the request. The datagram is read as two strings: the DCE/RPC and
+-- PNIO headers, and the blocks (a Connect holds many; each TvbRange is a
+-- call into Wireshark).
+local function connect_blocks(tvb)
+    local tlen = tvb:len()
+    if tlen < 80 + 20 then return nil end
+    local h = tvb:raw(0, 100)
+    local ptype = string.byte(h, 2)
+    if bit.band(string.byte(h, 3), 0x04) ~= 0 then return nil end -- a fragment
+    local le = bit.band(string.byte(h, 5), 0x10) ~= 0
+    if num(h, 68, 2, le) ~= 0 then return nil end -- opnum 0: Connect
+    local p = 80
+    if ptype == 2 and num(h, p, 4, le) ~= 0 then return nil end -- PNIO status not OK
+    local args = num(h, p + 4, 4, le)
+    local start, stop = p + 20, math.min(p + 20 + args, tlen)
+    local list, n, parts = {}, 0, nil
+    local s = (stop > start) and tvb:raw(start, tlen - start) or ""
+    local i = 1
+    while start + 6 <= stop do
+        local t1, t2, l1, l2 = string.byte(s, i, i + 3)
+        local t = t1 * 256 + t2
+        local step = 4 + l1 * 256 + l2
+        -- (a block that runs past the datagram is not read)
+        if BLOCKS[t] ~= nil and i + step - 1 <= #s then
+            local bytes = string.sub(s, i, i + step - 1)
+            list[n + 1], list[n + 2] = t, bytes
+            n = n + 2
+            if t == 0x0104 then
+                parts = parts or {}
+                parts[#parts + 1] = bytes
+            end
+        end
+        start, i = start + step, i + step
+    end
+    list.key = parts and table.concat(parts)
+    return list, ptype == 0
 end
 
 local function learn_connect(pinfo, blocks)
     local ar = {}
     local any = false
-    local key = expected_key(blocks)
+    local key = blocks.key
     local function parse(first)
-        for _, fi in ipairs(blocks) do
-            if BLOCKS[fi.value] == first and not (key and not_ours[key] and fi.value == 0x0104)
-                    and layout.parse_block(ar, fi.source, fi.offset) then
+        for j = 1, #blocks, 2 do
+            local t = blocks[j]
+            if BLOCKS[t] == first and not (key and not_ours[key] and t == 0x0104)
+                    and layout.parse_block(ar, blocks[j + 1]) then
                 any = true
             end
         end
