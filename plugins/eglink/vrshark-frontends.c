@@ -49,7 +49,9 @@
  *
  * Table entries are taken again when each file starts (own_pn_rt,
  * own_pn_cm, own_mb_port): the order of plugin hand-offs depends on the
- * folders the plugins sit in, and a later hand-off replaces an entry.
+ * folders the plugins sit in, and a later hand-off replaces an entry. The
+ * Modbus hooks are read once per file (mb_read_hooks): the Lua side sets
+ * them only when its preferences change, and Wireshark dissects anew then.
  *
  * The Lua side detects these tables (DissectorTable.get under pcall),
  * registers its decoders and the FrameIDs it learns into them, and stops
@@ -154,6 +156,27 @@ static lua_view_t view_pn = { "frame_id", pn_lua_protos, { 0 }, NULL, NULL, FALS
 static lua_view_t view_mb_always = { "always", mb_lua_protos, { 0 }, NULL, NULL, FALSE, FALSE, FALSE, NULL };
 static lua_view_t view_mb_heuristic = { "heuristic", mb_lua_protos, { 0 }, NULL, NULL, FALSE, FALSE, FALSE, NULL };
 static lua_view_t view_mb_server = { "server", mb_lua_protos, { 0 }, NULL, NULL, FALSE, FALSE, FALSE, NULL };
+
+/* The Lua decoder's Modbus hooks ("always", "heuristic", "server"), looked up
+ * once per file: it changes them only in its preference callback, and
+ * Wireshark dissects every frame anew after that (frontends_init first).
+ * Three lookups by string a frame were most of what the front end cost a
+ * Modbus/TCP connection that is no BU's. */
+static struct {
+    gboolean read;
+    dissector_handle_t always, heuristic, server;
+} mb_hooks;
+
+static void
+mb_read_hooks(void)
+{
+    if (mb_hooks.read)
+        return;
+    mb_hooks.always = dissector_get_string_handle(mb_hook_table, view_mb_always.hook);
+    mb_hooks.heuristic = dissector_get_string_handle(mb_hook_table, view_mb_heuristic.hook);
+    mb_hooks.server = dissector_get_string_handle(mb_hook_table, view_mb_server.hook);
+    mb_hooks.read = TRUE;
+}
 
 static GArray *view_scratch;   /* lua_view()'s list of this frame */
 static GArray *named_fields;   /* tshark -T fields: its -e fields (header_field_info *) */
@@ -692,7 +715,7 @@ mb_listed(packet_info *pinfo, guint32 server_port)
     char *addr, *key;
     gboolean found;
 
-    if (!dissector_get_string_handle(mb_hook_table, view_mb_server.hook))
+    if (!mb_hooks.server)
         return FALSE;
     if (pinfo->destport == server_port) {
         server = &pinfo->dst;
@@ -719,10 +742,12 @@ static int
 call_mb_decoder(lua_view_t *v, gboolean full, tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree)
 {
     const char *saved = pinfo->match_string;
+    dissector_handle_t h = v == &view_mb_always ? mb_hooks.always : v == &view_mb_server ? mb_hooks.server
+                           : mb_hooks.heuristic;
     int ret;
 
     pinfo->match_string = full ? v->hook : lua_view(v, pinfo, tree);
-    ret = call_dissector_only(dissector_get_string_handle(mb_hook_table, v->hook), tvb, pinfo, tree, NULL);
+    ret = call_dissector_only(h, tvb, pinfo, tree, NULL);
     pinfo->match_string = saved;
     return ret;
 }
@@ -773,7 +798,8 @@ dissect_mbtcp_front(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *d
     consumed = call_mbtcp(tvb, pinfo, tree, data);
     if (consumed <= 0)
         return consumed;
-    if (dissector_get_string_handle(mb_hook_table, view_mb_always.hook)) {
+    mb_read_hooks();
+    if (mb_hooks.always) {
         call_mb_decoder(&view_mb_always, FALSE, tvb, pinfo, tree);
         return consumed;
     }
@@ -781,8 +807,7 @@ dissect_mbtcp_front(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *d
         call_mb_decoder(&view_mb_server, FALSE, tvb, pinfo, tree);
         return consumed;
     }
-    if (!dissector_get_string_handle(mb_hook_table, view_mb_heuristic.hook) ||
-        !(conv = find_conversation_pinfo(pinfo, 0)))
+    if (!mb_hooks.heuristic || !(conv = find_conversation_pinfo(pinfo, 0)))
         return consumed;
     key = GUINT_TO_POINTER(conv->conv_index);
     state = GPOINTER_TO_UINT(wmem_map_lookup(mb_state, key));
@@ -867,6 +892,7 @@ frontends_init(void)
 
     memset(pn_tries, 0, sizeof pn_tries);
     mb_state = wmem_map_new(wmem_file_scope(), g_direct_hash, g_direct_equal);
+    mb_hooks.read = FALSE;
     for (i = 0; i < pn_learned_ports->len; i++)
         dissector_delete_uint("udp.port", g_array_index(pn_learned_ports, guint32, i), pn_cm_handle);
     g_array_set_size(pn_learned_ports, 0);
