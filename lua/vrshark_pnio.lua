@@ -89,7 +89,7 @@ local per_frame   -- frame number -> the decoder's per_frame value or false, vrs
 local last_rec    -- plan -> its latest distinct records (shared_record)
 local spare       -- an emptied record table for the next frame (new_record), or nil
 local ars         -- AR UUID -> parsed Connect
-local not_ours    -- expected submodule blocks (expected_key) -> true: no system of ours
+local not_ours    -- expected submodule blocks (connect_blocks' key) -> true: no system of ours
 local runs        -- vrshark.pnio_infer state: the runs of FrameIDs without a layout
 local addr_of     -- station key of pnio_infer (tostring of an Ethernet address) -> Address
 local hint_recs   -- hint of pnio_infer -> the record of its candidate frames
