@@ -564,10 +564,8 @@ end
 -- grow twice) was most of what a frame allocated.
 local function new_record(plan, base, size)
     local rec = spare
-    if not rec then return record.new(plan, base, size) end
     spare = nil
-    rec.plan, rec.base, rec.size, rec.findings = plan, base, size, record.NO_FINDINGS
-    return rec
+    return record.new(plan, base, size, rec)
 end
 
 local function shared_record(rec, n)
