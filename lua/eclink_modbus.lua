@@ -1175,7 +1175,9 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
             for i = 1, #adders do adders[i](c) end
             c.rec, c.tree, c.pinfo = false, false, false
         end
-        local infos = {}
+        -- (no columns: no Info text, no image summaries)
+        local cols = sp.cols
+        local infos = cols and {} or NONE
         local accesses
         if rawequal(fp_tvb, tvb) and fp_off == off then
             accesses = fp_accesses  -- worked out by the first pass of this call
@@ -1185,7 +1187,7 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
             accesses = adu_accesses(tvb, off, adu_len, fcb, false, rec[R_REQUEST] and request_of(rec))
         end
         local o = sparse_opts
-        o.only = sp.only
+        o.only, o.no_summary = sp.only, not cols
         for i = 1, #accesses do
             local pieces = mapped(accesses[i], tvb, off)
             for j = 1, #pieces do
@@ -1196,12 +1198,15 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
                     o.swap, o.data = p.swap, p.data
                     o.image_len = (p.kind == "input") and 64 or 224
                     local info = image.dissect(src, pinfo, tree, o)
-                    infos[#infos + 1] = p.kind .. " " .. info.summary
-                    if info.tags ~= "" then infos.tags = (infos.tags or "") .. info.tags end
+                    if cols then
+                        infos[#infos + 1] = p.kind .. " " .. info.summary
+                        if info.tags ~= "" then infos.tags = (infos.tags or "") .. info.tags end
+                    end
                 end
             end
         end
         o.data = false
+        if not cols then return infos, false end
         add_adu_tags(infos, rec, pinfo.visited)
         return infos, rec.poll_gap
     end

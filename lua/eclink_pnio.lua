@@ -237,7 +237,7 @@ local function sparse(rec, tvb, pinfo, tree, view)
     local o = plan.image
     local opts = image_opts
     opts.kind, opts.offset, opts.length, opts.image_len = up and "input" or "output", rec.base + o.off, o.len, o.len
-    opts.only = view.fields
+    opts.only, opts.no_summary = view.fields, not p.cols
     local info = image.dissect(tvb, pinfo, tree, opts)
     if p.cols then
         -- a command's deadline: in one pass the command's warning, as show()

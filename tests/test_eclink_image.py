@@ -149,6 +149,32 @@ def test_output_checks(tshark, raw_capture):
     assert 3 not in exp
 
 
+def test_checks_kept_by_the_bytes_they_read(tshark, raw_capture):
+    """The findings of an image are kept by the bytes the checks read (20 on:
+    the counters before them move on every cycle): an image that differs in
+    the counters alone gets the same findings and its own summary, one that
+    differs in a checked byte its own findings."""
+    blocked = input_image(b20=0x03)
+    cap = raw_capture(blocked, input_image(b20=0x03, b0=6, b2=2), input_image(b0=6, b2=2),
+                      output_image(size=60000), output_image(size=60000)[:4] + b"OTHER-CMD".ljust(16, b"\0")
+                      + output_image(size=60000)[20:], bytes([8]) + output_image(size=60000)[1:],
+                      bytes([8]) + output_image()[1:])
+    exp = tshark.experts(cap, extra=["-o", USER_DLT])
+    relays = ["ES-Link relays open: BU state Blocked (0x03)"]
+    over = ["Periodic data size 60000 is over 51200"]
+    assert exp == {1: relays, 2: relays, 4: over, 5: over, 6: over}
+    info = tshark.field(cap, "_ws.col.Info", extra=["-o", USER_DLT])
+    assert info == [
+        "Input image PCI=5 CCI=2 BU=Blocked RU 0x1234=Enabled [relays open]",
+        "Input image PCI=6 CCI=2 BU=Blocked RU 0x1234=Enabled [relays open]",
+        "Input image PCI=6 CCI=2 BU=Armed RU 0x1234=Enabled",
+        "Output image PCO=7 CCO=8 CAO=3 size=60000 block=1 [undefined]",
+        "Output image PCO=7 CCO=8 CAO=3 size=60000 block=1 [undefined]",
+        "Output image PCO=8 CCO=8 CAO=3 size=60000 block=1 [undefined]",
+        "Output image PCO=8 CCO=8 CAO=3 size=300 block=1",
+    ]
+
+
 def test_bad_length(tshark, raw_capture):
     cap = raw_capture(bytes(10))
     assert tshark.experts(cap, extra=["-o", USER_DLT]) == {
