@@ -70,6 +70,11 @@ local iodata = require("vrshark.iodata") -- vrshark_io hook
 -- (methods called as functions on the per-frame paths: vrshark/api.luam says why)
 local api = require("vrshark.api")
 local add, set_generated, append_text, tvb_len, tvb_raw = api.add, api.set_generated, api.append_text, api.len, api.raw
+-- (the pinfo attributes read on every frame)
+local p_number, p_visited, p_abs_ts, p_src, p_dst = api.pinfo.number, api.pinfo.visited, api.pinfo.abs_ts,
+    api.pinfo.src, api.pinfo.dst
+local p_src_port, p_dst_port, p_match_uint, p_match_string = api.pinfo.src_port, api.pinfo.dst_port,
+    api.pinfo.match_uint, api.pinfo.match_string
 local tvb_reported_len = api.reported_len
 -- (the flat records by frame number: vrshark/framemap.luam says why)
 local framemap = require("vrshark.framemap")
@@ -461,7 +466,7 @@ init_state()
 -- connections of a port pair are told apart by comparing addresses (no
 -- string made per frame).
 local function conn_key(pinfo, is_request, src_port, dst_port)
-    local src, dst = pinfo.src, pinfo.dst
+    local src, dst = p_src(pinfo), p_dst(pinfo)
     local ca, cp, sa, sp
     if is_request then
         ca, cp, sa, sp = src, src_port, dst, dst_port
@@ -903,7 +908,7 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb, 
         c.setting = servers.setting(addr, port)
     end
     local tkey = (tid * 256 + unit) * 256 + fc
-    local t = pinfo.abs_ts
+    local t = p_abs_ts(pinfo)
     -- the usual per-frame values in the array part (8 slots, no hash part)
     local rec = { false, false, false, false, false, false, false, false }
     local r
@@ -1391,7 +1396,7 @@ local front_of, front_of_n = {}, 0
 
 function proto.dissector(tvb, pinfo, tree)
     local consumed = 0
-    local how = C and pinfo.match_string
+    local how = C and p_match_string(pinfo)
     if how == "port_hint" then return port_hint(tvb, pinfo, tree) end
     local via_front = false
     if how then
@@ -1405,8 +1410,8 @@ function proto.dissector(tvb, pinfo, tree)
     end
     local view = via_front and fe.view(how)
     local quiet = view and view.quiet
-    local port = pinfo.match_uint
-    local src_port, dst_port = pinfo.src_port, pinfo.dst_port
+    local port = p_match_uint(pinfo)
+    local src_port, dst_port = p_src_port(pinfo), p_dst_port(pinfo)
     local is_request = (dst_port == port) and (src_port ~= port)
     if not via_front then
         -- let mbtcp use TCP desegmentation as if TCP had called it directly
@@ -1431,7 +1436,7 @@ function proto.dissector(tvb, pinfo, tree)
     local n = tvb_len(tvb)
     local off = 0
     local infos
-    local number, rl = pinfo.number, tvb_reported_len(tvb)
+    local number, rl = p_number(pinfo), tvb_reported_len(tvb)
     while off + 8 <= n do
         local t1, t2, p1, p2, l1, l2, unit, fcb = tvb_raw(tvb, off, 8):byte(1, 8)
         local plen = l1 * 256 + l2
@@ -1449,7 +1454,7 @@ function proto.dissector(tvb, pinfo, tree)
         local rec = load_rec(key, number, rl, off, is_request)
         -- (the C front end hands a candidate's later frames over again for
         -- the notes: one the first pass did not see stays Modbus's)
-        if not rec and pinfo.visited and via_front then rec = NOT_DECODED end
+        if not rec and via_front and p_visited(pinfo) then rec = NOT_DECODED end
         if not rec then
             rec = first_pass(tvb, pinfo, off, adu_len, is_request, t1 * 256 + t2, unit, fcb, number, src_port, dst_port)
             store_rec(key, number, rl, off, rec, is_request)
@@ -1493,7 +1498,7 @@ function proto.dissector(tvb, pinfo, tree)
     elseif tags ~= "" then
         pinfo.cols.info:append(tags)
     end
-    if via_front and decoded then return tvb:len() end
+    if via_front and decoded then return n end
     return consumed
 end
 

@@ -6,7 +6,7 @@ import subprocess
 
 import pytest
 
-from conftest import assert_fields
+from conftest import CAPTURES, ROOT, assert_fields
 
 USER_DLT = 'uat:user_dlts:"User 0 (DLT=147)","eclink","0","","0",""'
 
@@ -180,3 +180,42 @@ def test_bad_length(tshark, raw_capture):
     assert tshark.experts(cap, extra=["-o", USER_DLT]) == {
         1: ["10 bytes is not an EC-Link image (input 64, output 20 or 224)"]}
     assert tshark.field(cap, "_ws.col.Info", extra=["-o", USER_DLT]) == ["Not an EC-Link image (10 bytes)"]
+
+
+SWAP_SCRIPT = r"""
+package.path = %(lua)r .. "/?.luam;" .. package.path
+local image = require("vrshark.eclink_image")
+local out = assert(io.open(%(out)r, "w"))
+local bad = 0
+for n = 0, 300 do
+    local t = {}
+    for i = 1, n do t[i] = string.char((i * 151 + n * 7) %% 256) end
+    local x = table.concat(t)
+    -- the reference: each pair swapped, an odd last byte left
+    local want = x:gsub("(.)(.)", "%%2%%1")
+    if image.swap_pairs(x) ~= want then
+        bad = bad + 1
+        out:write("BAD length ", n, "\n")
+    end
+end
+out:write("bad ", bad, "\n")
+out:close()
+"""
+
+
+def test_swap_pairs_every_length(tshark, work_dir):
+    """Register bytes in image order (the Modbus decoder swaps every image it
+    sees, 32 bytes a step): each length from 0 to 300, odd ones included,
+    against a gsub of pairs."""
+    out = work_dir / "swap.txt"
+    out.touch()
+    out.chmod(0o666)
+    script = work_dir / "swap_probe.lua"
+    script.write_text(SWAP_SCRIPT % {"lua": str(ROOT / "lua"), "out": str(out)})
+    script.chmod(0o644)
+    proc = subprocess.run([tshark.cmd, "-n", "-q", "-r", str(CAPTURES / "eclink_pnio_connect.pcap"), "-c", "1",
+                           "-X", "lua_script:%s" % script], env=tshark.env, capture_output=True, text=True,
+                          timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert "Lua Error" not in proc.stdout + proc.stderr
+    assert out.read_text().splitlines() == ["bad 0"]
