@@ -327,6 +327,13 @@ local conns      -- connection key -> connection state
 local keys_by_ports -- client port * 65536 + server port -> { { client Address, server Address, key }, ... }
 local adus       -- ADU key -> what the first pass worked out for it (but plain records: below)
 
+-- seconds (a difference of pcap timestamps) to the microsecond: the times a
+-- record keeps (shown to the microsecond; the flat records keep them as
+-- whole microseconds: one pass and two agree)
+local function to_us(secs)
+    return math.floor(secs * 1e6 + 0.5) / 1e6
+end
+
 -- seconds (a difference of pcap timestamps) as an NSTime, to the microsecond
 local function nstime(secs)
     local us = math.floor(secs * 1e6 + 0.5)
@@ -357,15 +364,16 @@ local NONE = {}
 -- but in these maps by frame number (vrshark/framemap.luam says why). A
 -- table per ADU (about 250 bytes with its entry in `adus`) made most of the
 -- plugin's memory, and its garbage collection most of its time, on long
--- captures.
+-- captures. The maps are packed (a few bytes a frame in a string once the
+-- capture has moved past a chunk of frames): values that repeat from frame
+-- to frame as numbers of 3 bytes, times in whole microseconds.
 --   at_key   ((rl * 4 + age kind) * 2 + has range) * 2^32 + start * 65536 + count:
 --            rl the reported length of the buffer the values belong to
 --            (< 2^18), age kind 0 none, 1 PCI age, 2 PCO age (a record with
 --            both stays a table), has range: start and count known
 --   at_age   that age (R_PCI_AGE or R_PCO_AGE)
---   at_la    accepted * LINK_SPAN + link, both relative to the frame n:
---            accepted 0 none, else n - R_ACCEPTED + 1 (<= n: a record
---            accepted later stays a table); link 0 none, else how far the
+--   at_la    accepted * LINK_SPAN + link: accepted 0 none, else the frame
+--            it was accepted in (R_ACCEPTED); link 0 none, else how far the
 --            linked frame lies (a request: its response's, after it; a
 --            response: its request's, before it), LINK_FAR: in far_links[n]
 --   at_time  a response: time since its request
@@ -390,7 +398,8 @@ local function init_state()
     read_prefs()
     conns, keys_by_ports = {}, {}
     adus = {}
-    at_key, at_age, at_la, at_time, far_links = {}, {}, {}, {}, {}
+    at_key, at_age, at_la, at_time, far_links = framemap.packed_refs(), framemap.packed_us(), framemap.packed_refs(),
+        framemap.packed_us(), {}
     access_memo, access_memo_n = {}, 0
 end
 
@@ -400,7 +409,7 @@ end
 local function store_rec(key, n, rl, off, rec, is_request)
     local acc = rec[R_ACCEPTED]
     if off ~= 0 or rec == NOT_DECODED or fget(at_key, n) ~= nil or rl >= 262144 or #rec ~= 8 or next(rec, 8) ~= nil
-        or (rec[R_PCI_AGE] and rec[R_PCO_AGE]) or (acc and acc > n) then
+        or (rec[R_PCI_AGE] and rec[R_PCO_AGE]) then
         adus[key] = rec
         return
     end
@@ -416,7 +425,7 @@ local function store_rec(key, n, rl, off, rec, is_request)
         fset(at_key, n, (rl * 4 + kind) * 2 * TWO32)
     end
     fset(at_age, n, age)
-    local la = acc and (n - acc + 1) * LINK_SPAN or 0
+    local la = acc and acc * LINK_SPAN or 0
     if is_request then
         fset(at_la, n, la + link_code(n, rec[R_RESPONSE] or nil, true))
     else
@@ -434,7 +443,7 @@ local function load_rec(key, n, rl, off, is_request)
         if math.floor(hi / 8) == rl then
             local la = fget(at_la, n)
             local acc, lc = math.floor(la / LINK_SPAN), la % LINK_SPAN
-            local rec = { false, false, false, false, false, false, false, acc > 0 and n - acc + 1 }
+            local rec = { false, false, false, false, false, false, false, acc > 0 and acc }
             if hi % 2 == 1 then
                 local sc = v % TWO32
                 rec[R_START], rec[R_COUNT] = math.floor(sc / 65536), sc % 65536
@@ -770,7 +779,7 @@ local function analyse(c, rec, t, frame, touched_in, touched_out)
         set_link(b[1], b[2], b[3])
         if b[4] then add_finding(b[1], { ef[b[4][1]], b[4][2] }) end
     end
-    rec[R_PCI_AGE], rec[R_PCO_AGE] = r.pci_age or false, r.pco_age or false
+    rec[R_PCI_AGE], rec[R_PCO_AGE] = r.pci_age and to_us(r.pci_age) or false, r.pco_age and to_us(r.pco_age) or false
     -- (a nil stored under a new key would make the record a hash part)
     if r.bu_state_prev ~= nil then rec.bu_state_prev = r.bu_state_prev end
     -- periodic output multiplexing
@@ -924,7 +933,7 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb, 
         if r then
             c.pending[tkey] = nil
             rec[R_REQUEST] = r.frame
-            rec[R_TIME] = t - r.t
+            rec[R_TIME] = to_us(t - r.t)
             local flat = r.rec.flat
             if flat then
                 -- (a flat request: its response's frame goes into at_la)

@@ -277,3 +277,24 @@ def work_dir():
     path = _world_dir("vrshark-work-", 0o777)
     yield path
     shutil.rmtree(path, ignore_errors=True)
+
+
+@pytest.fixture
+def lua_probe(tshark, work_dir):
+    """lua_probe(script) -> the lines a Lua script run inside tshark (-X
+    lua_script, over one frame) wrote to the file named by %(out)r; %(lua)r
+    names lua/, for the script's package.path."""
+    def run(script):
+        out = work_dir / "probe.txt"
+        out.touch()
+        out.chmod(0o666)
+        path = work_dir / "probe.lua"
+        path.write_text(script % {"lua": str(ROOT / "lua"), "out": str(out)})
+        path.chmod(0o644)
+        proc = subprocess.run([tshark.cmd, "-n", "-q", "-r", str(CAPTURES / "eclink_pnio_connect.pcap"), "-c", "1",
+                               "-X", "lua_script:%s" % path], env=tshark.env, capture_output=True, text=True,
+                              timeout=300)
+        assert proc.returncode == 0, proc.stderr
+        assert "Lua Error" not in proc.stdout + proc.stderr
+        return out.read_text().splitlines()
+    return run

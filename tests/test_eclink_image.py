@@ -6,7 +6,7 @@ import subprocess
 
 import pytest
 
-from conftest import CAPTURES, ROOT, assert_fields
+from conftest import assert_fields
 
 USER_DLT = 'uat:user_dlts:"User 0 (DLT=147)","eclink","0","","0",""'
 
@@ -203,19 +203,8 @@ out:close()
 """
 
 
-def test_swap_pairs_every_length(tshark, work_dir):
+def test_swap_pairs_every_length(lua_probe):
     """Register bytes in image order (the Modbus decoder swaps every image it
     sees, 32 bytes a step): each length from 0 to 300, odd ones included,
     against a gsub of pairs."""
-    out = work_dir / "swap.txt"
-    out.touch()
-    out.chmod(0o666)
-    script = work_dir / "swap_probe.lua"
-    script.write_text(SWAP_SCRIPT % {"lua": str(ROOT / "lua"), "out": str(out)})
-    script.chmod(0o644)
-    proc = subprocess.run([tshark.cmd, "-n", "-q", "-r", str(CAPTURES / "eclink_pnio_connect.pcap"), "-c", "1",
-                           "-X", "lua_script:%s" % script], env=tshark.env, capture_output=True, text=True,
-                          timeout=300)
-    assert proc.returncode == 0, proc.stderr
-    assert "Lua Error" not in proc.stdout + proc.stderr
-    assert out.read_text().splitlines() == ["bad 0"]
+    assert lua_probe(SWAP_SCRIPT) == ["bad 0"]
