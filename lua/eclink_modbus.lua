@@ -403,15 +403,30 @@ local function init_state()
     access_memo, access_memo_n = {}, 0
 end
 
+-- The record tables the dissector is done with (kept flat, or rebuilt
+-- from the flat maps for one call), used again: most frames make none.
+local spare_rec = false
+local function take_rec()
+    local rec = spare_rec
+    if not rec then return { false, false, false, false, false, false, false, false } end
+    spare_rec = false
+    for i = 1, 8 do rec[i] = false end
+    return rec
+end
+
+-- The pending request first_pass() made last (its record may go flat).
+local last_request = false
+
 -- A record with nothing beyond its array slots (next() past slot 8 finds no
--- key) goes flat; it is marked so that the response that answers it later
--- writes its link into the maps (first_pass).
+-- key) goes flat: true, and its table is free once the frame is shown. A
+-- request's pending entry then names its frame (flat), so that the
+-- response that answers it writes its link into the maps (first_pass).
 local function store_rec(key, n, rl, off, rec, is_request)
     local acc = rec[R_ACCEPTED]
     if off ~= 0 or rec == NOT_DECODED or fget(at_key, n) ~= nil or rl >= 262144 or #rec ~= 8 or next(rec, 8) ~= nil
         or (rec[R_PCI_AGE] and rec[R_PCO_AGE]) then
         adus[key] = rec
-        return
+        return false
     end
     local kind, age = 0, false
     if rec[R_PCI_AGE] then
@@ -432,10 +447,13 @@ local function store_rec(key, n, rl, off, rec, is_request)
         fset(at_la, n, la + link_code(n, rec[R_REQUEST] or nil, false))
         fset(at_time, n, rec[R_TIME])
     end
-    rec.flat = n
+    local r = last_request
+    if is_request and r and r.rec == rec then r.rec, r.flat = false, n end
+    return true
 end
 
--- The record of an ADU (a table; a flat one rebuilt), or nil: not seen.
+-- The record of an ADU (a table; a flat one rebuilt: true second), or nil:
+-- not seen.
 local function load_rec(key, n, rl, off, is_request)
     local v = off == 0 and fget(at_key, n)
     if v then
@@ -443,7 +461,8 @@ local function load_rec(key, n, rl, off, is_request)
         if math.floor(hi / 8) == rl then
             local la = fget(at_la, n)
             local acc, lc = math.floor(la / LINK_SPAN), la % LINK_SPAN
-            local rec = { false, false, false, false, false, false, false, acc > 0 and acc }
+            local rec = take_rec()
+            rec[R_ACCEPTED] = acc > 0 and acc
             if hi % 2 == 1 then
                 local sc = v % TWO32
                 rec[R_START], rec[R_COUNT] = math.floor(sc / 65536), sc % 65536
@@ -457,10 +476,10 @@ local function load_rec(key, n, rl, off, is_request)
             elseif link then
                 rec[R_REQUEST], rec[R_TIME] = link, fget(at_time, n)
             end
-            return rec
+            return rec, true
         end
     end
-    return adus[key]
+    return adus[key], false
 end
 -- (the port is taken at each file start; at load, by prefs_changed() below,
 -- once the dissector exists)
@@ -825,9 +844,10 @@ end
 ------------------------------------------------------------------------
 -- One ADU
 ------------------------------------------------------------------------
-local function parse_request_pdu(tvb, off, len, fc)
+-- into: an emptied table to fill (first_pass(): the spare one), or nil
+local function parse_request_pdu(tvb, off, len, fc, into)
     -- returns start, count, data offset (writes), coil value (fc 5)
-    local r = {}
+    local r = into or {}
     if len < 5 then return nil end
     if fc == 1 or fc == 2 or fc == 3 or fc == 4 then
         local a1, a2, c1, c2 = tvb:raw(off + 1, 4):byte(1, 4)
@@ -902,6 +922,19 @@ end
 -- same dissector call takes them (rawequal: see mapped()).
 local fp_tvb, fp_off, fp_accesses = false, false, NONE
 
+-- A pending request's table, used again once its response is worked out
+-- (emptied: parse_request_pdu() and first_pass() set its keys again).
+local spare_req = false
+local function take_req()
+    local r = spare_req
+    if r then
+        spare_req = false
+        r.start, r.count, r.wstart, r.wcount, r.wdata, r.coil = nil, nil, nil, nil, nil, nil
+        r.frame, r.t, r.rec, r.flat = nil, nil, nil, nil
+    end
+    return r
+end
+
 -- First pass: work out what this ADU means and update the connection.
 local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb, number, src_port, dst_port)
     local fc = bit.band(fcb, 0x7F)
@@ -919,13 +952,15 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb, 
     local tkey = (tid * 256 + unit) * 256 + fc
     local t = p_abs_ts(pinfo)
     -- the usual per-frame values in the array part (8 slots, no hash part)
-    local rec = { false, false, false, false, false, false, false, false }
+    local rec = take_rec()
     local r
+    last_request = false
     if is_request then
-        r = parse_request_pdu(tvb, pdu, plen, fc)
+        r = parse_request_pdu(tvb, pdu, plen, fc, take_req())
         if r then
             r.frame, r.t, r.rec = number, t, rec
             c.pending[tkey] = r
+            last_request = r
             rec[R_START], rec[R_COUNT] = r.start, r.count
         end
     else
@@ -934,7 +969,7 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb, 
             c.pending[tkey] = nil
             rec[R_REQUEST] = r.frame
             rec[R_TIME] = to_us(t - r.t)
-            local flat = r.rec.flat
+            local flat = r.flat
             if flat then
                 -- (a flat request: its response's frame goes into at_la)
                 local la = fget(at_la, flat)
@@ -948,6 +983,8 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb, 
         end
     end
     local accesses = adu_accesses(tvb, off, adu_len, fcb, is_request, r)
+    -- (a response's request is done with: nobody keeps it)
+    if r and not is_request then spare_req = r end
     fp_tvb, fp_off, fp_accesses = tvb, off, accesses
     -- detection: from the first evidence on, a candidate's ADUs are analysed
     -- like an accepted connection's, and shown once it is accepted
@@ -1460,21 +1497,22 @@ function proto.dissector(tvb, pinfo, tree)
         else
             key = number .. ":" .. rl .. ":" .. off
         end
-        local rec = load_rec(key, number, rl, off, is_request)
+        local rec, done = load_rec(key, number, rl, off, is_request)
         -- (the C front end hands a candidate's later frames over again for
         -- the notes: one the first pass did not see stays Modbus's)
         if not rec and via_front and p_visited(pinfo) then rec = NOT_DECODED end
         if not rec then
             rec = first_pass(tvb, pinfo, off, adu_len, is_request, t1 * 256 + t2, unit, fcb, number, src_port, dst_port)
-            store_rec(key, number, rl, off, rec, is_request)
+            done = store_rec(key, number, rl, off, rec, is_request)
         end
-        found[nf + 1], found[nf + 2], found[nf + 3], found[nf + 4] = off, adu_len, rec, fcb
-        nf = nf + 4
+        -- done: a flat record's table, free once shown
+        found[nf + 1], found[nf + 2], found[nf + 3], found[nf + 4], found[nf + 5] = off, adu_len, rec, fcb, done
+        nf = nf + 5
         off = off + adu_len
     end
     -- shown after all ADUs of the buffer are worked out: one that recognizes the
     -- connection shows the earlier ones of its frame too, in one pass as in two
-    for i = 1, nf, 4 do
+    for i = 1, nf, 5 do
         local f_off, f_len, rec, f_fcb = found[i], found[i + 1], found[i + 2], found[i + 3]
         found[i + 2] = false
         -- a candidate's ADU is shown once the connection is accepted
@@ -1497,6 +1535,7 @@ function proto.dissector(tvb, pinfo, tree)
         elseif rec.hint and not rec[R_ACCEPTED] and not quiet then
             show_hint(tvb, tree, f_off, f_len, rec)
         end
+        if found[i + 4] then spare_rec = rec end
     end
     infos = infos or NONE
     -- the tags first: after Modbus's own long text they stay in view in a
