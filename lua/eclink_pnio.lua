@@ -231,7 +231,8 @@ local function sparse(rec, tvb, pinfo, tree, view)
     if #p.adders > 0 then
         local c = ctx
         c.rec, c.tvb, c.tree, c.plan = rec, tvb, tree, plan
-        for _, adder in ipairs(p.adders) do adder(c) end
+        local adders = p.adders
+        for i = 1, #adders do adders[i](c) end
     end
     local up = plan.dir == "up"
     local o = plan.image

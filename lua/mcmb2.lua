@@ -773,7 +773,8 @@ local function sparse(rec, tvb, pinfo, tree, view)
     if #p.adders > 0 then
         local c = ctx
         c.rec, c.tvb, c.tree, c.plan, c.up, c.h = rec, tvb, tree, plan, plan.dir == "up", h
-        for _, adder in ipairs(p.adders) do adder(c) end
+        local adders = p.adders
+        for i = 1, #adders do adders[i](c) end
     end
     if p.experts then record.finish(rec, tree) end
     if p.cols then

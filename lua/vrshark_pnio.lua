@@ -60,6 +60,9 @@ local wrap = require("vrshark.wrap")
 -- (methods called as functions: vrshark/api.luam says why)
 local api = require("vrshark.api")
 local tvb_len, tvb_raw = api.len, api.raw
+-- (the pinfo attributes read on every cyclic frame)
+local p_number, p_visited, p_abs_ts, p_dl_src, p_match_string = api.pinfo.number, api.pinfo.visited,
+    api.pinfo.abs_ts, api.pinfo.dl_src, api.pinfo.match_string
 local fe = require("vrshark.frontends")
 -- (frames and per_frame by frame number: vrshark/framemap.luam says why)
 local framemap = require("vrshark.framemap")
@@ -724,7 +727,7 @@ local function first_pass(fid, tvb, pinfo, len, n)
     local base = 2
     local size = len - base - 4
     if size <= 0 then return nil end
-    local plan = cands and lookup(cands, pinfo.dl_src)
+    local plan = cands and lookup(cands, p_dl_src(pinfo))
     local missed
     if plan and plan.unsettled then
         plan = resettle(plan, fid, tvb, base, size)
@@ -737,7 +740,7 @@ local function first_pass(fid, tvb, pinfo, len, n)
     end
     if not plan then return missed and down_note(missed, fid) end
     if plan.refused then return refused_note(plan) end
-    local rec = analysed(plan, tvb_raw(tvb, base, size), pinfo.abs_ts, n)
+    local rec = analysed(plan, tvb_raw(tvb, base, size), p_abs_ts(pinfo), n)
     return rec and shared_record(rec, n)
 end
 
@@ -807,8 +810,8 @@ local function cyclic(tvb, pinfo, tree, view, thrown)
     -- (the note is an expert item: everything is shown)
     if thrown then view = nil end
     local rec
-    local n = pinfo.number
-    if pinfo.visited then
+    local n = p_number(pinfo)
+    if p_visited(pinfo) then
         rec = fget(frames, n)
         -- (a one-pass early hint gives way to the hint known at the end)
         if (rec == nil or rec.early) and unsettled ~= false and tvb:len() >= 2 then
@@ -882,7 +885,7 @@ function carrier.dissector(tvb, pinfo, tree)
     -- The C front end calls the "connect" hook for PNIO-CM, the FrameID
     -- table and the "candidate" hook for cyclic frames.
     if C then
-        local how = pinfo.match_string
+        local how = p_match_string(pinfo)
         if how == "connect" then return connect(tvb, pinfo, tree) end
         return cyclic(tvb, pinfo, tree, fe.view(how), how == "frame_id.malformed")
     end
