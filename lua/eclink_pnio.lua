@@ -201,13 +201,13 @@ end
 -- image adds its own fields (image.dissect, opts.only). Any expert wanted,
 -- or a field without an adder here, means show().
 local function age_adders(field, ms_field, key)
-    return function(c) if c.rec[key] then c.tree:add(field, record.nstime(c.rec[key])) end end,
-        function(c) if c.rec[key] then c.tree:add(ms_field, record.whole_ms(c.rec[key])) end end
+    return function(c) if c.rec[key] then add(c.tree, field, record.nstime(c.rec[key])) end end,
+        function(c) if c.rec[key] then add(c.tree, ms_field, record.whole_ms(c.rec[key])) end end
 end
 local ADDERS = {
-    ["eclink_pnio.layout"] = function(c) c.tree:add(epf.layout, c.plan.source) end,
-    ["eclink_pnio.layout_entry"] = function(c) if c.plan.entry then c.tree:add(epf.layout_entry, c.plan.entry) end end,
-    ["eclink_pnio.frame_id"] = function(c) c.tree:add(epf.frame_id, c.tvb:range(0, 2)) end,
+    ["eclink_pnio.layout"] = function(c) add(c.tree, epf.layout, c.plan.source) end,
+    ["eclink_pnio.layout_entry"] = function(c) if c.plan.entry then add(c.tree, epf.layout_entry, c.plan.entry) end end,
+    ["eclink_pnio.frame_id"] = function(c) add(c.tree, epf.frame_id, range(c.tvb, 0, 2)) end,
     ["eclink_pnio.iops"] = function(c) record.add_ioxs_sparse(c.tree, c.rec, c.tvb, epf.iops, false) end,
     ["eclink_pnio.iocs"] = function(c) record.add_ioxs_sparse(c.tree, c.rec, c.tvb, epf.iocs, true) end,
 }

@@ -678,40 +678,40 @@ end
 -- every capture), flat under the caller's tree; then the findings and the
 -- columns when they are wanted. A field without an adder here means show().
 -- c: { rec, tvb, tree, plan, up, h = tvb offset of the header }
-local function add_at(c, field, off, len) c.tree:add(field, c.tvb:range(off, len)) end
+local function add_at(c, field, off, len) add(c.tree, field, range(c.tvb, off, len)) end
 
 local function polled_up(c) return c.up and c.plan.system ~= "duplex" end
 local function polled_down(c) return not c.up and c.plan.system ~= "duplex" end
 local function duplex(c) return c.plan.system == "duplex" end
 
 local ADDERS = {
-    ["mcmb2.system"] = function(c) c.tree:add(pf.system, c.plan.system) end,
-    ["mcmb2.direction"] = function(c) c.tree:add(pf.direction, c.up and "uplink" or "downlink") end,
-    ["mcmb2.layout"] = function(c) c.tree:add(pf.layout, c.plan.source) end,
-    ["mcmb2.layout_entry"] = function(c) if c.plan.entry then c.tree:add(pf.layout_entry, c.plan.entry) end end,
+    ["mcmb2.system"] = function(c) add(c.tree, pf.system, c.plan.system) end,
+    ["mcmb2.direction"] = function(c) add(c.tree, pf.direction, c.up and "uplink" or "downlink") end,
+    ["mcmb2.layout"] = function(c) add(c.tree, pf.layout, c.plan.source) end,
+    ["mcmb2.layout_entry"] = function(c) if c.plan.entry then add(c.tree, pf.layout_entry, c.plan.entry) end end,
     ["mcmb2.status"] = function(c) if c.up then add_at(c, pf.status, c.h, 1) end end,
     ["mcmb2.terminal"] = function(c) if c.up then add_at(c, pf.terminal, c.h, 1) end end,
     ["mcmb2.uplink_watchdog"] = function(c) if c.up then add_at(c, pf.uplink_watchdog, c.h + 1, 1) end end,
     ["mcmb2.downlink_watchdog"] = function(c) if not c.up then add_at(c, pf.downlink_watchdog, c.h + 1, 1) end end,
     ["mcmb2.watchdog_age"] = function(c)
-        if c.rec.wd_age then c.tree:add(pf.watchdog_age, nstime(c.rec.wd_age)) end
+        if c.rec.wd_age then add(c.tree, pf.watchdog_age, nstime(c.rec.wd_age)) end
     end,
     ["mcmb2.watchdog_ms"] = function(c)
-        if c.rec.wd_age then c.tree:add(pf.watchdog_ms, record.whole_ms(c.rec.wd_age)) end
+        if c.rec.wd_age then add(c.tree, pf.watchdog_ms, record.whole_ms(c.rec.wd_age)) end
     end,
     ["mcmb2.watchdog_since"] = function(c)
-        if c.rec.wd_since then c.tree:add(pf.watchdog_since, c.rec.wd_since) end
+        if c.rec.wd_since then add(c.tree, pf.watchdog_since, c.rec.wd_since) end
     end,
     ["mcmb2.uplink_data"] = function(c)
         if c.up and duplex(c) then
             local r = data_range(c.tvb, c.rec.base, c.plan.modules, "MC-MB2 uplink data")
-            if r then c.tree:add(pf.uplink_data, r) end
+            if r then add(c.tree, pf.uplink_data, r) end
         end
     end,
     ["mcmb2.downlink_data"] = function(c)
         if not c.up and duplex(c) then
             local r = data_range(c.tvb, c.rec.base, c.plan.modules, "MC-MB2 downlink data")
-            if r then c.tree:add(pf.downlink_data, r) end
+            if r then add(c.tree, pf.downlink_data, r) end
         end
     end,
     ["mcmb2.uplink_size"] = function(c) if polled_up(c) then add_at(c, pf.uplink_size, c.h + 2, 1) end end,
@@ -720,10 +720,10 @@ local ADDERS = {
     ["mcmb2.reserved"] = function(c) if polled_down(c) then add_at(c, pf.reserved, c.h, 1) end end,
     ["mcmb2.slot"] = function(c)
         if polled_up(c) then
-            for k = 1, 4 do c.tree:add(pf.slot, k) end
+            for k = 1, 4 do add(c.tree, pf.slot, k) end
         elseif polled_down(c) then
             for i, g in ipairs(c.rec.groups or {}) do
-                if #g > 0 then c.tree:add(pf.slot, c.rec.slots and c.rec.slots[i] or i) end
+                if #g > 0 then add(c.tree, pf.slot, c.rec.slots and c.rec.slots[i] or i) end
             end
         end
     end,
@@ -739,7 +739,7 @@ local ADDERS = {
             local g = slot_group(c.rec, k)
             if g then
                 local r = data_range(c.tvb, c.rec.base, g, "MC-MB2 slot " .. k .. " uplink data")
-                if r then c.tree:add(pf.slot_uplink_data, r) end
+                if r then add(c.tree, pf.slot_uplink_data, r) end
             end
         end
     end,
@@ -748,12 +748,12 @@ local ADDERS = {
         for i, g in ipairs(c.rec.groups or {}) do
             local k = c.rec.slots and c.rec.slots[i] or i
             local r = data_range(c.tvb, c.rec.base, g, "MC-MB2 slot " .. k .. " downlink data")
-            if r then c.tree:add(pf.slot_downlink_data, r) end
+            if r then add(c.tree, pf.slot_downlink_data, r) end
         end
     end,
     ["mcmb2.iops"] = function(c) record.add_ioxs_sparse(c.tree, c.rec, c.tvb, pf.iops, false) end,
     ["mcmb2.iocs"] = function(c) record.add_ioxs_sparse(c.tree, c.rec, c.tvb, pf.iocs, true) end,
-    ["mcmb2.frame_id"] = function(c) c.tree:add(pf.frame_id, c.tvb:range(0, 2)) end,
+    ["mcmb2.frame_id"] = function(c) add(c.tree, pf.frame_id, range(c.tvb, 0, 2)) end,
     -- (only a candidate's note has it, and a candidate is always shown whole)
     ["mcmb2.candidate_setting"] = function() end,
 }
