@@ -349,7 +349,8 @@ local function new_image(len)
     return img
 end
 
-local function val(img, i) return img.data:byte(i + 1) end
+local sbyte = string.byte
+local function val(img, i) return sbyte(img.data, i + 1) end
 
 -- record of an ADU of a connection that is not decoded (nothing to show)
 local NOT_DECODED = {}
@@ -772,7 +773,8 @@ local function analyse(c, rec, t, frame, touched_in, touched_out)
     if touched_in then
         iv = in_values
         if known(inp, 0, 4) then
-            iv.pci, iv.cci, iv.cai = val(inp, 0), val(inp, 1), val(inp, 3)
+            local pci, cci, _, cai = sbyte(inp.data, 1, 4)
+            iv.pci, iv.cci, iv.cai = pci, cci, cai
         else
             iv.pci, iv.cci, iv.cai = nil, nil, nil
         end
@@ -780,7 +782,8 @@ local function analyse(c, rec, t, frame, touched_in, touched_out)
     end
     if touched_out and known(out, 0, 4) then
         ov = out_values
-        ov.pco, ov.cco, ov.cao = val(out, 0), val(out, 1), val(out, 3)
+        local pco, cco, _, cao = sbyte(out.data, 1, 4)
+        ov.pco, ov.cco, ov.cao = pco, cco, cao
     end
     local r = handshake.update(c.hs, iv, ov, t, frame, rec)
     -- (numeric loops: the lists are empty on most frames)
@@ -803,8 +806,8 @@ local function analyse(c, rec, t, frame, touched_in, touched_out)
     if r.bu_state_prev ~= nil then rec.bu_state_prev = r.bu_state_prev end
     -- periodic output multiplexing
     if touched_out and known(out, 0, 1) and known(out, 20, 3) then
-        local size = val(out, 20) * 256 + val(out, 21)
-        local block = val(out, 22)
+        local s1, s2, block = sbyte(out.data, 21, 23)
+        local size = s1 * 256 + s2
         local pco = val(out, 0)
         if size > image.PERIODIC_BLOCK_LEN and size <= image.PERIODIC_MAX then
             local nblocks = math.ceil(size / image.PERIODIC_BLOCK_LEN)
@@ -903,12 +906,12 @@ end
 
 local function adu_accesses(tvb, off, adu_len, fcb, is_request, r)
     if not r then return NONE end
-    local fc = bit.band(fcb, 0x7F)
+    local fc = fcb % 128  -- (the function code byte without its exception bit)
     if is_request then
         if r.wstart then
             return access_list(fc, r.wstart, r.wcount, r.wdata - off, r.coil, true)
         end
-    elseif bit.band(fcb, 0x80) == 0 and (fc <= 4 or fc == 23) and adu_len >= 9 then
+    elseif fcb < 128 and (fc <= 4 or fc == 23) and adu_len >= 9 then
         local bc = tvb_raw(tvb, off + 8, 1):byte()
         local need = (fc <= 2) and math.ceil(r.count / 8) or 2 * r.count
         if bc >= need and adu_len - 7 >= 2 + need then
@@ -937,7 +940,7 @@ end
 
 -- First pass: work out what this ADU means and update the connection.
 local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb, number, src_port, dst_port)
-    local fc = bit.band(fcb, 0x7F)
+    local fc = fcb % 128
     local pdu, plen = off + 7, adu_len - 7
     local tname = FC_TABLE[fc]
     if not tname then return NOT_DECODED end
@@ -1215,7 +1218,7 @@ local sparse_ctx = {}
 local sparse_opts = {}
 
 local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp)
-    local fc = bit.band(fcb, 0x7F)
+    local fc = fcb % 128
     if sp then
         -- (a tap that walks the tree's top level, -z io,phs, counts the protocol)
         if sp.protos then add(tree, proto, tvb(off, adu_len)) end
