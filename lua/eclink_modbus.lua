@@ -808,7 +808,7 @@ local function analyse(c, rec, t, frame, touched_in, touched_out)
     if touched_out and known(out, 0, 1) and known(out, 20, 3) then
         local s1, s2, block = sbyte(out.data, 21, 23)
         local size = s1 * 256 + s2
-        local pco = val(out, 0)
+        local pco = sbyte(out.data, 1)
         if size > image.PERIODIC_BLOCK_LEN and size <= image.PERIODIC_MAX then
             local nblocks = math.ceil(size / image.PERIODIC_BLOCK_LEN)
             local blen = math.min(image.PERIODIC_BLOCK_LEN, size - block * image.PERIODIC_BLOCK_LEN)
