@@ -78,6 +78,7 @@ local p_src_port, p_dst_port, p_match_uint, p_match_string = api.pinfo.src_port,
 local tvb_reported_len = api.reported_len
 -- (the flat records by frame number: vrshark/framemap.luam says why)
 local framemap = require("vrshark.framemap")
+local passes = require("vrshark.passes")
 local fget, fset = framemap.get, framemap.set
 
 image.proto()  -- the single Proto("eclink"), shared with the other EC-Link plugins
@@ -379,6 +380,9 @@ local NONE = {}
 --            response: its request's, before it), LINK_FAR: in far_links[n]
 --   at_time  a response: time since its request
 local at_key, at_age, at_la, at_time, far_links
+-- true in a one-pass tshark run (vrshark/passes.luam): no frame is shown
+-- again, so no record is kept
+local once = false
 local TWO32 = 4294967296
 local LINK_SPAN = 2097152
 local LINK_FAR = LINK_SPAN - 1
@@ -397,6 +401,7 @@ local access_memo, access_memo_n
 
 local function init_state()
     read_prefs()
+    once = passes.once()
     conns, keys_by_ports = {}, {}
     adus = {}
     at_key, at_age, at_la, at_time, far_links = framemap.packed_refs(), framemap.packed_us(), framemap.packed_refs(),
@@ -423,6 +428,14 @@ local last_request = false
 -- request's pending entry then names its frame (flat), so that the
 -- response that answers it writes its link into the maps (first_pass).
 local function store_rec(key, n, rl, off, rec, is_request)
+    if once then
+        -- a one-pass tshark run reads no record again: none is kept, and a
+        -- plain one is used again by the next frame
+        if rec == NOT_DECODED or #rec ~= 8 or next(rec, 8) ~= nil then return false end
+        local r = last_request
+        if is_request and r and r.rec == rec then r.rec = false end
+        return true
+    end
     local acc = rec[R_ACCEPTED]
     if off ~= 0 or rec == NOT_DECODED or fget(at_key, n) ~= nil or rl >= 262144 or #rec ~= 8 or next(rec, 8) ~= nil
         or (rec[R_PCI_AGE] and rec[R_PCO_AGE]) then
@@ -456,6 +469,7 @@ end
 -- The record of an ADU (a table; a flat one rebuilt: true second), or nil:
 -- not seen.
 local function load_rec(key, n, rl, off, is_request)
+    if once then return nil, false end
     local v = off == 0 and fget(at_key, n)
     if v then
         local hi = math.floor(v / TWO32)
@@ -977,7 +991,7 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb, 
                 -- (a flat request: its response's frame goes into at_la)
                 local la = fget(at_la, flat)
                 fset(at_la, flat, la - la % LINK_SPAN + link_code(flat, number, true))
-            else
+            elseif r.rec then
                 r.rec[R_RESPONSE] = number
             end
             rec[R_START], rec[R_COUNT] = r.start, r.count

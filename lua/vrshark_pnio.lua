@@ -66,6 +66,7 @@ local p_number, p_visited, p_abs_ts, p_dl_src, p_match_string = api.pinfo.number
 local fe = require("vrshark.frontends")
 -- (frames and per_frame by frame number: vrshark/framemap.luam says why)
 local framemap = require("vrshark.framemap")
+local passes = require("vrshark.passes")
 local fget, fset = framemap.get, framemap.set
 
 -- With the C front ends the C plugin is "vrshark_pnio"; the carrier is then
@@ -91,6 +92,10 @@ local frames      -- frame number -> record (shared by frames that analyse alike
 local per_frame   -- frame number -> the decoder's per_frame value or false, vrshark.framemap; n: highest filled
 local last_rec    -- plan -> its latest distinct records (shared_record)
 local spare       -- an emptied record table for the next frame (new_record), or nil
+-- true in a one-pass tshark run (vrshark/passes.luam): no frame is shown
+-- again, so a cyclic frame's record is not kept (with no finding, its
+-- table is the next frame's)
+local once = false
 local ars         -- AR UUID -> parsed Connect
 local not_ours    -- expected submodule blocks (connect_blocks' key) -> true: no system of ours
 local runs        -- vrshark.pnio_infer state: the runs of FrameIDs without a layout
@@ -200,6 +205,7 @@ local function init()
     -- (packed: vrshark/framemap.luam says why; the ages are rounded to the ms)
     frames, per_frame = framemap.packed_refs(), framemap.packed_ms()
     last_rec, per_frame.n, spare = {}, 0, nil
+    once = passes.once()
     local prefs = systems.prefs()
     heuristic, learn = prefs.heuristic, prefs.connect
     if C then fe.pn_frame_id:remove_all(carrier) end
@@ -572,6 +578,7 @@ local function new_record(plan, base, size)
 end
 
 local function shared_record(rec, n)
+    if once then return rec end
     local per = systems.decoder(rec.plan.system).per_frame
     if per then keep_per_frame(per, rec, n) end
     if rec.findings ~= record.NO_FINDINGS then return rec end
@@ -741,6 +748,8 @@ local function first_pass(fid, tvb, pinfo, len, n)
     if not plan then return missed and down_note(missed, fid) end
     if plan.refused then return refused_note(plan) end
     local rec = analysed(plan, tvb_raw(tvb, base, size), p_abs_ts(pinfo), n)
+    -- (fresh: nobody else holds rec in a one-pass run)
+    if once then return rec, true end
     return rec and shared_record(rec, n)
 end
 
@@ -809,7 +818,7 @@ local function cyclic(tvb, pinfo, tree, view, thrown)
     end
     -- (the note is an expert item: everything is shown)
     if thrown then view = nil end
-    local rec
+    local rec, fresh
     local n = p_number(pinfo)
     if p_visited(pinfo) then
         rec = fget(frames, n)
@@ -825,12 +834,12 @@ local function cyclic(tvb, pinfo, tree, view, thrown)
         if fid and (by_fid[fid] or (fid >= 0x8000 and fid <= 0xFBFF and heuristic
                     and ((tries[fid] or 0) < HEUR_TRIES or #pending_down > 0
                          or not infer.given_up(runs, fid, tostring(pinfo.dl_src), tostring(pinfo.dl_dst))))) then
-            rec = first_pass(fid, tvb, pinfo, len, n)
-            fset(frames, n, rec)
+            rec, fresh = first_pass(fid, tvb, pinfo, len, n)
+            if not once then fset(frames, n, rec) end
         end
     end
     if rec then
-        local per = rec.plan and systems.decoder(rec.plan.system).per_frame
+        local per = not once and rec.plan and systems.decoder(rec.plan.system).per_frame
         if per then load_per_frame(per, rec, n) end
         if not view then
             local root = show(rec, tvb, pinfo, tree)
@@ -840,6 +849,10 @@ local function cyclic(tvb, pinfo, tree, view, thrown)
             if not (dec and dec.sparse and dec.sparse(rec, tvb, pinfo, tree, view)) then
                 show(rec, tvb, pinfo, tree)
             end
+        end
+        if fresh and rec.findings == record.NO_FINDINGS then
+            for k in next, rec do rec[k] = nil end
+            spare = rec
         end
         if C then return tvb:len() end
     end
