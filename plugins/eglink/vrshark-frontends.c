@@ -122,6 +122,30 @@ static dissector_handle_t mb_front_handle;
 
 static dissector_table_t pn_frame_id_table;
 static dissector_table_t pn_hook_table;
+
+/* Whether hook "pending" exists: 1, 0, or -1 not known. The Lua carrier
+ * adds or removes it only at its init and inside its own dissector calls,
+ * which the front ends make (pn_lua_calling()), so the answer of one lookup
+ * holds until the next such call or file. A foreign FrameID past its tries
+ * asked on every frame, and a string table lookup copies its key: about
+ * 300 instructions a frame (docs/quality.md, foreign traffic). */
+static int pn_pending = -1;
+
+static gboolean
+pn_pending_hook(void)
+{
+    if (pn_pending < 0)
+        pn_pending = dissector_get_string_handle(pn_hook_table, "pending") != NULL;
+    return pn_pending != 0;
+}
+
+/* Before every call into the Lua carrier (it may change its hooks; an
+ * exception may end the call). */
+static void
+pn_lua_calling(void)
+{
+    pn_pending = -1;
+}
 static dissector_table_t mb_hook_table;
 static heur_dissector_list_t udp_heur_list;
 
@@ -429,6 +453,7 @@ dissect_pn_cyclic(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *dat
         fid = tvb_get_ntohs(tvb, 0);
         consumed = call_pn_rt_known(tvb, pinfo, tree, data, &thrown);
         pinfo->match_string = thrown ? "frame_id.malformed" : lua_view(&view_pn, pinfo, tree);
+        pn_lua_calling();
         dissector_try_uint_with_data(pn_frame_id_table, fid, tvb, pinfo, tree, FALSE, NULL);
         pinfo->match_string = saved;
         return thrown ? (int)tvb_captured_length(tvb) : consumed;
@@ -440,9 +465,9 @@ dissect_pn_cyclic(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *dat
     if (fid < PN_CANDIDATE_FIRST || fid > PN_CANDIDATE_LAST || pinfo->fd->visited)
         return consumed;
     idx = fid - PN_CANDIDATE_FIRST;
-    if (pn_tries[idx] >= VRSHARK_PN_CANDIDATE_TRIES &&
-        !dissector_get_string_handle(pn_hook_table, "pending"))
+    if (pn_tries[idx] >= VRSHARK_PN_CANDIDATE_TRIES && !pn_pending_hook())
         return consumed;
+    pn_lua_calling();
     if (!dissector_try_string_with_data(pn_hook_table, "candidate", tvb, pinfo, tree, FALSE, NULL) &&
         pn_tries[idx] < VRSHARK_PN_CANDIDATE_TRIES)
         pn_tries[idx]++;
@@ -570,6 +595,7 @@ dissect_pn_cm(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
             expert_add_info_format(pinfo, proto_tree_add_item(tree, proto_vrshark_pnio, tvb, 0, 0, ENC_NA),
                 &ei_pn_taken, "Cyclic frames of this Connect are not decoded: EtherType 0x8892 is taken "
                 "by \"%s\", not by vrshark_pnio", pn_taken_by);
+        pn_lua_calling();
         dissector_try_string_with_data(pn_hook_table, "connect", tvb, pinfo, tree, FALSE, NULL);
     }
     return tvb_captured_length(tvb);
@@ -891,6 +917,7 @@ frontends_init(void)
     guint i;
 
     memset(pn_tries, 0, sizeof pn_tries);
+    pn_pending = -1;
     mb_state = wmem_map_new(wmem_file_scope(), g_direct_hash, g_direct_equal);
     mb_hooks.read = FALSE;
     for (i = 0; i < pn_learned_ports->len; i++)
