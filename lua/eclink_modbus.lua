@@ -428,17 +428,16 @@ local last_request = false
 -- request's pending entry then names its frame (flat), so that the
 -- response that answers it writes its link into the maps (first_pass).
 local function store_rec(key, n, rl, off, rec, is_request)
+    local plain = rec ~= NOT_DECODED and #rec == 8 and next(rec, 8) == nil
+    local r = last_request
     if once then
         -- a one-pass tshark run reads no record again: none is kept, and a
         -- plain one is used again by the next frame
-        if rec == NOT_DECODED or #rec ~= 8 or next(rec, 8) ~= nil then return false end
-        local r = last_request
-        if is_request and r and r.rec == rec then r.rec = false end
-        return true
+        if plain and is_request and r and r.rec == rec then r.rec = false end
+        return plain
     end
     local acc = rec[R_ACCEPTED]
-    if off ~= 0 or rec == NOT_DECODED or fget(at_key, n) ~= nil or rl >= 262144 or #rec ~= 8 or next(rec, 8) ~= nil
-        or (rec[R_PCI_AGE] and rec[R_PCO_AGE]) then
+    if not plain or off ~= 0 or fget(at_key, n) ~= nil or rl >= 262144 or (rec[R_PCI_AGE] and rec[R_PCO_AGE]) then
         adus[key] = rec
         return false
     end
@@ -461,7 +460,6 @@ local function store_rec(key, n, rl, off, rec, is_request)
         fset(at_la, n, la + link_code(n, rec[R_REQUEST] or nil, false))
         fset(at_time, n, rec[R_TIME])
     end
-    local r = last_request
     if is_request and r and r.rec == rec then r.rec, r.flat = false, n end
     return true
 end

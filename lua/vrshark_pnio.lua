@@ -577,6 +577,14 @@ local function new_record(plan, base, size)
     return record.new(plan, base, size, rec)
 end
 
+-- A record nothing else holds (a decoder hands its record on only with a
+-- finding, such as a command's, and such a record is kept): emptied, it is
+-- the next frame's (new_record).
+local function release(rec)
+    for k in next, rec do rec[k] = nil end
+    spare = rec
+end
+
 local function shared_record(rec, n)
     if once then return rec end
     local per = systems.decoder(rec.plan.system).per_frame
@@ -591,10 +599,7 @@ local function shared_record(rec, n)
     for i = 1, #recent do
         local r = recent[i]
         if alike(rec, r, counts[i]) then
-            -- (nothing else holds rec: a decoder hands its record on only
-            -- with a finding, such as a command's, and such a record is kept)
-            for k in next, rec do rec[k] = nil end
-            spare = rec
+            release(rec)
             return r
         end
     end
@@ -850,10 +855,7 @@ local function cyclic(tvb, pinfo, tree, view, thrown)
                 show(rec, tvb, pinfo, tree)
             end
         end
-        if fresh and rec.findings == record.NO_FINDINGS then
-            for k in next, rec do rec[k] = nil end
-            spare = rec
-        end
+        if fresh and rec.findings == record.NO_FINDINGS then release(rec) end
         if C then return tvb:len() end
     end
     return consumed
