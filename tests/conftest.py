@@ -6,6 +6,7 @@ Every run goes through tools/tshark, so the freshly built C plugin and the Lua
 plugins of this checkout are the ones tested. Runs are cached per session by
 their arguments: many tests look at the same capture.
 """
+import copy
 import json
 import os
 import re
@@ -248,6 +249,19 @@ def conf_dir():
 @pytest.fixture(scope="session")
 def tshark(conf_dir):
     return Tshark(conf_dir)
+
+
+@pytest.fixture
+def keeping_tshark(tshark, work_dir):
+    """A Tshark that runs the system tshark under another program name: one
+    pass, with every per-frame record kept as in Wireshark (lua/vrshark/
+    passes.luam: only a process named tshark without -2 keeps none)."""
+    link = work_dir / "vrshark-keeps"
+    os.symlink(shutil.which(os.environ.get("TSHARK", "tshark")), link)
+    keeping = copy.copy(tshark)
+    keeping.env = dict(tshark.env, TSHARK=str(link))
+    keeping._cache = {}
+    return keeping
 
 
 @pytest.fixture(scope="session")

@@ -254,6 +254,16 @@ def test_bu_values_match_what_the_plc_read(tshark, real_capture):
     assert len({r[0] & 0xFF for r in log["read"]}) >= 8
 
 
+def test_one_pass_as_when_records_kept(tshark, keeping_tshark, real_capture):
+    # a one-pass tshark run keeps no per-frame record (lua/vrshark/passes.luam);
+    # the same run keeping them shows the same on a real stack's traffic
+    cap, _ = real_capture
+    args = ["-n", "-r", str(cap), "-o", "eclink_modbus.port:%d" % PORT, "-V"]
+    once = tshark.run(args, cache=False).stdout
+    assert "EC-Link input image" in once
+    assert once == keeping_tshark.run(args, cache=False).stdout
+
+
 def test_recognized_within_the_first_second(tshark, real_capture):
     cap, _ = real_capture
     got = tshark.frames(cap, NAMES, prefs=PREFS)

@@ -4,10 +4,6 @@ frame's first pass worked out only for a later pass, and a tshark run without
 -2 has none. Nothing shown may change: the same run under a program name
 other than tshark keeps them (passes.once() is false there) and must print
 the very same packet details."""
-import copy
-import os
-import shutil
-
 import pytest
 
 PASSES = r"""
@@ -48,19 +44,6 @@ def test_which_runs_are_one_pass(lua_probe):
     }
 
 
-@pytest.fixture
-def keeping_tshark(tshark, work_dir):
-    """A Tshark that runs the system tshark under another name: one pass,
-    with every record kept as in Wireshark."""
-    link = work_dir / "vrshark-keeps"
-    os.symlink(shutil.which(os.environ.get("TSHARK", "tshark")), link)
-
-    keeping = copy.copy(tshark)
-    keeping.env = dict(tshark.env, TSHARK=str(link))
-    keeping._cache = {}
-    return keeping
-
-
 # (capture, text the details must hold: the decoder ran)
 CAPTURES = [
     ("crane_eclink_modbus.pcap", "EC-Link input image"),
@@ -93,3 +76,14 @@ def test_one_pass_columns_and_experts_as_when_kept(tshark, keeping_tshark, captu
     kept = keeping_tshark.run(args, cache=False).stdout
     assert marker in once
     assert once == kept
+
+
+# Traffic the project did not make: real PROFINET IO devices (their frames
+# reach the carrier as candidates and Connects) and a real Modbus/TCP device.
+# (The EC-Link BU of a real pymodbus stack: test_eclink_modbus_realstack.py.)
+@pytest.mark.parametrize("name", ["pnio_connect_and_cyclic.pcap", "pnio_connect_many.pcapng",
+                                  "modbus_example.pcap"])
+def test_public_captures_one_pass_as_when_kept(tshark, keeping_tshark, public_capture, name):
+    for args in (["-V"], ["-z", "expert"]):
+        args = ["-n", "-r", str(public_capture(name))] + args
+        assert tshark.run(args, cache=False).stdout == keeping_tshark.run(args, cache=False).stdout
