@@ -191,3 +191,19 @@ def test_a_downlink_no_layout_fits_is_said(tshark, work_dir):
                                 "_ws.expert.message": text}, (two_pass, num)
         assert got[139]["mcmb2.direction"] == "uplink"
         assert got[139]["mcmb2.layout"] == "polled header in frame 1"
+
+
+def test_downlink_data_holding_bad_iocs_values(tshark, work_dir):
+    """DAP 1, two terminals, Y=24, 14 data + 18 ASCII bytes, the downlink's
+    IOCS and DAP IOCS scattered among the modules, and a terminal's data
+    starting 0x40 0x40 (a valid IOCS value, Bad by IO device): a cut that
+    reads those two bytes as IOCS and two GOOD IOCS as data is found first;
+    the cut whose IOxS are all GOOD wins (found by
+    test_any_polled_frame_layout on Wireshark 4.4, Lua only)."""
+    out = [16, 15, 2, 3, 4, 5, 6, 7, 21, 9, 10, 17, 11, 20, 18, 19, 0, 1, 14, 12, 13, 8] + list(range(22, 60))
+    perms = {"in": list(range(60)), "out": out}
+    subs = mcmb2_submodules("polled", 1, 24, 14, 18, 2)
+    with_connect, without = captures(work_dir, "polled_bad_iocs_values",
+                                     lambda: Device(subs, mac(46), 0x8001, 0x8002, order=singles_anywhere(perms)),
+                                     lambda d, cap: polled_traffic(d, cap, 6, 24, 14, 18, 2, 62316))
+    assert_reads_as_with_connect(tshark, with_connect, without)
