@@ -245,45 +245,57 @@ local function num(h, o, n, le)
 end
 
 -- The PNIO blocks of an unfragmented Connect request/response (opnum 0) in
--- a DCE/RPC datagram that learn_connect() reads (BLOCKS), each as its bytes
--- from the block type on, flat: { type1, bytes1, type2, bytes2, ...,
--- key = the expected submodule blocks as one string (the key of not_ours;
--- a controller connects the same devices again and again) }, and whether it
--- is the request. The datagram is read as two strings: the DCE/RPC and
--- PNIO headers, and the blocks (a Connect holds many; each TvbRange is a
--- call into Wireshark).
+-- a DCE/RPC datagram that learn_connect() reads (BLOCKS), as the datagram
+-- read once into a string and, flat, each block's type and first and last
+-- index in it: { s = the string, type1, first1, last1, type2, ..., key =
+-- the expected submodule blocks as one string (the key of not_ours; a
+-- controller connects the same devices again and again) }, and whether it
+-- is the request. No block is copied out here: a Connect of no system of
+-- ours (not_ours) or a response to an AR not learned is done with after
+-- its AR block, and each string made is memory the collector walks later.
+-- The list is one table, emptied for each Connect (learn_connect keeps
+-- nothing of it).
+local blocks_scratch = {}
+
 local function connect_blocks(tvb)
     local tlen = tvb:len()
     if tlen < 80 + 20 then return nil end
-    local h = tvb:raw(0, 100)
-    local ptype = string.byte(h, 2)
-    if bit.band(string.byte(h, 3), 0x04) ~= 0 then return nil end -- a fragment
-    local le = bit.band(string.byte(h, 5), 0x10) ~= 0
-    if num(h, 68, 2, le) ~= 0 then return nil end -- opnum 0: Connect
+    local s = tvb:raw(0, tlen)
+    local ptype = string.byte(s, 2)
+    if bit.band(string.byte(s, 3), 0x04) ~= 0 then return nil end -- a fragment
+    local le = bit.band(string.byte(s, 5), 0x10) ~= 0
+    if num(s, 68, 2, le) ~= 0 then return nil end -- opnum 0: Connect
     local p = 80
-    if ptype == 2 and num(h, p, 4, le) ~= 0 then return nil end -- PNIO status not OK
-    local args = num(h, p + 4, 4, le)
-    local start, stop = p + 20, math.min(p + 20 + args, tlen)
-    local list, n, parts = {}, 0, nil
-    local s = (stop > start) and tvb:raw(start, tlen - start) or ""
-    local i = 1
-    while start + 6 <= stop do
+    if ptype == 2 and num(s, p, 4, le) ~= 0 then return nil end -- PNIO status not OK
+    local args = num(s, p + 4, 4, le)
+    local list, n = blocks_scratch, 0
+    for k = #list, 1, -1 do list[k] = nil end
+    local kfirst, klast, parts -- the 0x0104 blocks: one run of them, or parts
+    -- i: the 1-based index of the block in s; the blocks end at `stop`
+    local i, stop = p + 21, math.min(p + 20 + args, tlen)
+    while i + 5 <= stop do
         local t1, t2, l1, l2 = string.byte(s, i, i + 3)
         local t = t1 * 256 + t2
-        local step = 4 + l1 * 256 + l2
+        local last = i + 3 + l1 * 256 + l2
         -- (a block that runs past the datagram is not read)
-        if BLOCKS[t] ~= nil and i + step - 1 <= #s then
-            local bytes = string.sub(s, i, i + step - 1)
-            list[n + 1], list[n + 2] = t, bytes
-            n = n + 2
+        if BLOCKS[t] ~= nil and last <= tlen then
+            list[n + 1], list[n + 2], list[n + 3] = t, i, last
+            n = n + 3
             if t == 0x0104 then
-                parts = parts or {}
-                parts[#parts + 1] = bytes
+                if klast == i - 1 and not parts then
+                    klast = last
+                elseif not kfirst then
+                    kfirst, klast = i, last
+                else
+                    parts = parts or { string.sub(s, kfirst, klast) }
+                    parts[#parts + 1] = string.sub(s, i, last)
+                end
             end
         end
-        start, i = start + step, i + step
+        i = last + 1
     end
-    list.key = parts and table.concat(parts)
+    list.s = s
+    list.key = parts and table.concat(parts) or (kfirst and string.sub(s, kfirst, klast))
     return list, ptype == 0
 end
 
@@ -291,11 +303,12 @@ local function learn_connect(pinfo, blocks)
     local ar = {}
     local any = false
     local key = blocks.key
+    local s = blocks.s
     local function parse(first)
-        for j = 1, #blocks, 2 do
+        for j = 1, #blocks, 3 do
             local t = blocks[j]
             if BLOCKS[t] == first and not (key and not_ours[key] and t == 0x0104)
-                    and layout.parse_block(ar, blocks[j + 1]) then
+                    and layout.parse_block(ar, string.sub(s, blocks[j + 1], blocks[j + 2])) then
                 any = true
             end
         end
