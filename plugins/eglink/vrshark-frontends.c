@@ -19,7 +19,8 @@
  *   (eclink_modbus.    takes itself out of the layer list): mbtcp first,
  *   port, or mbtcp's   then the Lua decoder registered in vrshark.mbtcp.hook
  *   own when that is 0) as "always" (every connection), or as "heuristic":
- *                      a TCP connection (conversation) becomes a candidate
+ *                      a TCP connection (its two addresses and ports, as
+ *                      the Lua side keys it: mb_conn_key_t) becomes a candidate
  *                      when its client first asks for what a BU's image
  *                      evidence needs (the whole input image read, or the
  *                      output image written: mb_evidence_request), and stays
@@ -79,7 +80,6 @@
 #include "eglink-compat.h"
 
 #include <epan/packet.h>
-#include <epan/conversation.h>
 #include <epan/tap.h>
 #include <epan/exceptions.h>
 #include <epan/expert.h>
@@ -151,7 +151,7 @@ static heur_dissector_list_t udp_heur_list;
 
 /* Per file: refusals per candidate FrameID; per TCP connection. */
 static guint8 pn_tries[PN_CANDIDATE_COUNT];
-static wmem_map_t *mb_state;   /* conversation index -> refusals | MB_ACCEPTED */
+static wmem_map_t *mb_state;   /* mb_conn_key_t -> refusals | MB_ACCEPTED */
 
 /* UDP ports added for Connect responses; removed when the next file starts. */
 static GArray *pn_learned_ports;
@@ -808,11 +808,81 @@ call_mbtcp(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
     return consumed;
 }
 
+/* A TCP connection to a Modbus server, as eclink_modbus.lua keys it (client
+ * and server address and port): the state of mb_state. Looked up on every
+ * frame of a server port, so it is hashed here from the address bytes and
+ * ports; a conversation lookup (find_conversation_pinfo: two hashes of both
+ * addresses on a response) was half of what the front end cost a Modbus/TCP
+ * connection that is no BU's (docs/quality.md, foreign traffic). A new
+ * connection on the same addresses and ports continues the state of the
+ * one before, as on the Lua side. */
+typedef struct {
+    address client, server;
+    guint32 client_port, server_port;
+} mb_conn_key_t;
+
+static guint
+mb_conn_hash(gconstpointer k)
+{
+    const mb_conn_key_t *key = (const mb_conn_key_t *)k;
+    const guint8 *b;
+    guint h = 2166136261u ^ (key->client_port << 16) ^ key->server_port;
+    int i;
+
+    b = (const guint8 *)key->client.data;
+    for (i = 0; i < key->client.len; i++)
+        h = (h ^ b[i]) * 16777619u;
+    b = (const guint8 *)key->server.data;
+    for (i = 0; i < key->server.len; i++)
+        h = (h ^ b[i]) * 16777619u;
+    return h;
+}
+
+static gboolean
+mb_conn_equal(gconstpointer a, gconstpointer b)
+{
+    const mb_conn_key_t *x = (const mb_conn_key_t *)a, *y = (const mb_conn_key_t *)b;
+
+    return x->client_port == y->client_port && x->server_port == y->server_port &&
+           addresses_equal(&x->client, &y->client) && addresses_equal(&x->server, &y->server);
+}
+
+/* The key of this frame's connection (pointing into pinfo): the server is the
+ * end on server_port; with that port at both ends, the lower address. */
+static void
+mb_conn_key(packet_info *pinfo, guint32 server_port, mb_conn_key_t *key)
+{
+    gboolean to_server = pinfo->destport == server_port &&
+                         (pinfo->srcport != server_port || cmp_address(&pinfo->dst, &pinfo->src) <= 0);
+
+    key->client = to_server ? pinfo->src : pinfo->dst;
+    key->server = to_server ? pinfo->dst : pinfo->src;
+    key->client_port = to_server ? pinfo->srcport : pinfo->destport;
+    key->server_port = server_port;
+}
+
+/* The state of a connection, its key copied the first time. */
+static void
+mb_conn_store(const mb_conn_key_t *conn, guint32 state)
+{
+    mb_conn_key_t *key;
+
+    if (wmem_map_contains(mb_state, conn)) {
+        wmem_map_insert(mb_state, conn, GUINT_TO_POINTER(state));
+        return;
+    }
+    key = wmem_new(wmem_file_scope(), mb_conn_key_t);
+    copy_address_wmem(wmem_file_scope(), &key->client, &conn->client);
+    copy_address_wmem(wmem_file_scope(), &key->server, &conn->server);
+    key->client_port = conn->client_port;
+    key->server_port = conn->server_port;
+    wmem_map_insert(mb_state, key, GUINT_TO_POINTER(state));
+}
+
 static int
 dissect_mbtcp_front(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
 {
-    conversation_t *conv;
-    gpointer key;
+    mb_conn_key_t conn;
     guint32 state;
     int consumed;
     guint32 server_port = pinfo->match_uint;
@@ -833,10 +903,10 @@ dissect_mbtcp_front(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *d
         call_mb_decoder(&view_mb_server, FALSE, tvb, pinfo, tree);
         return consumed;
     }
-    if (!mb_hooks.heuristic || !(conv = find_conversation_pinfo(pinfo, 0)))
+    if (!mb_hooks.heuristic || pinfo->ptype != PT_TCP)
         return consumed;
-    key = GUINT_TO_POINTER(conv->conv_index);
-    state = GPOINTER_TO_UINT(wmem_map_lookup(mb_state, key));
+    mb_conn_key(pinfo, server_port, &conn);
+    state = GPOINTER_TO_UINT(wmem_map_lookup(mb_state, &conn));
     if (state & MB_ACCEPTED) {
         call_mb_decoder(&view_mb_heuristic, FALSE, tvb, pinfo, tree);
         return consumed;
@@ -861,7 +931,7 @@ dissect_mbtcp_front(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *d
         state++;
         p_add_proto_data(wmem_file_scope(), pinfo, proto_vrshark_mbtcp, MB_TRIED, GUINT_TO_POINTER(1));
     }
-    wmem_map_insert(mb_state, key, GUINT_TO_POINTER(state));
+    mb_conn_store(&conn, state);
     return consumed;
 }
 
@@ -918,7 +988,7 @@ frontends_init(void)
 
     memset(pn_tries, 0, sizeof pn_tries);
     pn_pending = -1;
-    mb_state = wmem_map_new(wmem_file_scope(), g_direct_hash, g_direct_equal);
+    mb_state = wmem_map_new(wmem_file_scope(), mb_conn_hash, mb_conn_equal);
     mb_hooks.read = FALSE;
     for (i = 0; i < pn_learned_ports->len; i++)
         dissector_delete_uint("udp.port", g_array_index(pn_learned_ports, guint32, i), pn_cm_handle);
