@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from conftest import CAPTURES
-from modbus_testlib import Traffic, bu_connection, read_input
+from modbus_testlib import FastTcpConnection, Traffic, bu_connection, modbus_client, read_input
 from tools.capgen import eclink_modbus as mbgen
 
 ALWAYS = {"eclink_modbus.detection": "always"}
@@ -346,3 +346,37 @@ def test_dropped_when_images_stop_being_valid(tshark, work_dir):
         # the images before the drop still tell what is wrong with them
         assert "Spare bytes 60..63 are not 0" in exp[frames[6]]
         tshark.expect(cap, dropped + 2, {"eclink.image": None, "modbus.func_code": 4}, two_pass=two)
+
+
+def test_reopened_connection_on_the_same_ports(tshark, work_dir):
+    """A BU's controller closes its connection and opens a new one from the
+    same client port (Wireshark gives it a new tcp.stream): the connection
+    is known by its addresses and ports, on the C front end's side as on
+    the decoder's, so the new one is decoded from its first input image,
+    and an ordinary device's connection beside it stays Modbus's."""
+    traffic = Traffic()
+    fields = {"bu_state": 4}
+    mb = modbus_client(traffic.cap, "10.0.0.1", 40000, "10.7.0.1", 502, traffic.t)
+    t = traffic.t + 0.01
+    for i in range(12):
+        read_input(mb, t + i * 0.04, 4, mbgen.input_image(pci=(i // 3) & 0xFF, **fields))
+    traffic.done(t + 12 * 0.04)
+    # (new initial sequence numbers: TCP takes the SYN for a new connection)
+    again = mbgen.ModbusClient.__new__(mbgen.ModbusClient)
+    again.conn = FastTcpConnection(traffic.cap, "10.0.0.1", 40000, "10.7.0.1", 502, client_isn=900000,
+                                   server_isn=700000)
+    again.conn.handshake(traffic.t)
+    again.tid, again.unit = 0, 1
+    t = traffic.t + 0.01
+    firsts = [read_input(again, t + i * 0.04, 4, mbgen.input_image(pci=(20 + i // 3) & 0xFF, **fields))[1]
+              for i in range(6)]
+    plain = modbus_client(traffic.cap, "10.0.0.1", 40001, "10.7.0.2", 502, t + 0.5)
+    plain_resp = [plain.read_regs(t + 0.6 + i * 0.04, 4, 0, bytes([i % 7 + 1] * 64))[1] for i in range(6)]
+    cap = traffic.write(work_dir, "reopened.pcap")
+    for two_pass in (False, True):
+        got = tshark.frames(cap, ["tcp.stream", "eclink.image", "eclink.pci"], two_pass=two_pass)
+        assert got[firsts[0]]["tcp.stream"] != got[3]["tcp.stream"]
+        for n, frame in enumerate(firsts):
+            assert got[frame]["eclink.image"] == "input", (two_pass, frame)
+            assert got[frame]["eclink.pci"] == str(20 + n // 3), (two_pass, frame)
+        assert all(got[f]["eclink.image"] == "" for f in plain_resp), two_pass
