@@ -98,6 +98,7 @@ local spare       -- an emptied record table for the next frame (new_record), or
 local once = false
 local ars         -- AR UUID -> parsed Connect
 local not_ours    -- expected submodule blocks (connect_blocks' key) -> true: no system of ours
+local frags       -- fragments of Connects being put together (defragment())
 local runs        -- vrshark.pnio_infer state: the runs of FrameIDs without a layout
 local addr_of     -- station key of pnio_infer (tostring of an Ethernet address) -> Address
 local hint_recs   -- hint of pnio_infer -> the record of its candidate frames
@@ -199,7 +200,7 @@ end
 local function init()
     if not C then own_ethertype() end
     for port in pairs(cm_ports or {}) do udp_table:remove(port, carrier) end
-    by_fid, pending_down, tries, ars, cm_ports, not_ours = {}, {}, {}, {}, {}, {}
+    by_fid, pending_down, tries, ars, cm_ports, not_ours, frags = {}, {}, {}, {}, {}, {}, {}
     runs = infer.new()
     addr_of, hint_recs, unsettled = {}, {}, nil
     -- (packed: vrshark/framemap.luam says why; the ages are rounded to the ms)
@@ -245,8 +246,8 @@ local function num(h, o, n, le)
 end
 
 -- The PNIO blocks of an unfragmented Connect request/response (opnum 0) in
--- a DCE/RPC datagram that learn_connect() reads (BLOCKS), as the datagram
--- read once into a string and, flat, each block's type and first and last
+-- a DCE/RPC datagram (the string s; defragment() puts a fragmented one
+-- together) that learn_connect() reads (BLOCKS), as s and, flat, each block's type and first and last
 -- index in it: { s = the string, type1, first1, last1, type2, ..., key =
 -- the expected submodule blocks as one string (the key of not_ours; a
 -- controller connects the same devices again and again) }, and whether it
@@ -257,10 +258,9 @@ end
 -- nothing of it).
 local blocks_scratch = {}
 
-local function connect_blocks(tvb)
-    local tlen = tvb:len()
+local function connect_blocks(s)
+    local tlen = #s
     if tlen < 80 + 20 then return nil end
-    local s = tvb:raw(0, tlen)
     local ptype = string.byte(s, 2)
     if bit.band(string.byte(s, 3), 0x04) ~= 0 then return nil end -- a fragment
     local le = bit.band(string.byte(s, 5), 0x10) ~= 0
@@ -297,6 +297,43 @@ local function connect_blocks(tvb)
     list.s = s
     list.key = parts and table.concat(parts) or (kfirst and string.sub(s, kfirst, klast))
     return list, ptype == 0
+end
+
+-- A Connect large enough (many submodules) is sent as several DCE/RPC
+-- datagrams, each with the fragment flag, its number and the same
+-- activity, sequence number and packet type. s: one datagram as a string.
+-- Returns s when it is no fragment; for a fragment, the datagram put
+-- together (the first fragment's header without the fragment flags, the
+-- bodies in order) once every fragment up to the last is there, else nil.
+-- Fragments are kept until their datagram is whole (or the next file);
+-- one sent again replaces its copy.
+local FRAG, LASTFRAG = 0x04, 0x02
+local function defragment(s)
+    if #s < 80 then return nil end
+    local flags = string.byte(s, 3)
+    if bit.band(flags, FRAG) == 0 then return s end
+    local le = bit.band(string.byte(s, 5), 0x10) ~= 0
+    local key = string.sub(s, 41, 56) .. string.sub(s, 65, 68) .. string.sub(s, 2, 2)
+    local fragnum, len = num(s, 76, 2, le), num(s, 74, 2, le)
+    local f = frags[key]
+    if not f then
+        f = { n = 0 }
+        frags[key] = f
+    end
+    if f[fragnum] == nil then f.n = f.n + 1 end
+    f[fragnum] = string.sub(s, 81, 80 + len)
+    if fragnum == 0 then
+        f.head = string.sub(s, 1, 2) .. string.char(bit.band(flags, 0xFF - FRAG - LASTFRAG)) .. string.sub(s, 4, 80)
+    end
+    if bit.band(flags, LASTFRAG) ~= 0 then f.last = fragnum end
+    if not (f.head and f.last and f.n >= f.last + 1) then return nil end
+    local parts = { f.head }
+    for i = 0, f.last do
+        if not f[i] then return nil end
+        parts[#parts + 1] = f[i]
+    end
+    frags[key] = nil
+    return table.concat(parts)
 end
 
 local function learn_connect(pinfo, blocks)
@@ -889,7 +926,9 @@ local function connect(tvb, pinfo, tree)
     if pinfo.visited then
         rec = fget(frames, pinfo.number)
     elseif learn then
-        local blocks, request = connect_blocks(tvb)
+        local s = defragment(tvb:raw(0, tvb:len()))
+        local blocks, request
+        if s then blocks, request = connect_blocks(s) end
         if blocks then
             if not C and request and pinfo.src_port ~= UDP_PNIO_CM and pinfo.src_port ~= ETH_PNRT
                     and not cm_ports[pinfo.src_port] and not udp_table:get_dissector(pinfo.src_port) then

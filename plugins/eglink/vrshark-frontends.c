@@ -11,8 +11,8 @@
  *                          FrameID (unbounded while hook "pending" exists)
  *   UDP 34964 and the  a DCE/RPC connectionless request/response
  *   controllers' ports (version 4) goes to the UDP heuristics (DCE/RPC,
- *                      PNIO-CM); a Connect (opnum 0, unfragmented) then to
- *                      hook "connect". The source port of a Connect request
+ *                      PNIO-CM); a Connect (opnum 0, whole or a fragment)
+ *                      then to hook "connect". The source port of a Connect request
  *                      is added to udp.port for the response (until the
  *                      next file).
  *   Modbus/TCP port    "vrshark.mbtcp" (protocol "vrshark_mbtcp", which
@@ -553,14 +553,15 @@ is_dcerpc_dg(tvbuff_t *tvb)
     return ptype == DCERPC_DG_REQUEST || ptype == DCERPC_DG_RESPONSE;
 }
 
+/* A Connect request or response (opnum 0), whole or one fragment of it (the
+ * Lua side puts the fragments of a large one together). */
 static gboolean
 is_connect(tvbuff_t *tvb)
 {
     guint encoding;
 
-    if (tvb_captured_length(tvb) < PNIO_CONNECT_MIN_LEN)
-        return FALSE;
-    if (tvb_get_uint8(tvb, 2) & DCERPC_DG_FLAGS1_FRAG)
+    if (tvb_captured_length(tvb) < PNIO_CONNECT_MIN_LEN &&
+        !(tvb_captured_length(tvb) >= DCERPC_DG_HEADER_LEN && (tvb_get_uint8(tvb, 2) & DCERPC_DG_FLAGS1_FRAG)))
         return FALSE;
     encoding = (tvb_get_uint8(tvb, 4) & DCERPC_DG_DREP_LITTLE) ? ENC_LITTLE_ENDIAN : ENC_BIG_ENDIAN;
     return tvb_get_uint16(tvb, DCERPC_DG_OPNUM_OFF, encoding) == PNIO_CM_CONNECT;
