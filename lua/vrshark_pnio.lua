@@ -247,11 +247,11 @@ end
 
 -- The PNIO blocks of an unfragmented Connect request/response (opnum 0) in
 -- a DCE/RPC datagram (the string s; defragment() puts a fragmented one
--- together) that learn_connect() reads (BLOCKS), as s and, flat, each block's type and first and last
--- index in it: { s = the string, type1, first1, last1, type2, ..., key =
--- the expected submodule blocks as one string (the key of not_ours; a
--- controller connects the same devices again and again) }, and whether it
--- is the request. No block is copied out here: a Connect of no system of
+-- together) that learn_connect() reads (BLOCKS), as s and, flat, each
+-- block's type and first and last index in it: { s = the string, type1,
+-- first1, last1, type2, ..., key = the expected submodule blocks as one
+-- string (the key of not_ours; a controller connects the same devices
+-- again and again) }, and whether it is the request. No block is copied out here: a Connect of no system of
 -- ours (not_ours) or a response to an AR not learned is done with after
 -- its AR block, and each string made is memory the collector walks later.
 -- The list is one table, emptied for each Connect (learn_connect keeps
