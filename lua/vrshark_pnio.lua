@@ -251,18 +251,17 @@ end
 -- block's type and first and last index in it: { s = the string, type1,
 -- first1, last1, type2, ..., key = the expected submodule blocks as one
 -- string (the key of not_ours; a controller connects the same devices
--- again and again) }, and whether it is the request. No block is copied out here: a Connect of no system of
--- ours (not_ours) or a response to an AR not learned is done with after
--- its AR block, and each string made is memory the collector walks later.
--- The list is one table, emptied for each Connect (learn_connect keeps
--- nothing of it).
+-- again and again) }, and whether it is the request. No block is copied
+-- out here: a Connect of no system of ours (not_ours) or a response to an
+-- AR not learned is done with after its AR block, and each string made is
+-- memory the collector walks later. The list is one table, emptied for
+-- each Connect (learn_connect keeps nothing of it).
 local blocks_scratch = {}
 
 local function connect_blocks(s)
     local tlen = #s
     if tlen < 80 + 20 then return nil end
     local ptype = string.byte(s, 2)
-    if bit.band(string.byte(s, 3), 0x04) ~= 0 then return nil end -- a fragment
     local le = bit.band(string.byte(s, 5), 0x10) ~= 0
     if num(s, 68, 2, le) ~= 0 then return nil end -- opnum 0: Connect
     local p = 80
@@ -317,16 +316,15 @@ local function defragment(s)
     local fragnum, len = num(s, 76, 2, le), num(s, 74, 2, le)
     local f = frags[key]
     if not f then
-        f = { n = 0 }
+        f = {}
         frags[key] = f
     end
-    if f[fragnum] == nil then f.n = f.n + 1 end
     f[fragnum] = string.sub(s, 81, 80 + len)
     if fragnum == 0 then
         f.head = string.sub(s, 1, 2) .. string.char(bit.band(flags, 0xFF - FRAG - LASTFRAG)) .. string.sub(s, 4, 80)
     end
     if bit.band(flags, LASTFRAG) ~= 0 then f.last = fragnum end
-    if not (f.head and f.last and f.n >= f.last + 1) then return nil end
+    if not (f.head and f.last) then return nil end
     local parts = { f.head }
     for i = 0, f.last do
         if not f[i] then return nil end

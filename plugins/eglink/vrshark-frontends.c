@@ -12,16 +12,16 @@
  *   UDP 34964 and the  a DCE/RPC connectionless request/response
  *   controllers' ports (version 4) goes to the UDP heuristics (DCE/RPC,
  *                      PNIO-CM); a Connect (opnum 0, whole or a fragment)
- *                      then to hook "connect". The source port of a Connect request
- *                      is added to udp.port for the response (until the
- *                      next file).
+ *                      then to hook "connect". The source port of a
+ *                      Connect request is added to udp.port for the
+ *                      response (until the next file).
  *   Modbus/TCP port    "vrshark.mbtcp" (protocol "vrshark_mbtcp", which
  *   (eclink_modbus.    takes itself out of the layer list): mbtcp first,
  *   port, or mbtcp's   then the Lua decoder registered in vrshark.mbtcp.hook
  *   own when that is 0) as "always" (every connection), or as "heuristic":
  *                      a TCP connection (its two addresses and ports, as
- *                      the Lua side keys it: mb_conn_key_t) becomes a candidate
- *                      when its client first asks for what a BU's image
+ *                      the Lua side keys it: mb_conn_key_t) becomes a
+ *                      candidate when its client first asks for what a BU's image
  *                      evidence needs (the whole input image read, or the
  *                      output image written: mb_evidence_request), and stays
  *                      one until the decoder accepts one of its frames (returns
@@ -560,8 +560,10 @@ is_connect(tvbuff_t *tvb)
 {
     guint encoding;
 
-    if (tvb_captured_length(tvb) < PNIO_CONNECT_MIN_LEN &&
-        !(tvb_captured_length(tvb) >= DCERPC_DG_HEADER_LEN && (tvb_get_uint8(tvb, 2) & DCERPC_DG_FLAGS1_FRAG)))
+    if (tvb_captured_length(tvb) < DCERPC_DG_HEADER_LEN)
+        return FALSE;
+    /* (the last fragment's body may be short) */
+    if (!(tvb_get_uint8(tvb, 2) & DCERPC_DG_FLAGS1_FRAG) && tvb_captured_length(tvb) < PNIO_CONNECT_MIN_LEN)
         return FALSE;
     encoding = (tvb_get_uint8(tvb, 4) & DCERPC_DG_DREP_LITTLE) ? ENC_LITTLE_ENDIAN : ENC_BIG_ENDIAN;
     return tvb_get_uint16(tvb, DCERPC_DG_OPNUM_OFF, encoding) == PNIO_CM_CONNECT;
