@@ -87,10 +87,14 @@ def test_fragmented_connect_reads_as_whole(tshark, work_dir, two_pass, order):
         # learned on the frame that completes the request (its last fragment to arrive)
         assert row["mcmb2.layout"] == "Connect in frame 4"
     assert a[n0 + 1]["mcmb2.system"] == "duplex" and a[n0 + 1]["mcmb2.direction"] == "uplink"
-    note = tshark.frames(frag, ["_ws.expert.message"], two_pass=two_pass)
+    note = tshark.frames(frag, ["_ws.expert.message", "pn_io.block_type"], two_pass=two_pass)
     assert "Cyclic data layout learned" in note[4]["_ws.expert.message"]
     for k in (1, 2, 3):
         assert "layout learned" not in note[k]["_ws.expert.message"]
+    # the oracle: Wireshark's own DCE/RPC reassembles the same fragments
+    # into the Connect request on the same frame (our fragments are real ones)
+    assert note[4]["pn_io.block_type"] == "0x0101,0x0102,0x0102,0x0103,0x0104"
+    assert all(note[k]["pn_io.block_type"] == "" for k in (1, 2, 3))
 
 
 def test_connect_without_its_last_fragment(tshark, work_dir):
