@@ -1265,7 +1265,7 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
                     o.image_len = (p.kind == "input") and 64 or 224
                     local info = image.dissect(src, pinfo, tree, o)
                     if cols then
-                        infos[#infos + 1] = p.kind .. " " .. info.summary
+                        infos[#infos + 1] = info.label or (p.kind .. " " .. info.summary)
                         if info.tags ~= "" then infos.tags = (infos.tags or "") .. info.tags end
                     end
                 end
@@ -1273,7 +1273,7 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
         end
         o.data = false
         if not cols then return infos, false end
-        add_adu_tags(infos, rec, pinfo.visited)
+        add_adu_tags(infos, rec, p_visited(pinfo))
         return infos, rec.poll_gap
     end
     local r

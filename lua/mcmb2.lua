@@ -466,10 +466,6 @@ local function add_watchdog(root, rec, field, wr)
     attach(rec, "wd", wd)
 end
 
--- The Info column text from the header bytes hb (a list, hb[1] the first
--- header byte) and the tags (info_tags()). The long polled uplink text has
--- them right after its watchdog, before the layout and the slots, so that
--- they stay in view where the packet list cuts the line.
 -- The texts of a slot status byte s of slot k, made once per value
 -- (the same few values come frame after frame).
 local slot_labels, slot_infos = {}, {}
@@ -494,61 +490,74 @@ local function slot_info(k, s)
     return t
 end
 
-local function info_text(rec, hb, tags)
-    local plan = rec.plan
-    if plan.dir == "up" and plan.system == "duplex" then
-        return string.format("Uplink duplex: %s, terminal %d, watchdog %d",
-            name_of(STATUS, DUPLEX_OK, bit.band(hb[1], 0x0F)), bit.rshift(hb[1], 4), hb[2]) .. tags
-    elseif plan.dir == "up" then
-        local parts = {}
-        for k = 1, 4 do
-            local s = hb[4 + k]
-            if bit.band(s, 0x0F) ~= 0xF then parts[#parts + 1] = slot_info(k, s) end
-        end
-        return string.format("Uplink polled: %s, watchdog %d%s, Y=%d Z=%d, slots %s",
-            name_of(STATUS, POLLED_OK, bit.band(hb[1], 0x0F)), hb[2], tags, hb[3], hb[4],
-            (#parts > 0) and table.concat(parts, ", ") or "none")
-    elseif plan.system == "duplex" then
-        return string.format("Downlink duplex: base unit %d, watchdog %d", hb[1], hb[2]) .. tags
-    end
-    return string.format("Downlink polled: watchdog %d, %d slot(s)", hb[2], #(rec.groups or {})) .. tags
-end
+-- Decimal text of a byte (a watchdog, a base unit), made once: a number
+-- turned into text goes through the C library's floating point printf.
+local DEC = {}
+for v = 0, 255 do DEC[v] = string.format("%d", v) end
 
--- The Info text of a frame, made once per header bytes and tags of a plan
--- (a polled downlink's also per slot count): the header changes only in
--- its watchdog from one frame to the next, so the same few hundred texts
--- come back (256 a direction of a base). At most INFO_MEMO texts are kept
--- for all plans together, then the memo starts again: a few bases fit, many
--- (64 in tools/bench mcmb2_many) would hold megabytes for no gain.
-local INFO_MEMO = 2048
-local WEAK_KEYS = { __mode = "k" }
-local info_memo, info_memo_n = setmetatable({}, WEAK_KEYS), 0
+-- The Info text is put together from parts made once per value: the text
+-- before the watchdog (by the first header byte), the watchdog, the tags,
+-- and what follows: a polled uplink's layout and slots (by the header bytes
+-- after the watchdog), a polled downlink's slot count. The watchdog moves on
+-- every frame: a memo of whole texts would hold 256 a direction of each base.
+-- The long polled uplink text has the tags (info_tags()) right after its
+-- watchdog, before the layout and the slots, so that they stay in view
+-- where the packet list cuts the line.
+local HEADS = {
+    up_duplex = function(b1)
+        return string.format("Uplink duplex: %s, terminal %d, watchdog ",
+            name_of(STATUS, DUPLEX_OK, bit.band(b1, 0x0F)), bit.rshift(b1, 4))
+    end,
+    up_polled = function(b1)
+        return string.format("Uplink polled: %s, watchdog ", name_of(STATUS, POLLED_OK, bit.band(b1, 0x0F)))
+    end,
+    down_duplex = function(b1) return string.format("Downlink duplex: base unit %d, watchdog ", b1) end,
+    down_polled = function() return "Downlink polled: watchdog " end,
+}
+local heads = { up_duplex = {}, up_polled = {}, down_duplex = {}, down_polled = {} }
+-- a polled uplink's text after the tags, by its bytes 3-8 as one number
+-- (emptied when full: the slots of many bases)
+local TAILS_MAX = 4096
+local up_tails, up_tails_n = {}, 0
+local down_tails = {}
+
 local function frame_info(rec, tvb, h, tags)
     local plan = rec.plan
-    local key = tags
-    if plan.dir ~= "up" and plan.system ~= "duplex" then key = tags .. "|" .. #(rec.groups or {}) end
-    local memo = info_memo[plan]
-    if not memo then
-        memo = {}
-        info_memo[plan] = memo
+    local kind = plan.kind_key
+    if not kind then
+        kind = ((plan.dir == "up") and "up_" or "down_") .. ((plan.system == "duplex") and "duplex" or "polled")
+        plan.kind_key = kind
     end
-    local by_hdr = memo[key]
-    if not by_hdr then
-        by_hdr = {}
-        memo[key] = by_hdr
+    local polled_up = kind == "up_polled"
+    local b1, b2, b3, b4, b5, b6, b7, b8 = byte(tvb_raw(tvb, h, polled_up and 8 or 2), 1, 8)
+    local head = heads[kind][b1]
+    if not head then
+        head = HEADS[kind](b1)
+        heads[kind][b1] = head
     end
-    local hdr = tvb_raw(tvb, h, plan.header.len)
-    local text = by_hdr[hdr]
-    if not text then
-        text = info_text(rec, { hdr:byte(1, -1) }, tags)
-        if info_memo_n >= INFO_MEMO then
-            by_hdr = {}
-            info_memo, info_memo_n = setmetatable({ [plan] = { [key] = by_hdr } }, WEAK_KEYS), 0
+    if polled_up then
+        local key = b3 + 256 * (b4 + 256 * (b5 + 256 * (b6 + 256 * (b7 + 256 * b8))))
+        local tail = up_tails[key]
+        if not tail then
+            local parts, hb = {}, { b5, b6, b7, b8 }
+            for k = 1, 4 do
+                if bit.band(hb[k], 0x0F) ~= 0xF then parts[#parts + 1] = slot_info(k, hb[k]) end
+            end
+            tail = string.format(", Y=%d Z=%d, slots %s", b3, b4, (#parts > 0) and table.concat(parts, ", ") or "none")
+            if up_tails_n >= TAILS_MAX then up_tails, up_tails_n = {}, 0 end
+            up_tails[key], up_tails_n = tail, up_tails_n + 1
         end
-        by_hdr[hdr] = text
-        info_memo_n = info_memo_n + 1
+        return head .. DEC[b2] .. tags .. tail
+    elseif kind == "down_polled" then
+        local n = rec.groups and #rec.groups or 0
+        local tail = down_tails[n]
+        if not tail then
+            tail = string.format(", %d slot(s)", n)
+            down_tails[n] = tail
+        end
+        return head .. DEC[b2] .. tail .. tags
     end
-    return text
+    return head .. DEC[b2] .. tags
 end
 
 local function show_duplex_up(rec, tvb, root, hr, wr, pinfo) -- vrshark_io hook: pinfo
