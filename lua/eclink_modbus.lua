@@ -63,6 +63,7 @@ local image = require("vrshark.eclink_image")
 local handshake = require("vrshark.eclink_handshake")
 local wrap = require("vrshark.wrap")
 local fe = require("vrshark.frontends")
+local append_info = fe.append_info
 local detect = require("vrshark.modbus_detect")
 local servers = require("vrshark.modbus_servers")
 local record = require("vrshark.pnio_record") -- add_time(): times to the ms, as over PROFINET
@@ -1230,6 +1231,10 @@ end
 -- one table each, filled anew for every ADU (nobody keeps them).
 local sparse_ctx = {}
 local sparse_opts = {}
+-- The Info text of this call's images as parts (strings made once), for the
+-- C plugin's append_info(): info_np of them in info_parts (set to 0 by each
+-- call of the dissector).
+local info_parts, info_np = {}, 0
 
 local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp)
     local fc = fcb % 128
@@ -1256,6 +1261,9 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
         end
         local o = sparse_opts
         o.only, o.no_summary = sp.only, not cols
+        -- (the C plugin writes the Info text: the summaries as parts, info_parts)
+        local as_parts = cols and append_info and true or false
+        o.parts = as_parts and info_parts
         for i = 1, #accesses do
             local pieces = mapped(accesses[i], tvb, off)
             for j = 1, #pieces do
@@ -1265,11 +1273,18 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
                     o.kind, o.offset, o.first, o.length = p.kind, soff, p.first, p.length
                     o.swap, o.data = p.swap, p.data
                     o.image_len = (p.kind == "input") and 64 or 224
-                    local info = image.dissect(src, pinfo, tree, o)
-                    if cols then
-                        infos[#infos + 1] = info.label or (p.kind .. " " .. info.summary)
-                        if info.tags ~= "" then infos.tags = (infos.tags or "") .. info.tags end
+                    if as_parts and info_np > 0 then
+                        info_np = info_np + 1
+                        info_parts[info_np] = "; "
                     end
+                    o.np = info_np
+                    local info = image.dissect(src, pinfo, tree, o)
+                    if as_parts then
+                        info_np = info.np
+                    elseif cols then
+                        infos[#infos + 1] = info.label or (p.kind .. " " .. info.summary)
+                    end
+                    if cols and info.tags ~= "" then infos.tags = (infos.tags or "") .. info.tags end
                 end
             end
         end
@@ -1493,6 +1508,7 @@ function proto.dissector(tvb, pinfo, tree)
     end
     if opt.detection == DETECT_OFF and not opt.any_servers then return consumed end
     local decoded = false
+    info_np = 0
     local gaps
     local found, nf = found_scratch, 0
     local sp = sparse_plan(view)
@@ -1557,8 +1573,15 @@ function proto.dissector(tvb, pinfo, tree)
     infos = infos or NONE
     -- the tags first: after Modbus's own long text they stay in view in a
     -- packet list column that cannot show the whole image summary too
-    local tags = (infos.tags or "") .. (gaps and table.concat(gaps) or "")
-    if #infos > 0 then
+    local tags = infos.tags or ""
+    if gaps then tags = tags .. table.concat(gaps) end
+    if info_np > 0 then
+        -- (the C plugin joins the parts: no new string, no column objects)
+        info_parts[info_np + 1] = "]"
+        if not append_info(tags, " [EC-Link ", unpack(info_parts, 1, info_np + 1)) then
+            pinfo.cols.info:append(tags .. " [EC-Link " .. table.concat(info_parts, "", 1, info_np + 1))
+        end
+    elseif #infos > 0 then
         pinfo.cols.info:append(tags .. " [EC-Link " .. table.concat(infos, "; ") .. "]")
     elseif tags ~= "" then
         pinfo.cols.info:append(tags)

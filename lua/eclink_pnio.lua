@@ -26,6 +26,10 @@ local record = require("vrshark.pnio_record")
 local systems = require("vrshark.pnio_systems")
 local iodata = require("vrshark.iodata") -- vrshark_io hook
 local fe = require("vrshark.frontends")
+local set_cols = fe.set_cols
+local unpack = table.unpack or unpack  -- luacheck: ignore 113 (Lua 5.1/5.2 global)
+-- the Info text of the sparse view as parts (image.dissect opts.parts), for set_cols()
+local info_parts = {}
 image.proto()  -- the single Proto("eclink"), shared with the other EC-Link plugins
 
 local add_finding, attach = record.add_finding, record.attach
@@ -239,6 +243,8 @@ local function sparse(rec, tvb, pinfo, tree, view)
     local opts = image_opts
     opts.kind, opts.offset, opts.length, opts.image_len = up and "input" or "output", rec.base + o.off, o.len, o.len
     opts.only, opts.no_summary = view.fields, not p.cols
+    -- (the C plugin writes the Info text: the summary as parts)
+    opts.parts, opts.np, opts.lead = p.cols and set_cols and info_parts, 0, up and "Input image " or "Output image "
     local info = image.dissect(tvb, pinfo, tree, opts)
     if p.cols then
         -- a command's deadline: in one pass the command's warning, as show()
@@ -249,11 +255,24 @@ local function sparse(rec, tvb, pinfo, tree, view)
                 if ex == eef.cmd_from_ru_late or ex == eef.cmd_to_ru_late then unacked = true end
             end
         end
-        local cols = pinfo.cols
-        cols.protocol = "EC-Link"
-        cols.info = (up and "Input image " or "Output image ") .. info.summary .. info.tags
-            .. eclink_handshake.tags(rec.pci_age, rec.pco_age)
-            .. (unacked and " [unacked]" or "") .. (rec.late_ack and " [late ack]" or "")
+        local tail = eclink_handshake.tags(rec.pci_age, rec.pco_age)
+        local unacked_tag, late_tag = unacked and " [unacked]" or "", rec.late_ack and " [late ack]" or ""
+        if opts.parts then
+            -- (through the C plugin when it calls: no new string, no column objects)
+            local n = info.np
+            info_parts[n + 1], info_parts[n + 2], info_parts[n + 3], info_parts[n + 4] =
+                info.tags, tail, unacked_tag, late_tag
+            if not set_cols("EC-Link", unpack(info_parts, 1, n + 4)) then
+                local cols = pinfo.cols
+                cols.protocol = "EC-Link"
+                cols.info = table.concat(info_parts, "", 1, n + 4)
+            end
+        else
+            local cols = pinfo.cols
+            cols.protocol = "EC-Link"
+            cols.info = (up and "Input image " or "Output image ") .. info.summary .. info.tags
+                .. tail .. unacked_tag .. late_tag
+        end
     end
     return true
 end

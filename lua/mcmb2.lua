@@ -33,6 +33,7 @@ local record = require("vrshark.pnio_record")
 local systems = require("vrshark.pnio_systems")
 local iodata = require("vrshark.iodata") -- vrshark_io hook
 local frontends = require("vrshark.frontends")
+local set_cols = frontends.set_cols
 
 local add_finding, attach, nstime = record.add_finding, record.attach, record.nstime
 local byte = string.byte
@@ -547,7 +548,7 @@ local function frame_info(rec, tvb, h, tags)
             if up_tails_n >= TAILS_MAX then up_tails, up_tails_n = {}, 0 end
             up_tails[key], up_tails_n = tail, up_tails_n + 1
         end
-        return head .. DEC[b2] .. tags .. tail
+        return head, DEC[b2], tags, tail
     elseif kind == "down_polled" then
         local n = rec.groups and #rec.groups or 0
         local tail = down_tails[n]
@@ -555,9 +556,19 @@ local function frame_info(rec, tvb, h, tags)
             tail = string.format(", %d slot(s)", n)
             down_tails[n] = tail
         end
-        return head .. DEC[b2] .. tail .. tags
+        return head, DEC[b2], tail, tags
     end
-    return head .. DEC[b2] .. tags
+    return head, DEC[b2], tags, ""
+end
+
+-- Protocol and Info: through the C plugin when it calls the decoder (the
+-- parts as they are: no new string, no column objects), else pinfo.cols.
+local function write_cols(pinfo, a, b, c, d)
+    if not (set_cols and set_cols("MC-MB2", a, b, c, d)) then
+        local cols = pinfo.cols
+        cols.protocol = "MC-MB2"
+        cols.info = a .. b .. c .. d
+    end
 end
 
 local function show_duplex_up(rec, tvb, root, hr, wr, pinfo) -- vrshark_io hook: pinfo
@@ -649,9 +660,9 @@ local function show(rec, tvb, pinfo, tree)
     if plan.entry then set_generated(add(root, pf.layout_entry, plan.entry)) end
     add(root, pf.frame_id, range(tvb, 0, 2))
     attach(rec, "top", root)
-    local cols = pinfo.cols -- (each pinfo.cols makes a Columns object)
-    cols.protocol = "MC-MB2"
     if rec.size < plan.need then
+        local cols = pinfo.cols
+        cols.protocol = "MC-MB2"
         cols.info = "MC-MB2-PN: C-SDU too short for the layout"
         return root
     end
@@ -674,7 +685,7 @@ local function show(rec, tvb, pinfo, tree)
     end
     record.add_ioxs(root, rec, tvb, pf.iops, pf.iocs)
     record.finish(rec, root)
-    cols.info = frame_info(rec, tvb, h, info_tags(rec))
+    write_cols(pinfo, frame_info(rec, tvb, h, info_tags(rec)))
     return root
 end
 
@@ -786,11 +797,7 @@ local function sparse(rec, tvb, pinfo, tree, view)
         for i = 1, #adders do adders[i](c) end
     end
     if p.experts then record.finish(rec, tree) end
-    if p.cols then
-        local cols = pinfo.cols
-        cols.protocol = "MC-MB2"
-        cols.info = frame_info(rec, tvb, h, info_tags(rec))
-    end
+    if p.cols then write_cols(pinfo, frame_info(rec, tvb, h, info_tags(rec))) end
     return true
 end
 

@@ -88,6 +88,7 @@
 #include <epan/proto_data.h>
 #include <epan/show_exception.h>
 
+#include "vrshark-columns.h"
 #include "vrshark-frontends.h"
 #include "vrshark-output.h"
 
@@ -450,12 +451,21 @@ dissect_pn_cyclic(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *dat
         const char *saved = pinfo->match_string;
         gboolean thrown;
 
+        packet_info *outer;
+
         fid = tvb_get_ntohs(tvb, 0);
         consumed = call_pn_rt_known(tvb, pinfo, tree, data, &thrown);
         pinfo->match_string = thrown ? "frame_id.malformed" : lua_view(&view_pn, pinfo, tree);
         pn_lua_calling();
-        dissector_try_uint_with_data(pn_frame_id_table, fid, tvb, pinfo, tree, FALSE, NULL);
-        pinfo->match_string = saved;
+        outer = vrshark_columns_enter(pinfo);
+        TRY {
+            dissector_try_uint_with_data(pn_frame_id_table, fid, tvb, pinfo, tree, FALSE, NULL);
+        }
+        FINALLY {
+            vrshark_columns_leave(outer);
+            pinfo->match_string = saved;
+        }
+        ENDTRY;
         return thrown ? (int)tvb_captured_length(tvb) : consumed;
     }
     consumed = pn_rt_handle ? call_dissector_only(pn_rt_handle, tvb, pinfo, tree, data) : 0;
@@ -773,11 +783,19 @@ call_mb_decoder(lua_view_t *v, gboolean full, tvbuff_t *tvb, packet_info *pinfo,
     const char *saved = pinfo->match_string;
     dissector_handle_t h = v == &view_mb_always ? mb_hooks.always : v == &view_mb_server ? mb_hooks.server
                            : mb_hooks.heuristic;
-    int ret;
+    packet_info *outer;
+    volatile int ret = 0;
 
     pinfo->match_string = full ? v->hook : lua_view(v, pinfo, tree);
-    ret = call_dissector_only(h, tvb, pinfo, tree, NULL);
-    pinfo->match_string = saved;
+    outer = vrshark_columns_enter(pinfo);
+    TRY {
+        ret = call_dissector_only(h, tvb, pinfo, tree, NULL);
+    }
+    FINALLY {
+        vrshark_columns_leave(outer);
+        pinfo->match_string = saved;
+    }
+    ENDTRY;
     return ret;
 }
 
@@ -1044,6 +1062,7 @@ proto_register_vrshark_frontends(void)
 
     pn_learned_ports = g_array_new(FALSE, FALSE, sizeof(guint32));
     full_tree_always = g_getenv("VRSHARK_FULL_TREE") != NULL;
+    vrshark_columns_register();
     register_init_routine(frontends_init);
     register_shutdown_routine(frontends_shutdown);
 }
