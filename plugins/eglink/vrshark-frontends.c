@@ -415,6 +415,39 @@ lua_view_free(lua_view_t *v)
 
 /* ---- PROFINET cyclic frames (EtherType 0x8892) ------------------------- */
 
+/* A Lua decoder, with the column writers pointed at this frame while it
+ * runs (vrshark-columns.c), also when it throws. */
+static int
+call_lua_decoder(dissector_handle_t h, tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree)
+{
+    packet_info *outer = vrshark_columns_enter(pinfo);
+    volatile int ret = 0;
+
+    TRY {
+        ret = call_dissector_only(h, tvb, pinfo, tree, NULL);
+    }
+    FINALLY {
+        vrshark_columns_leave(outer);
+    }
+    ENDTRY;
+    return ret;
+}
+
+/* The Lua decoder of FrameID fid (vrshark.pn.frame_id), the same way. */
+static void
+call_lua_frame_id(guint16 fid, tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree)
+{
+    packet_info *outer = vrshark_columns_enter(pinfo);
+
+    TRY {
+        dissector_try_uint_with_data(pn_frame_id_table, fid, tvb, pinfo, tree, FALSE, NULL);
+    }
+    FINALLY {
+        vrshark_columns_leave(outer);
+    }
+    ENDTRY;
+}
+
 /* PN-RT (and PNIO below it) on a frame of a FrameID the Lua side knows: an
  * exception is shown where it happened and the frame still goes to the
  * decoder, as hook "frame_id.malformed" (everything shown). Wireshark 4.6
@@ -451,21 +484,12 @@ dissect_pn_cyclic(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *dat
         const char *saved = pinfo->match_string;
         gboolean thrown;
 
-        packet_info *outer;
-
         fid = tvb_get_ntohs(tvb, 0);
         consumed = call_pn_rt_known(tvb, pinfo, tree, data, &thrown);
         pinfo->match_string = thrown ? "frame_id.malformed" : lua_view(&view_pn, pinfo, tree);
         pn_lua_calling();
-        outer = vrshark_columns_enter(pinfo);
-        TRY {
-            dissector_try_uint_with_data(pn_frame_id_table, fid, tvb, pinfo, tree, FALSE, NULL);
-        }
-        FINALLY {
-            vrshark_columns_leave(outer);
-            pinfo->match_string = saved;
-        }
-        ENDTRY;
+        call_lua_frame_id(fid, tvb, pinfo, tree);
+        pinfo->match_string = saved;
         return thrown ? (int)tvb_captured_length(tvb) : consumed;
     }
     consumed = pn_rt_handle ? call_dissector_only(pn_rt_handle, tvb, pinfo, tree, data) : 0;
@@ -783,19 +807,11 @@ call_mb_decoder(lua_view_t *v, gboolean full, tvbuff_t *tvb, packet_info *pinfo,
     const char *saved = pinfo->match_string;
     dissector_handle_t h = v == &view_mb_always ? mb_hooks.always : v == &view_mb_server ? mb_hooks.server
                            : mb_hooks.heuristic;
-    packet_info *outer;
-    volatile int ret = 0;
+    int ret;
 
     pinfo->match_string = full ? v->hook : lua_view(v, pinfo, tree);
-    outer = vrshark_columns_enter(pinfo);
-    TRY {
-        ret = call_dissector_only(h, tvb, pinfo, tree, NULL);
-    }
-    FINALLY {
-        vrshark_columns_leave(outer);
-        pinfo->match_string = saved;
-    }
-    ENDTRY;
+    ret = call_lua_decoder(h, tvb, pinfo, tree);
+    pinfo->match_string = saved;
     return ret;
 }
 
