@@ -175,12 +175,18 @@ typedef struct {
     GArray *refs;                   /* header_field_info * of the last sparse view */
     gboolean cols, experts, items;  /* ... and its flags (items: protocol items wanted) */
     char *sparse;                   /* hook ".sparse:FLAGS:LIST" of that view */
+    GPtrArray *fields[VIEW_MAX_PROTOS]; /* header_field_info * of each protocol's fields,
+                                         * in registration order; made when first walked,
+                                         * dropped when a file starts (view_fields) */
 } lua_view_t;
 
-static lua_view_t view_pn = { "frame_id", pn_lua_protos, { 0 }, NULL, NULL, FALSE, FALSE, FALSE, NULL };
-static lua_view_t view_mb_always = { "always", mb_lua_protos, { 0 }, NULL, NULL, FALSE, FALSE, FALSE, NULL };
-static lua_view_t view_mb_heuristic = { "heuristic", mb_lua_protos, { 0 }, NULL, NULL, FALSE, FALSE, FALSE, NULL };
-static lua_view_t view_mb_server = { "server", mb_lua_protos, { 0 }, NULL, NULL, FALSE, FALSE, FALSE, NULL };
+static lua_view_t view_pn = { "frame_id", pn_lua_protos, { 0 }, NULL, NULL, FALSE, FALSE, FALSE, NULL, { NULL } };
+static lua_view_t view_mb_always = { "always", mb_lua_protos, { 0 }, NULL, NULL, FALSE, FALSE, FALSE, NULL,
+                                     { NULL } };
+static lua_view_t view_mb_heuristic = { "heuristic", mb_lua_protos, { 0 }, NULL, NULL, FALSE, FALSE, FALSE, NULL,
+                                        { NULL } };
+static lua_view_t view_mb_server = { "server", mb_lua_protos, { 0 }, NULL, NULL, FALSE, FALSE, FALSE, NULL,
+                                     { NULL } };
 
 /* The Lua decoder's Modbus hooks ("always", "heuristic", "server"), looked up
  * once per file: it changes them only in its preference callback, and
@@ -227,8 +233,41 @@ hf_referenced(const header_field_info *hfinfo)
     return hfinfo->ref_type != HF_REF_TYPE_NONE && hfinfo->ref_type != HF_REF_TYPE_INDIRECT;
 }
 
+/* The fields of protocol i of the view (id), walked once per file: the Lua
+ * plugins register theirs when they load, and a reload of them is followed
+ * by a new dissection (frontends_init() drops the lists). */
+static GPtrArray *
+view_fields(lua_view_t *v, int i, int id)
+{
+    if (!v->fields[i]) {
+        header_field_info *hfinfo;
+        void *cookie = NULL;
+
+        v->fields[i] = g_ptr_array_new();
+        for (hfinfo = proto_get_first_protocol_field(id, &cookie); hfinfo;
+             hfinfo = proto_get_next_protocol_field(id, &cookie))
+            g_ptr_array_add(v->fields[i], hfinfo);
+    }
+    return v->fields[i];
+}
+
+static void
+view_fields_drop(lua_view_t *v)
+{
+    int i;
+
+    for (i = 0; i < VIEW_MAX_PROTOS; i++) {
+        if (v->fields[i])
+            g_ptr_array_free(v->fields[i], TRUE);
+        v->fields[i] = NULL;
+    }
+}
+
 /* The referenced fields of the view's protocols (the protocols themselves
- * included) into refs. */
+ * included) into refs. Priming a field for a filter, a column or printing
+ * marks its protocol too (INDIRECT, or DIRECT when named itself), and the
+ * marks are cleared with the tree: the fields of a protocol left unmarked
+ * are not walked (a walk costs a few thousand instructions a frame). */
 static void
 collect_refs(lua_view_t *v, GArray *refs)
 {
@@ -237,15 +276,19 @@ collect_refs(lua_view_t *v, GArray *refs)
     for (i = 0; v->protos[i]; i++) {
         int id = lookup_proto(&v->ids[i], v->protos[i]);
         header_field_info *hfinfo;
-        void *cookie = NULL;
+        GPtrArray *fields;
+        guint f;
 
         if (id < 0)
             continue;
         hfinfo = proto_registrar_get_nth(id);
-        if (hfinfo && hf_referenced(hfinfo))
+        if (!hfinfo || hfinfo->ref_type == HF_REF_TYPE_NONE)
+            continue;
+        if (hf_referenced(hfinfo))
             g_array_append_val(refs, hfinfo);
-        for (hfinfo = proto_get_first_protocol_field(id, &cookie); hfinfo;
-             hfinfo = proto_get_next_protocol_field(id, &cookie)) {
+        fields = view_fields(v, i, id);
+        for (f = 0; f < fields->len; f++) {
+            hfinfo = (header_field_info *)g_ptr_array_index(fields, f);
             if (hf_referenced(hfinfo))
                 g_array_append_val(refs, hfinfo);
         }
@@ -405,6 +448,7 @@ lua_view(lua_view_t *v, packet_info *pinfo, proto_tree *tree)
 static void
 lua_view_free(lua_view_t *v)
 {
+    view_fields_drop(v);
     g_free(v->quiet);
     g_free(v->sparse);
     if (v->refs)
@@ -1025,6 +1069,10 @@ frontends_init(void)
 
     memset(pn_tries, 0, sizeof pn_tries);
     pn_pending = -1;
+    view_fields_drop(&view_pn);
+    view_fields_drop(&view_mb_always);
+    view_fields_drop(&view_mb_heuristic);
+    view_fields_drop(&view_mb_server);
     mb_state = wmem_map_new(wmem_file_scope(), mb_conn_hash, mb_conn_equal);
     mb_hooks.read = FALSE;
     for (i = 0; i < pn_learned_ports->len; i++)
