@@ -1201,11 +1201,13 @@ end
 -- counter's limit says so, not only the one with the finding; [unacked] (a
 -- command whose deadline passed, on the command's frame; in one pass on the
 -- frame that saw the deadline pass), [late ack] (an echo after it).
-local function add_adu_tags(infos, rec, visited)
+local function add_adu_tags(infos, rec, pinfo)
     local stalled = handshake.tags(rec[R_PCI_AGE], rec[R_PCO_AGE])
     if stalled ~= "" then infos.tags = (infos.tags or "") .. stalled end
+    local fds = rec.findings
+    if not fds then return end  -- (the usual ADU)
     local unacked, late_ack
-    local fds = rec.findings or NONE
+    local visited = p_visited(pinfo)
     for i = 1, #fds do
         local ex = handshake.shown(fds[i], visited)
         if ex == ef.cmd_from_ru_late or ex == ef.cmd_to_ru_late then unacked = true end
@@ -1290,7 +1292,7 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
         end
         o.data = false
         if not cols then return infos, false end
-        add_adu_tags(infos, rec, p_visited(pinfo))
+        add_adu_tags(infos, rec, pinfo)
         return infos, rec.poll_gap
     end
     local r
@@ -1368,7 +1370,7 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
         local ex, text = handshake.shown(fd, pinfo.visited)
         if ex then item:add_proto_expert_info(ex, text) end
     end
-    add_adu_tags(infos, rec, pinfo.visited)
+    add_adu_tags(infos, rec, pinfo)
     if rec.periodic then
         local ba = ByteArray.new(rec.periodic.data, true)
         local rtvb = ba:tvb("Reassembled periodic data")
