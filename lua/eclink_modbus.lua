@@ -1201,11 +1201,10 @@ end
 -- counter's limit says so, not only the one with the finding; [unacked] (a
 -- command whose deadline passed, on the command's frame; in one pass on the
 -- frame that saw the deadline pass), [late ack] (an echo after it).
-local function add_adu_tags(infos, rec, pinfo)
-    local stalled = handshake.tags(rec[R_PCI_AGE], rec[R_PCO_AGE])
-    if stalled ~= "" then infos.tags = (infos.tags or "") .. stalled end
+local function adu_tags(rec, pinfo)
+    local tags = handshake.tags(rec[R_PCI_AGE], rec[R_PCO_AGE])
     local fds = rec.findings
-    if not fds then return end  -- (the usual ADU)
+    if not fds then return tags end  -- (the usual ADU)
     local unacked, late_ack
     local visited = p_visited(pinfo)
     for i = 1, #fds do
@@ -1213,8 +1212,9 @@ local function add_adu_tags(infos, rec, pinfo)
         if ex == ef.cmd_from_ru_late or ex == ef.cmd_to_ru_late then unacked = true end
         if ex == ef.cmd_from_ru_late_ack or ex == ef.cmd_to_ru_late_ack then late_ack = true end
     end
-    if unacked then infos.tags = (infos.tags or "") .. " [unacked]" end
-    if late_ack then infos.tags = (infos.tags or "") .. " [late ack]" end
+    if unacked then tags = tags .. " [unacked]" end
+    if late_ack then tags = tags .. " [late ack]" end
+    return tags
 end
 
 -- The handshake links and latencies of an ADU (rec.links), in display order.
@@ -1250,9 +1250,10 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
             for i = 1, #adders do adders[i](c) end
             c.rec, c.tree, c.pinfo = false, false, false
         end
-        -- (no columns: no Info text, no image summaries)
+        -- (no columns: no Info text, no image summaries; infos: made when
+        -- something goes in, which through the C plugin is a tag only)
         local cols = sp.cols
-        local infos = cols and {} or NONE
+        local infos = NONE
         local accesses
         if rawequal(fp_tvb, tvb) and fp_off == off then
             accesses = fp_accesses  -- worked out by the first pass of this call
@@ -1284,15 +1285,23 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
                     if as_parts then
                         info_np = info.np
                     elseif cols then
+                        if infos == NONE then infos = {} end
                         infos[#infos + 1] = info.label or (p.kind .. " " .. info.summary)
                     end
-                    if cols and info.tags ~= "" then infos.tags = (infos.tags or "") .. info.tags end
+                    if cols and info.tags ~= "" then
+                        if infos == NONE then infos = {} end
+                        infos.tags = (infos.tags or "") .. info.tags
+                    end
                 end
             end
         end
         o.data = false
         if not cols then return infos, false end
-        add_adu_tags(infos, rec, pinfo)
+        local tags = adu_tags(rec, pinfo)
+        if tags ~= "" then
+            if infos == NONE then infos = {} end
+            infos.tags = (infos.tags or "") .. tags
+        end
         return infos, rec.poll_gap
     end
     local r
@@ -1370,7 +1379,8 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
         local ex, text = handshake.shown(fd, pinfo.visited)
         if ex then item:add_proto_expert_info(ex, text) end
     end
-    add_adu_tags(infos, rec, pinfo)
+    local tags = adu_tags(rec, pinfo)
+    if tags ~= "" then infos.tags = (infos.tags or "") .. tags end
     if rec.periodic then
         local ba = ByteArray.new(rec.periodic.data, true)
         local rtvb = ba:tvb("Reassembled periodic data")
@@ -1557,9 +1567,9 @@ function proto.dissector(tvb, pinfo, tree)
         elseif shown then
             decoded = true
             local adu_infos, gap = show_adu(tvb, pinfo, tree, f_off, f_len, rec, is_request, f_fcb, sp)
-            if not infos then
-                infos = adu_infos  -- (the usual buffer: one ADU)
-            else
+            if not infos or infos == NONE then
+                infos = adu_infos  -- (the usual buffer: one ADU; NONE: nothing to show)
+            elseif adu_infos ~= NONE then
                 for _, s in ipairs(adu_infos) do infos[#infos + 1] = s end
                 if adu_infos.tags then infos.tags = (infos.tags or "") .. adu_infos.tags end
             end
