@@ -72,7 +72,9 @@ local probe = Proto("vrshark_colprobe", "column writer probe")
 local install
 function probe.dissector(tvb, pinfo, tree)
     if pinfo.match_string == nil then install() return 0 end  -- the postdissector call
-    local ok = fe.append_info(" [probe ", tostring(pinfo.number), "]")
+    -- (as many parts as an EC-Link summary has, and more)
+    local ok = fe.append_info(" [probe ", tostring(pinfo.number), " a", "b", "c", "d", "e", "f", "g", "h", "i",
+                              "j", "k", "l", "m", "n", "]")
     out:write(string.format("%%d %%s\n", pinfo.number, tostring(ok)))
     out:flush()
     return 0
@@ -98,4 +100,4 @@ def test_a_front_end_call_writes_through_c(tshark, work_dir, capture_file):
     assert len(calls) >= 16
     assert {ok for _, ok in calls} == {"true"}
     for frame, _ in calls:
-        assert lines[int(frame) - 1].endswith(" [probe %s]" % frame)
+        assert lines[int(frame) - 1].endswith(" [probe %s abcdefghijklmn]" % frame)

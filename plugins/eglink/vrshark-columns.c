@@ -48,9 +48,6 @@ extern void lua_pushboolean(lua_State *L, int b) __attribute__((weak));
 
 #define VRSHARK_EXPORT __attribute__((visibility("default")))
 
-/* at most this many parts a call (the decoders pass four or five) */
-#define MAX_PARTS 8
-
 static packet_info *cols_pinfo;
 
 packet_info *
@@ -68,16 +65,15 @@ vrshark_columns_leave(packet_info *outer)
     cols_pinfo = outer;
 }
 
-/* The parts from argument `first` on, joined into buf (cut at its size,
- * as the column is); FALSE when one is not a string. */
+/* The parts from argument `first` on (as many as the call has: an EC-Link
+ * image summary alone is a dozen), joined into buf (cut at its size, as
+ * the column is); FALSE when one is not a string. */
 static gboolean
 join_parts(lua_State *L, int first, char *buf, size_t size)
 {
     int n = lua_gettop(L), i;
     size_t used = 0;
 
-    if (n - first + 1 > MAX_PARTS)
-        return FALSE;
     for (i = first; i <= n; i++) {
         size_t len;
         const char *s = lua_tolstring(L, i, &len);
