@@ -12,7 +12,8 @@ C front ends of the C plugin (vrshark/frontends.luam), the C plugin is the
 protocol "vrshark_pnio": it runs PN-RT and DCE/RPC itself and calls this
 carrier only for the FrameIDs it registered, for candidate FrameIDs while
 polled-header recognition is on ("candidate" and "pending" hooks) and for
-Connects ("connect" hook); the carrier then registers under the Proto of
+Connects ("connect" hook; responses only while "response" says an AR
+learned from a request is held); the carrier then registers under the Proto of
 mcmb2 (the C plugin owns the name). Without the C plugin the carrier is the
 protocol "vrshark_pnio" itself: it takes EtherType 0x8892 (tagged frames
 reach it through the same table), calls Wireshark's PN-RT dissector first and
@@ -61,8 +62,8 @@ local wrap = require("vrshark.wrap")
 local api = require("vrshark.api")
 local tvb_len, tvb_raw = api.len, api.raw
 -- (the pinfo attributes read on every cyclic frame)
-local p_number, p_visited, p_abs_ts, p_dl_src, p_match_string = api.pinfo.number, api.pinfo.visited,
-    api.pinfo.abs_ts, api.pinfo.dl_src, api.pinfo.match_string
+local p_number, p_visited, p_abs_ts, p_dl_src, p_dl_dst, p_match_string = api.pinfo.number,
+    api.pinfo.visited, api.pinfo.abs_ts, api.pinfo.dl_src, api.pinfo.dl_dst, api.pinfo.match_string
 local fe = require("vrshark.frontends")
 -- (frames and per_frame by frame number: vrshark/framemap.luam says why)
 local framemap = require("vrshark.framemap")
@@ -164,6 +165,13 @@ local function set_hooks()
     fe.hook(fe.pn_hook, "connect", carrier, learn)
     fe.hook(fe.pn_hook, "pending", carrier, (pending_down ~= nil and #pending_down > 0)
         or (runs ~= nil and infer.alive(runs)))
+    fe.hook(fe.pn_hook, "response", carrier, ars ~= nil and next(ars) ~= nil)
+end
+
+-- Connect responses are read only for an AR learned from its request: the
+-- C front end hands them over while the hook "response" says one is held.
+local function ars_changed(had)
+    if C and had ~= (next(ars) ~= nil) then set_hooks() end
 end
 
 -- Without the C plugin: EtherType 0x8892 is taken again when each file
@@ -233,23 +241,25 @@ end
 -- never read.
 local BLOCKS = { [0x0101] = true, [0x0104] = true, [0x8101] = true, [0x0102] = false, [0x8102] = false }
 
--- A number of n bytes at (0-based) offset o of the string h, little-endian
--- when le (the DCE/RPC header's byte order).
+-- A number of n (2 or 4) bytes at (0-based) offset o of the string h,
+-- little-endian when le (the DCE/RPC header's byte order). (One call to
+-- string.byte: each Connect is read this way.)
 local function num(h, o, n, le)
-    local v = 0
-    if le then
-        for k = n, 1, -1 do v = v * 256 + string.byte(h, o + k) end
-    else
-        for k = 1, n do v = v * 256 + string.byte(h, o + k) end
+    local a, b, c, d = string.byte(h, o + 1, o + n)
+    if n == 2 then
+        if le then return b * 256 + a end
+        return a * 256 + b
     end
-    return v
+    if le then return ((d * 256 + c) * 256 + b) * 256 + a end
+    return ((a * 256 + b) * 256 + c) * 256 + d
 end
 
 -- The PNIO blocks of an unfragmented Connect request/response (opnum 0) in
 -- a DCE/RPC datagram (the string s; defragment() puts a fragmented one
 -- together) that learn_connect() reads (BLOCKS), as s and, flat, each
 -- block's type and first and last index in it: { s = the string, type1,
--- first1, last1, type2, ..., key = the expected submodule blocks as one
+-- first1, last1, type2, ..., n = 3 x the blocks (entries after the nth are
+-- left from an earlier Connect), key = the expected submodule blocks as one
 -- string (the key of not_ours; a controller connects the same devices
 -- again and again) }, and whether it is the request. No block is copied
 -- out here: a Connect of no system of ours (not_ours) or a response to an
@@ -263,12 +273,11 @@ local function connect_blocks(s)
     if tlen < 80 + 20 then return nil end
     local ptype = string.byte(s, 2)
     local le = bit.band(string.byte(s, 5), 0x10) ~= 0
-    if num(s, 68, 2, le) ~= 0 then return nil end -- opnum 0: Connect
+    if string.byte(s, 69) + string.byte(s, 70) ~= 0 then return nil end -- opnum 0: Connect
     local p = 80
     if ptype == 2 and num(s, p, 4, le) ~= 0 then return nil end -- PNIO status not OK
     local args = num(s, p + 4, 4, le)
     local list, n = blocks_scratch, 0
-    for k = #list, 1, -1 do list[k] = nil end
     local kfirst, klast, parts -- the 0x0104 blocks: one run of them, or parts
     -- i: the 1-based index of the block in s; the blocks end at `stop`
     local i, stop = p + 21, math.min(p + 20 + args, tlen)
@@ -293,7 +302,7 @@ local function connect_blocks(s)
         end
         i = last + 1
     end
-    list.s = s
+    list.s, list.n = s, n
     list.key = parts and table.concat(parts) or (kfirst and string.sub(s, kfirst, klast))
     return list, ptype == 0
 end
@@ -335,12 +344,15 @@ local function defragment(s)
 end
 
 local function learn_connect(pinfo, blocks)
+    local key = blocks.key
+    -- A Connect of devices known not to be ours: read further only to
+    -- forget an AR of ours it replaces (none held: nothing to read).
+    if key and not_ours[key] and next(ars) == nil then return nil end
     local ar = {}
     local any = false
-    local key = blocks.key
     local s = blocks.s
     local function parse(first)
-        for j = 1, #blocks, 3 do
+        for j = 1, blocks.n, 3 do
             local t = blocks[j]
             if BLOCKS[t] == first and not (key and not_ours[key] and t == 0x0104)
                     and layout.parse_block(ar, string.sub(s, blocks[j + 1], blocks[j + 2])) then
@@ -351,14 +363,17 @@ local function learn_connect(pinfo, blocks)
     parse(true)
     if not ar.uuid then return nil end
     local cls
+    local had = next(ars) ~= nil
     if key and not_ours[key] then
         ars[ar.uuid] = nil -- (a new Connect of the AR replaces the one before)
+        ars_changed(had)
         return nil
     elseif ar.subs then
         cls = layout.classify(ar.subs)
         if not cls then
             if key then not_ours[key] = true end
             ars[ar.uuid] = nil
+            ars_changed(had)
             return nil
         end
     elseif not ars[ar.uuid] then
@@ -374,6 +389,7 @@ local function learn_connect(pinfo, blocks)
         ar.ctl_mac, ar.dev_mac = pinfo.dl_src, pinfo.dl_dst
         ar.frame = pinfo.number
         ars[ar.uuid] = ar
+        ars_changed(had)
         known = ar
     elseif known and (ar.res_fids or ar.response) then
         known.res_fids = ar.res_fids or known.res_fids
@@ -515,12 +531,9 @@ end
 -- or a polled uplink header. Bounded: HEUR_TRIES header checks per FrameID,
 -- HEUR_TRIES frames per waiting downlink. Returns the plan, or nil and the
 -- waiting device whose downlink layouts did not fit this frame (down_note).
-local function recognise(fid, tvb, base, size, pinfo, entry)
-    local s
-    local function get(i)
-        s = s or tvb:raw(base, size)
-        return string.byte(s, i + 1)
-    end
+-- s: the C-SDU (size bytes) as a string.
+local function recognise(fid, s, size, pinfo, entry)
+    local function get(i) return string.byte(s, i + 1) end
     local missed
     if #pending_down > 0 then
         local src, dst = pinfo.dl_src, pinfo.dl_dst
@@ -545,7 +558,6 @@ local function recognise(fid, tvb, base, size, pinfo, entry)
     if entry and entry.dir == "down" then return nil, missed end -- waits for its uplink
     local n = tries[fid] or 0
     if n >= HEUR_TRIES then return nil, missed end
-    s = s or tvb:raw(base, size)
     local h = layout.polled_header(get, size, s)
     if not h then
         tries[fid] = n + 1
@@ -748,12 +760,15 @@ local function final_candidate(tvb, pinfo)
     return h and candidate(h, pinfo.number)
 end
 
--- A cyclic frame of no known layout, fed to vrshark.pnio_infer.
-local function inferred(fid, tvb, base, size, pinfo)
-    local src, dst = tostring(pinfo.dl_src), tostring(pinfo.dl_dst)
-    if not addr_of[src] then addr_of[src] = pinfo.dl_src end
+-- A cyclic frame of no known layout (its C-SDU the string s), fed to
+-- vrshark.pnio_infer; n: the frame number. (A run given up without a hint
+-- takes nothing more: asked first, before the frame's time is made.)
+local function inferred(fid, s, pinfo, n)
+    local src, dst = tostring(p_dl_src(pinfo)), tostring(p_dl_dst(pinfo))
+    if infer.given_up(runs, fid, src, dst) then return nil end
+    if not addr_of[src] then addr_of[src] = p_dl_src(pinfo) end
     local was = infer.alive(runs)
-    local res = infer.feed(runs, fid, src, dst, tvb:raw(base, size), pinfo.abs_ts, pinfo.number)
+    local res = infer.feed(runs, fid, src, dst, s, p_abs_ts(pinfo), n)
     if infer.alive(runs) ~= was then set_hooks() end
     if #runs.watch > 0 then
         -- the C front end hands later passes only the FrameIDs in its table
@@ -763,9 +778,9 @@ local function inferred(fid, tvb, base, size, pinfo)
         runs.watch = {}
     end
     if not res then return nil end
-    if res.kind == "candidate" then return candidate(res, pinfo.number) end
+    if res.kind == "candidate" then return candidate(res, n) end
     settle(res)
-    return fget(frames, pinfo.number)
+    return fget(frames, n)
 end
 
 -- The frames of a direction whose Connect could not be learned
@@ -792,11 +807,12 @@ local function first_pass(fid, tvb, pinfo, len, n)
     if plan and plan.unsettled then
         plan = resettle(plan, fid, tvb, base, size)
     elseif plan and plan.deferred then
-        plan, missed = recognise(fid, tvb, base, size, pinfo, plan)
+        plan, missed = recognise(fid, tvb_raw(tvb, base, size), size, pinfo, plan)
     elseif not plan then
         if not heuristic or fid < 0x8000 or fid > 0xFBFF then return nil end
-        plan, missed = recognise(fid, tvb, base, size, pinfo, nil)
-        if not plan then return inferred(fid, tvb, base, size, pinfo) or (missed and down_note(missed, fid)) end
+        local s = tvb_raw(tvb, base, size)
+        plan, missed = recognise(fid, s, size, pinfo, nil)
+        if not plan then return inferred(fid, s, pinfo, n) or (missed and down_note(missed, fid)) end
     end
     if not plan then return missed and down_note(missed, fid) end
     if plan.refused then return refused_note(plan) end

@@ -41,6 +41,8 @@ function install()
     local pn = DissectorTable.get("vrshark.pn.hook")
     pn:add("candidate", probe)
     pn:add("connect", probe)
+    -- a decoder that holds an AR learned from a request wants the responses
+    if os.getenv("VRSHARK_PROBE_RESPONSE") == "1" then pn:add("response", probe) end
     local mb = DissectorTable.get("vrshark.mbtcp.hook")
     mb:add("heuristic", probe)
     -- a listed server, as eclink_modbus.servers registers it
@@ -65,7 +67,7 @@ def _write(cap, work_dir, name):
     return path
 
 
-def _probe(tshark, work_dir, capture, two_pass=False, accept_from=0, extra=(), server=""):
+def _probe(tshark, work_dir, capture, two_pass=False, accept_from=0, extra=(), server="", response=False):
     """[(hook, frame, visited)] of every call into the probe."""
     script = work_dir / "probe.lua"
     script.write_text(PROBE)
@@ -74,7 +76,7 @@ def _probe(tshark, work_dir, capture, two_pass=False, accept_from=0, extra=(), s
     out.touch()
     out.chmod(0o666)
     env = dict(tshark.env, VRSHARK_PROBE_OUT=str(out), VRSHARK_PROBE_ACCEPT=str(accept_from),
-               VRSHARK_PROBE_SERVER=server)
+               VRSHARK_PROBE_SERVER=server, VRSHARK_PROBE_RESPONSE="1" if response else "0")
     args = [tshark.cmd, "-n", "-r", str(capture), "-X", "lua_script:%s" % script] + list(extra)
     if two_pass:
         args.append("-2")
@@ -127,8 +129,11 @@ def test_an_accepted_candidate_is_not_counted(tshark, work_dir):
 
 
 @needs_c
-def test_only_connects_reach_the_connect_hook(tshark, work_dir, capture_file):
-    """Of the PNIO-CM datagrams, the Connect request and response go to Lua."""
+@pytest.mark.parametrize("response", [True, False])
+def test_only_connects_reach_the_connect_hook(tshark, work_dir, capture_file, response):
+    """Of the PNIO-CM datagrams, the Connect request goes to Lua, and its
+    response while the decoder says (hook "response") that it holds an AR
+    learned from a request: a capture of foreign devices hands it none."""
     src = capture_file("mcmb2_duplex_cm_port.pcap")
     cap = Capture()
     cap.add(0.0, _filler())
@@ -142,10 +147,12 @@ def test_only_connects_reach_the_connect_hook(tshark, work_dir, capture_file):
         off += 16 + incl
         t += 0.001
     path = _write(cap, work_dir, "cm_port.pcap")
-    calls = _probe(tshark, work_dir, path)
+    calls = _probe(tshark, work_dir, path, response=response)
     connects = tshark.field(path, "frame.number", display_filter="dcerpc.opnum == 0")
     assert connects == ["2", "3"]
-    assert [(hook, frame) for hook, frame, _ in calls if hook == "connect"] == [("connect", 2), ("connect", 3)]
+    assert tshark.field(path, "dcerpc.pkt_type", display_filter="dcerpc.opnum == 0") == ["0", "2"]
+    want = [("connect", 2), ("connect", 3)] if response else [("connect", 2)]
+    assert [(hook, frame) for hook, frame, _ in calls if hook == "connect"] == want
 
 
 def _modbus_plain(work_dir, transactions, image_shaped=True):

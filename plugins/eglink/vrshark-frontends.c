@@ -12,7 +12,9 @@
  *   UDP 34964 and the  a DCE/RPC connectionless request/response
  *   controllers' ports (version 4) goes to the UDP heuristics (DCE/RPC,
  *                      PNIO-CM); a Connect (opnum 0, whole or a fragment)
- *                      then to hook "connect". The source port of a
+ *                      then to hook "connect" (a response only while hook
+ *                      "response" exists: the carrier holds an AR learned
+ *                      from a request). The source port of a
  *                      Connect request is added to udp.port for the
  *                      response (until the next file).
  *   Modbus/TCP port    "vrshark.mbtcp" (protocol "vrshark_mbtcp", which
@@ -676,6 +678,11 @@ dissect_pn_cm(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
             expert_add_info_format(pinfo, proto_tree_add_item(tree, proto_vrshark_pnio, tvb, 0, 0, ENC_NA),
                 &ei_pn_taken, "Cyclic frames of this Connect are not decoded: EtherType 0x8892 is taken "
                 "by \"%s\", not by vrshark_pnio", pn_taken_by);
+        /* A response teaches the carrier something only about an AR it
+         * learned from a request, and it says when it holds one (hook
+         * "response"): a capture of foreign devices hands it no response. */
+        if (tvb_get_uint8(tvb, 1) == DCERPC_DG_RESPONSE && !dissector_get_string_handle(pn_hook_table, "response"))
+            return tvb_captured_length(tvb);
         pn_lua_calling();
         dissector_try_string_with_data(pn_hook_table, "connect", tvb, pinfo, tree, FALSE, NULL);
     }
