@@ -952,6 +952,10 @@ local function connect(tvb, pinfo, tree)
             end
             rec = learn_connect(pinfo, blocks)
             fset(frames, pinfo.number, rec)
+            -- A request of devices no system of ours: 0 tells the C front
+            -- end to hand over no more requests with these expected
+            -- submodules while no AR is held (nothing would be read).
+            if C and request and not rec and blocks.key and not_ours[blocks.key] then return 0 end
         end
     end
     if rec then show(rec, tvb, pinfo, tree) end

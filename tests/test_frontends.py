@@ -90,6 +90,18 @@ def _probe(tshark, work_dir, capture, two_pass=False, accept_from=0, extra=(), s
     return rows
 
 
+def _pcap_frames(path):
+    """The frames of a classic pcap file, as bytes."""
+    with open(path, "rb") as f:
+        data = f.read()
+    frames, off = [], 24
+    while off < len(data):
+        _, _, incl, _ = struct.unpack_from("<IIII", data, off)
+        frames.append(data[off + 16:off + 16 + incl])
+        off += 16 + incl
+    return frames
+
+
 def _foreign_cyclic(work_dir):
     """A filler, then 100 cycles of a foreign device (FrameIDs 0x8100 in, 0x8101
     out) and 10 frames with FrameID 0x0100 (outside the candidate range)."""
@@ -137,15 +149,8 @@ def test_only_connects_reach_the_connect_hook(tshark, work_dir, capture_file, re
     src = capture_file("mcmb2_duplex_cm_port.pcap")
     cap = Capture()
     cap.add(0.0, _filler())
-    with open(src, "rb") as f:
-        data = f.read()
-    off = 24
-    t = 0.001
-    while off < len(data):
-        _, _, incl, _ = struct.unpack_from("<IIII", data, off)
-        cap.add(t, data[off + 16:off + 16 + incl])
-        off += 16 + incl
-        t += 0.001
+    for i, frame in enumerate(_pcap_frames(src)):
+        cap.add(0.001 * (i + 1), frame)
     path = _write(cap, work_dir, "cm_port.pcap")
     calls = _probe(tshark, work_dir, path, response=response)
     connects = tshark.field(path, "frame.number", display_filter="dcerpc.opnum == 0")
@@ -153,6 +158,30 @@ def test_only_connects_reach_the_connect_hook(tshark, work_dir, capture_file, re
     assert tshark.field(path, "dcerpc.pkt_type", display_filter="dcerpc.opnum == 0") == ["0", "2"]
     want = [("connect", 2), ("connect", 3)] if response else [("connect", 2)]
     assert [(hook, frame) for hook, frame, _ in calls if hook == "connect"] == want
+
+
+@needs_c
+@pytest.mark.parametrize("response", [True, False])
+def test_foreign_connect_requests_are_handed_over_once(tshark, work_dir, capture_file, response):
+    """A Connect request the decoder returned 0 for (no system of ours) is
+    not handed over again with the same expected submodules while it holds
+    no AR (hook "response" absent); a request with other submodules is. With
+    an AR held, every request and response goes to it."""
+    def connects(name):
+        frames = _pcap_frames(capture_file(name))
+        return [frames[int(n) - 1] for n in tshark.field(capture_file(name), "frame.number",
+                                                          display_filter="dcerpc.opnum == 0")]
+    a_req, a_resp = connects("mcmb2_duplex_cm_port.pcap")[:2]
+    b_req = connects("mcmb2_polled_connect.pcap")[0]
+    cap = Capture()
+    cap.add(0.0, _filler())
+    for i, frame in enumerate((a_req, a_resp, a_req, b_req, a_req, b_req)):
+        cap.add(0.001 * (i + 1), frame)
+    path = _write(cap, work_dir, "connect_repeats.pcap")
+    assert tshark.field(path, "dcerpc.pkt_type", display_filter="dcerpc.opnum == 0") == ["0", "2", "0", "0", "0", "0"]
+    calls = _probe(tshark, work_dir, path, response=response)
+    want = [2, 3, 4, 5, 6, 7] if response else [2, 5]
+    assert [frame for hook, frame, _ in calls if hook == "connect"] == want
 
 
 def _modbus_plain(work_dir, transactions, image_shaped=True):

@@ -12,9 +12,11 @@
  *   UDP 34964 and the  a DCE/RPC connectionless request/response
  *   controllers' ports (version 4) goes to the UDP heuristics (DCE/RPC,
  *                      PNIO-CM); a Connect (opnum 0, whole or a fragment)
- *                      then to hook "connect" (a response only while hook
- *                      "response" exists: the carrier holds an AR learned
- *                      from a request). The source port of a
+ *                      then to hook "connect" (while hook "response" is
+ *                      absent, i.e. the carrier holds no AR learned from a
+ *                      request: no response, and no request whose expected
+ *                      submodule blocks it returned 0 for before). The
+ *                      source port of a
  *                      Connect request is added to udp.port for the
  *                      response (until the next file).
  *   Modbus/TCP port    "vrshark.mbtcp" (protocol "vrshark_mbtcp", which
@@ -649,6 +651,76 @@ is_connect(tvbuff_t *tvb)
     return tvb_get_uint16(tvb, DCERPC_DG_OPNUM_OFF, encoding) == PNIO_CM_CONNECT;
 }
 
+/* Expected submodule blocks (type 0x0104) of the Connect requests the
+ * carrier returned 0 for: no system of ours (it keeps the same set). While
+ * it holds no AR learned from a request (hook "response" absent), a request
+ * with the same blocks would only be looked up in that set there, so it is
+ * not handed over: a controller connects the same foreign devices again and
+ * again. Per file. */
+typedef struct {
+    guint len;
+    const guint8 *bytes;
+} pn_subs_key_t;
+
+static wmem_map_t *pn_foreign_subs;
+
+#define PNIO_BLOCK_EXPECTED_SUBMODULES 0x0104
+/* the PNIO args after the DCE/RPC header: ArgsMaximum/status (4),
+ * ArgsLength (4), MaximumCount, Offset and ActualCount (4 each) */
+#define PNIO_ARGS_LENGTH_OFF    (DCERPC_DG_HEADER_LEN + 4)
+#define PNIO_BLOCKS_OFF         (DCERPC_DG_HEADER_LEN + 20)
+
+static guint
+pn_subs_hash(gconstpointer k)
+{
+    const pn_subs_key_t *key = (const pn_subs_key_t *)k;
+    guint h = 2166136261u;
+    guint i;
+
+    for (i = 0; i < key->len; i++)
+        h = (h ^ key->bytes[i]) * 16777619u;
+    return h;
+}
+
+static gboolean
+pn_subs_equal(gconstpointer a, gconstpointer b)
+{
+    const pn_subs_key_t *x = (const pn_subs_key_t *)a, *y = (const pn_subs_key_t *)b;
+
+    return x->len == y->len && memcmp(x->bytes, y->bytes, x->len) == 0;
+}
+
+/* The expected submodule blocks of an unfragmented Connect request, one
+ * after the other, as the carrier reads them (vrshark_pnio.lua
+ * connect_blocks(): each block that ends inside the datagram, up to
+ * ArgsLength); FALSE when it has none. The bytes are the packet's. */
+static gboolean
+pn_subs_of(tvbuff_t *tvb, packet_info *pinfo, pn_subs_key_t *key)
+{
+    guint tlen = tvb_captured_length(tvb);
+    guint encoding = (tvb_get_uint8(tvb, 4) & DCERPC_DG_DREP_LITTLE) ? ENC_LITTLE_ENDIAN : ENC_BIG_ENDIAN;
+    guint64 stop;
+    guint off = PNIO_BLOCKS_OFF;
+    GByteArray *subs;
+
+    if (tlen < PNIO_CONNECT_MIN_LEN)
+        return FALSE;
+    stop = MIN((guint64)PNIO_BLOCKS_OFF + tvb_get_uint32(tvb, PNIO_ARGS_LENGTH_OFF, encoding), tlen);
+    subs = g_byte_array_new();
+    while (off + 6 <= stop) {
+        guint type = tvb_get_ntohs(tvb, off);
+        guint end = off + 4 + tvb_get_ntohs(tvb, off + 2);
+
+        if (type == PNIO_BLOCK_EXPECTED_SUBMODULES && end <= tlen)
+            g_byte_array_append(subs, tvb_get_ptr(tvb, off, end - off), end - off);
+        off = end;
+    }
+    key->len = subs->len;
+    key->bytes = subs->len ? (const guint8 *)wmem_memdup(pinfo->pool, subs->data, subs->len) : NULL;
+    g_byte_array_free(subs, TRUE);
+    return key->len > 0;
+}
+
 /* The response to a Connect request comes from the device's own port to
  * the controller's: take that port too (unless something else has it). */
 static void
@@ -666,6 +738,8 @@ static int
 dissect_pn_cm(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
 {
     heur_dtbl_entry_t *hdtbl_entry;
+    pn_subs_key_t subs;
+    gboolean keyed = FALSE;
 
     if (!is_dcerpc_dg(tvb))
         return 0;
@@ -680,11 +754,24 @@ dissect_pn_cm(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
                 "by \"%s\", not by vrshark_pnio", pn_taken_by);
         /* A response teaches the carrier something only about an AR it
          * learned from a request, and it says when it holds one (hook
-         * "response"): a capture of foreign devices hands it no response. */
-        if (tvb_get_uint8(tvb, 1) == DCERPC_DG_RESPONSE && !dissector_get_string_handle(pn_hook_table, "response"))
-            return tvb_captured_length(tvb);
+         * "response"): a capture of foreign devices hands it no response,
+         * and no request it found foreign before (pn_foreign_subs). */
+        if (!dissector_get_string_handle(pn_hook_table, "response")) {
+            if (tvb_get_uint8(tvb, 1) == DCERPC_DG_RESPONSE)
+                return tvb_captured_length(tvb);
+            keyed = !(tvb_get_uint8(tvb, 2) & DCERPC_DG_FLAGS1_FRAG) && pn_subs_of(tvb, pinfo, &subs);
+            if (keyed && wmem_map_contains(pn_foreign_subs, &subs))
+                return tvb_captured_length(tvb);
+        }
         pn_lua_calling();
-        dissector_try_string_with_data(pn_hook_table, "connect", tvb, pinfo, tree, FALSE, NULL);
+        if (dissector_try_string_with_data(pn_hook_table, "connect", tvb, pinfo, tree, FALSE, NULL) == 0 && keyed &&
+            !pinfo->fd->visited) {
+            pn_subs_key_t *kept = wmem_new(wmem_file_scope(), pn_subs_key_t);
+
+            kept->len = subs.len;
+            kept->bytes = (const guint8 *)wmem_memdup(wmem_file_scope(), subs.bytes, subs.len);
+            wmem_map_insert(pn_foreign_subs, kept, kept);
+        }
     }
     return tvb_captured_length(tvb);
 }
@@ -1081,6 +1168,7 @@ frontends_init(void)
     view_fields_drop(&view_mb_heuristic);
     view_fields_drop(&view_mb_server);
     mb_state = wmem_map_new(wmem_file_scope(), mb_conn_hash, mb_conn_equal);
+    pn_foreign_subs = wmem_map_new(wmem_file_scope(), pn_subs_hash, pn_subs_equal);
     mb_hooks.read = FALSE;
     for (i = 0; i < pn_learned_ports->len; i++)
         dissector_delete_uint("udp.port", g_array_index(pn_learned_ports, guint32, i), pn_cm_handle);
