@@ -755,9 +755,11 @@ dissect_pn_cm(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
         /* A response teaches the carrier something only about an AR it
          * learned from a request, and it says when it holds one (hook
          * "response"): a capture of foreign devices hands it no response,
-         * and no request it found foreign before (pn_foreign_subs). */
+         * and no request it found foreign before (pn_foreign_subs). On a
+         * later pass every response goes to it (what it learned on the
+         * first is shown; an AR may have been dropped since). */
         if (!dissector_get_string_handle(pn_hook_table, "response")) {
-            if (tvb_get_uint8(tvb, 1) == DCERPC_DG_RESPONSE)
+            if (tvb_get_uint8(tvb, 1) == DCERPC_DG_RESPONSE && !pinfo->fd->visited)
                 return tvb_captured_length(tvb);
             keyed = !(tvb_get_uint8(tvb, 2) & DCERPC_DG_FLAGS1_FRAG) && pn_subs_of(tvb, pinfo, &subs);
             if (keyed && wmem_map_contains(pn_foreign_subs, &subs))
