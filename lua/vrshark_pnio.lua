@@ -12,9 +12,10 @@ C front ends of the C plugin (vrshark/frontends.luam), the C plugin is the
 protocol "vrshark_pnio": it runs PN-RT and DCE/RPC itself and calls this
 carrier only for the FrameIDs it registered, for candidate FrameIDs while
 polled-header recognition is on ("candidate" and "pending" hooks) and for
-Connects ("connect" hook; responses only while "response" says an AR
-learned from a request is held); the carrier then registers under the Proto of
-mcmb2 (the C plugin owns the name). Without the C plugin the carrier is the
+Connects ("connect" hook; while the "response" hook says no AR learned
+from a request is held, no response on the first pass, and no request
+whose expected submodules it returned 0 for before); the carrier then
+registers under the Proto of mcmb2 (the C plugin owns the name). Without the C plugin the carrier is the
 protocol "vrshark_pnio" itself: it takes EtherType 0x8892 (tagged frames
 reach it through the same table), calls Wireshark's PN-RT dissector first and
 then hands the C-SDU of the FrameIDs it knows to their decoder (an unknown
