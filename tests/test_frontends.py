@@ -7,7 +7,6 @@ decoders register their hooks again when a file starts; so every capture
 here starts with one frame that is neither PROFINET nor Modbus.
 """
 import os
-import struct
 import subprocess
 
 import pytest
@@ -17,7 +16,7 @@ from tools.capgen import profinet as pngen
 from tools.capgen.frames import pn_rt_frame, udp_frame
 from tools.capgen.pcap import Capture
 
-from conftest import CAPTURES
+from conftest import CAPTURES, pcap_frames
 
 # These tests are about the C plugin: a Lua-only run (VRSHARK_NO_C_PLUGIN=1) skips them.
 needs_c = pytest.mark.skipif(bool(os.environ.get("VRSHARK_NO_C_PLUGIN")), reason="runs without the C plugin")
@@ -90,18 +89,6 @@ def _probe(tshark, work_dir, capture, two_pass=False, accept_from=0, extra=(), s
     return rows
 
 
-def _pcap_frames(path):
-    """The frames of a classic pcap file, as bytes."""
-    with open(path, "rb") as f:
-        data = f.read()
-    frames, off = [], 24
-    while off < len(data):
-        _, _, incl, _ = struct.unpack_from("<IIII", data, off)
-        frames.append(data[off + 16:off + 16 + incl])
-        off += 16 + incl
-    return frames
-
-
 def _foreign_cyclic(work_dir):
     """A filler, then 100 cycles of a foreign device (FrameIDs 0x8100 in, 0x8101
     out) and 10 frames with FrameID 0x0100 (outside the candidate range)."""
@@ -152,7 +139,7 @@ def test_only_connects_reach_the_connect_hook(tshark, work_dir, capture_file, re
     src = capture_file("mcmb2_duplex_cm_port.pcap")
     cap = Capture()
     cap.add(0.0, _filler())
-    for i, frame in enumerate(_pcap_frames(src)):
+    for i, frame in enumerate(pcap_frames(src)):
         cap.add(0.001 * (i + 1), frame)
     path = _write(cap, work_dir, "cm_port.pcap")
     calls = _probe(tshark, work_dir, path, two_pass=two_pass, response=response)
@@ -175,7 +162,7 @@ def test_foreign_connect_requests_are_handed_over_once(tshark, work_dir, capture
     no AR (hook "response" absent); a request with other submodules is. With
     an AR held, every request and response goes to it."""
     def connects(name):
-        frames = _pcap_frames(capture_file(name))
+        frames = pcap_frames(capture_file(name))
         return [frames[int(n) - 1] for n in tshark.field(capture_file(name), "frame.number",
                                                           display_filter="dcerpc.opnum == 0")]
     a_req, a_resp = connects("mcmb2_duplex_cm_port.pcap")[:2]

@@ -2,7 +2,8 @@
 Connect through UDP 34964 and the controller's port; nothing else."""
 import pytest
 
-from conftest import assert_fields
+from conftest import assert_fields, pcap_frames
+from tools.capgen.pcap import Capture
 
 CM_PORT = "mcmb2_duplex_cm_port.pcap"
 
@@ -39,6 +40,36 @@ def test_response_from_the_device_port(tshark, capture_file, two_pass):
         "downlink FrameID 0x8102"
     assert ex[2][-1] == "Cyclic data layout learned: duplex device: uplink FrameID 0x8101, downlink FrameID 0x8102"
     tshark.expect(capture_file(CM_PORT), 1, {"mcmb2.frame_id": 0x8102})
+
+
+@pytest.mark.parametrize("two_pass", [False, True])
+def test_foreign_connects_before_ours(tshark, capture_file, work_dir, two_pass):
+    """A controller connects a foreign device again and again (its Connect
+    request is only looked up after the first: the C front end hands no
+    repeat over while no AR is held), then the base: the base's Connect is
+    learned and its cyclic frames decoded, the foreign requests get nothing."""
+    frames = pcap_frames(capture_file(CM_PORT))
+    # the same request with the submodule of slot 1 in subslot 2: no system of ours
+    # (UDP payload at 42; its first 0x0104 block of slot 1 at 444, the subslot 22 bytes in)
+    req = bytearray(frames[0])
+    assert req[42 + 444:42 + 446] == b"\x01\x04" and req[42 + 444 + 12:42 + 444 + 14] == b"\x00\x01"
+    req[42 + 444 + 22:42 + 444 + 24] = b"\x00\x02"
+    cap = Capture()
+    for i, frame in enumerate([bytes(req)] * 3 + frames):
+        cap.add(0.001 * (i + 1), frame)
+    path = work_dir / "foreign_then_ours.pcap"
+    path.write_bytes(cap.to_bytes())
+    path.chmod(0o644)
+    got = tshark.frames(path, ["dcerpc.opnum", "mcmb2.direction", "mcmb2.system"], two_pass=two_pass)
+    for n in (1, 2, 3):
+        assert_fields(got[n], {"dcerpc.opnum": 0, "mcmb2.direction": None, "mcmb2.system": None}, "frame %d" % n)
+    assert [got[n]["mcmb2.direction"] for n in range(6, 12)] == ["uplink", "downlink"] * 3
+    ex = tshark.experts(path, two_pass=two_pass)
+    # (Wireshark's PNIO has its own word on the FrameIDs; ours has none here)
+    assert not any("layout" in m or "not decoded" in m for n in (1, 2, 3) for m in ex.get(n, [])), ex
+    assert ex[4][-1] == "Cyclic data layout learned: duplex device: uplink FrameID assigned in the response, " \
+        "downlink FrameID 0x8102"
+    assert ex[5][-1] == "Cyclic data layout learned: duplex device: uplink FrameID 0x8101, downlink FrameID 0x8102"
 
 
 def test_disabling_the_carrier(tshark, capture_file):
