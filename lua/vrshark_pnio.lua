@@ -765,9 +765,10 @@ end
 -- vrshark.pnio_infer; n: the frame number. (A run given up without a hint
 -- takes nothing more: asked first, before the frame's time is made.)
 local function inferred(fid, s, pinfo, n)
-    local src, dst = tostring(p_dl_src(pinfo)), tostring(p_dl_dst(pinfo))
+    local addr = p_dl_src(pinfo)
+    local src, dst = tostring(addr), tostring(p_dl_dst(pinfo))
     if infer.given_up(runs, fid, src, dst) then return nil end
-    if not addr_of[src] then addr_of[src] = p_dl_src(pinfo) end
+    if not addr_of[src] then addr_of[src] = addr end
     local was = infer.alive(runs)
     local res = infer.feed(runs, fid, src, dst, s, p_abs_ts(pinfo), n)
     if infer.alive(runs) ~= was then set_hooks() end
@@ -903,7 +904,7 @@ local function cyclic(tvb, pinfo, tree, view, thrown)
         local fid = b1 and (b1 * 256 + b2)
         if fid and (by_fid[fid] or (fid >= 0x8000 and fid <= 0xFBFF and heuristic
                     and ((tries[fid] or 0) < HEUR_TRIES or #pending_down > 0
-                         or not infer.given_up(runs, fid, tostring(pinfo.dl_src), tostring(pinfo.dl_dst))))) then
+                         or not infer.given_up(runs, fid, tostring(p_dl_src(pinfo)), tostring(p_dl_dst(pinfo)))))) then
             rec, fresh = first_pass(fid, tvb, pinfo, len, n)
             if not once then fset(frames, n, rec) end
         end

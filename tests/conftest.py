@@ -11,7 +11,6 @@ import json
 import os
 import re
 import shutil
-import struct
 import subprocess
 import tempfile
 from pathlib import Path
@@ -230,18 +229,6 @@ def same_value(text, want):
         parts = text.split(",") if text else []
         return len(parts) == len(want) and all(same_value(p, w) for p, w in zip(parts, want))
     return text == want
-
-
-def pcap_frames(path):
-    """The frames of a classic pcap file, as bytes."""
-    with open(path, "rb") as f:
-        data = f.read()
-    frames, off = [], 24
-    while off < len(data):
-        _, _, incl, _ = struct.unpack_from("<IIII", data, off)
-        frames.append(data[off + 16:off + 16 + incl])
-        off += 16 + incl
-    return frames
 
 
 def assert_fields(got, expected, where=""):

@@ -10,13 +10,14 @@ import os
 import subprocess
 
 import pytest
+from scapy.utils import rdpcap
 
 from tools.capgen import eclink_modbus as mbgen
 from tools.capgen import profinet as pngen
 from tools.capgen.frames import pn_rt_frame, udp_frame
 from tools.capgen.pcap import Capture
 
-from conftest import CAPTURES, pcap_frames
+from conftest import CAPTURES
 
 # These tests are about the C plugin: a Lua-only run (VRSHARK_NO_C_PLUGIN=1) skips them.
 needs_c = pytest.mark.skipif(bool(os.environ.get("VRSHARK_NO_C_PLUGIN")), reason="runs without the C plugin")
@@ -139,7 +140,7 @@ def test_only_connects_reach_the_connect_hook(tshark, work_dir, capture_file, re
     src = capture_file("mcmb2_duplex_cm_port.pcap")
     cap = Capture()
     cap.add(0.0, _filler())
-    for i, frame in enumerate(pcap_frames(src)):
+    for i, frame in enumerate([bytes(p) for p in rdpcap(str(src))]):
         cap.add(0.001 * (i + 1), frame)
     path = _write(cap, work_dir, "cm_port.pcap")
     calls = _probe(tshark, work_dir, path, two_pass=two_pass, response=response)
@@ -162,7 +163,7 @@ def test_foreign_connect_requests_are_handed_over_once(tshark, work_dir, capture
     no AR (hook "response" absent); a request with other submodules is. With
     an AR held, every request and response goes to it."""
     def connects(name):
-        frames = pcap_frames(capture_file(name))
+        frames = [bytes(p) for p in rdpcap(str(capture_file(name)))]
         return [frames[int(n) - 1] for n in tshark.field(capture_file(name), "frame.number",
                                                           display_filter="dcerpc.opnum == 0")]
     a_req, a_resp = connects("mcmb2_duplex_cm_port.pcap")[:2]

@@ -1,8 +1,9 @@
 """How frames reach the plugin: EtherType 0x8892 wrapped around PN-RT, the
 Connect through UDP 34964 and the controller's port; nothing else."""
 import pytest
+from scapy.utils import rdpcap
 
-from conftest import assert_fields, pcap_frames
+from conftest import assert_fields
 from tools.capgen.pcap import Capture
 
 CM_PORT = "mcmb2_duplex_cm_port.pcap"
@@ -48,7 +49,7 @@ def test_foreign_connects_before_ours(tshark, capture_file, work_dir, two_pass):
     request is only looked up after the first: the C front end hands no
     repeat over while no AR is held), then the base: the base's Connect is
     learned and its cyclic frames decoded, the foreign requests get nothing."""
-    frames = pcap_frames(capture_file(CM_PORT))
+    frames = [bytes(p) for p in rdpcap(str(capture_file(CM_PORT)))]
     # the same request with the submodule of slot 1 in subslot 2: no system of ours
     # (UDP payload at 42; its first 0x0104 block of slot 1 at 444, the subslot 22 bytes in)
     req = bytearray(frames[0])

@@ -701,23 +701,22 @@ pn_subs_of(tvbuff_t *tvb, packet_info *pinfo, pn_subs_key_t *key)
     guint encoding = (tvb_get_uint8(tvb, 4) & DCERPC_DG_DREP_LITTLE) ? ENC_LITTLE_ENDIAN : ENC_BIG_ENDIAN;
     guint64 stop;
     guint off = PNIO_BLOCKS_OFF;
-    GByteArray *subs;
+    wmem_array_t *subs;
 
     if (tlen < PNIO_CONNECT_MIN_LEN)
         return FALSE;
     stop = MIN((guint64)PNIO_BLOCKS_OFF + tvb_get_uint32(tvb, PNIO_ARGS_LENGTH_OFF, encoding), tlen);
-    subs = g_byte_array_new();
+    subs = wmem_array_new(pinfo->pool, 1);
     while (off + 6 <= stop) {
         guint type = tvb_get_ntohs(tvb, off);
         guint end = off + 4 + tvb_get_ntohs(tvb, off + 2);
 
         if (type == PNIO_BLOCK_EXPECTED_SUBMODULES && end <= tlen)
-            g_byte_array_append(subs, tvb_get_ptr(tvb, off, end - off), end - off);
+            wmem_array_append(subs, tvb_get_ptr(tvb, off, end - off), end - off);
         off = end;
     }
-    key->len = subs->len;
-    key->bytes = subs->len ? (const guint8 *)wmem_memdup(pinfo->pool, subs->data, subs->len) : NULL;
-    g_byte_array_free(subs, TRUE);
+    key->len = wmem_array_get_count(subs);
+    key->bytes = (const guint8 *)wmem_array_get_raw(subs);
     return key->len > 0;
 }
 
