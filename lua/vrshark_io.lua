@@ -62,6 +62,25 @@ local AREAS = {
     vrpo = { area = "periodic.to_ru" },
 }
 
+local hooked = {}  -- key -> true while the dissector is in the table
+
+-- Hooked only for an area described: each call of a Lua dissector costs the
+-- EG-Link plugin a microsecond or two, on more than half of its packets.
+-- The lists are read again when a capture is opened (iodata.refresh), so
+-- the hooks follow the areas described then.
+local function hook_described()
+    if not have_eglink then return end
+    for key, a in pairs(AREAS) do
+        local want = iodata.areas[a.area] ~= nil
+        if want and not hooked[key] then
+            eglink_table:add(key, a.proto)
+        elseif hooked[key] and not want then
+            eglink_table:remove(key, a.proto)
+        end
+        hooked[key] = want or nil
+    end
+end
+
 for key, a in pairs(AREAS) do
     local d = Proto("vrshark_io_eglink_" .. key, "Machine data from EG-Link " .. key:upper())
     function d.dissector(tvb, pinfo, tree)
@@ -72,11 +91,10 @@ for key, a in pairs(AREAS) do
         iodata.decode(a.area, o and { origin = o } or nil, tvb(), tree, pinfo)
         return tvb:len()
     end
-    -- (only for an area described: the descriptions are read once, at
-    -- start-up; each call of a Lua dissector costs the EG-Link plugin a
-    -- microsecond or two, on more than half of its packets)
-    if have_eglink and iodata.areas[a.area] then eglink_table:add(key, d) end
+    a.proto = d
 end
+hook_described()
+iodata.on_change(hook_described)
 
 iodata.on_init(function()
     bu_origin_of = {}

@@ -7,6 +7,9 @@ import pytest
 from conftest import CAPTURES, ROOT, Tshark, _world_dir
 
 CRANE_CSV = ROOT / "examples" / "crane" / "crane.csv"
+# The names of the demo list's rows, and those of its ascii:N rows.
+NAMES = [line.split(",")[4] for line in CRANE_CSV.read_text().splitlines()[1:]]
+ASCII = {line.split(",")[4] for line in CRANE_CSV.read_text().splitlines()[1:] if ",ascii:" in line}
 
 
 def io_tshark(conf_dir, folder):
@@ -73,3 +76,15 @@ def described(conf_dir, folder, name, rows):
 def problems(proc):
     """The description problems a tshark run printed (stderr lines 'vrshark-io: ...'), prefix cut."""
     return [ln[len("vrshark-io: "):] for ln in proc.stderr.splitlines() if ln.startswith("vrshark-io: ")]
+
+
+def same(a, b):
+    """Two {frame: {name: text}}: numbers compared as numbers (a double and a u8 print alike otherwise)."""
+    assert sorted(a) == sorted(b)
+    for n in a:
+        assert sorted(a[n]) == sorted(b[n]), n
+        for k in a[n]:
+            if k in ASCII:
+                assert a[n][k] == b[n][k], (n, k)
+            else:
+                assert float(a[n][k]) == float(b[n][k]), (n, k, a[n][k], b[n][k])

@@ -46,13 +46,18 @@ EXPECTED = {
 }
 
 
-
-
 @pytest.mark.parametrize("two_pass", [False, True])
 def test_every_crane_field_exact(crane, two_pass):
+    """The demo list's rows are limited to the crane's BU origin (0x2C01):
+    frame 1, the controller's first VRPO, comes before any packet of the
+    BU, so one pass does not know its BU yet; with -2 the EG-Link analysis
+    has learned it (docs/io.md, Device keys)."""
     frames = crane.frames(CAP, ALL, two_pass=two_pass)
     assert sorted(frames) == sorted(EXPECTED)
-    expect_all(crane, CAP, EXPECTED, ALL, two_pass=two_pass)
+    want = dict(EXPECTED)
+    if not two_pass:
+        want[1] = {}
+    expect_all(crane, CAP, want, ALL, two_pass=two_pass)
 
 
 def test_scaling_units_and_bits_as_shown(crane):
@@ -106,15 +111,15 @@ def test_fault_values_are_experts(crane):
 
 
 def test_device_keys_select_the_origin(conf_dir, work_dir):
-    """Rows limited to origin=0x1001 (the BU of the capture) apply on the BU's
+    """Rows limited to origin=0x2C01 (the BU of the capture) apply on the BU's
     VRCI and, through the learned BU origin, on the controller's VRCO and VRPO;
     rows for another origin never apply."""
     t = described(conf_dir, work_dir, "two.csv", [
         "area,byte,type,name,device",
-        "cmd.from_ru,6,u8,op_here,origin=0x1001",
+        "cmd.from_ru,6,u8,op_here,origin=0x2C01",
         "cmd.from_ru,6,u8,op_elsewhere,origin=0x2002",
-        "cmd.to_ru,0,u8,code_here,origin=4097",
-        "periodic.to_ru,8,u32le,cycle_here,origin=0x1001",
+        "cmd.to_ru,0,u8,code_here,origin=11265",
+        "periodic.to_ru,8,u32le,cycle_here,origin=0x2c01",
         "periodic.to_ru,8,u32le,cycle_elsewhere,origin=0x2002",
         "cmd.to_ru,0,u8,code_any,",
         ])

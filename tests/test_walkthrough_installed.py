@@ -120,11 +120,45 @@ def test_step5_e010_and_watchdog(user):
     assert "[watchdog stalled 1.200 s]" in n[0][0]
 
 
+def step(n):
+    """The text of step n of the walkthrough."""
+    return re.search(r"^%d\. (.*?)(?=^\d+\. |\Z)" % n, walkthrough(), re.M | re.S).group(1)
+
+
+def shell(user, command):
+    """A command of the README as the user runs it in a terminal, from the top of the checkout."""
+    proc = subprocess.run(user.command("sh", ["-c", command]), env=user.env(), capture_output=True, text=True,
+                          cwd=str(ROOT))
+    assert proc.returncode == 0, "%s\n%s" % (command, proc.stdout + proc.stderr)
+
+
 def test_step6_machine_data(user):
-    assert "copy `examples/crane/crane.csv` into\n   `~/.config/wireshark/vrshark-io/`" in walkthrough()
-    user.add_io_list(ROOT / "examples" / "crane" / "crane.csv")
-    rows = frames(user, "crane_eglink.pcap", "vrshark_io", ("vrshark.io.horn", "vrshark.io.hoist_speed"))
-    assert rows and any(r[0] for r in rows)
+    """The step's commands, as written, on the fresh account (no vrshark-io
+    folder yet); the demo crane's data named; `vrshark.io` shows the frames
+    with machine data; the removal it gives takes the names away."""
+    text = " ".join(step(6).split())
+    commands = re.findall(r"`((?:mkdir|cp|rm) [^`]+)`", text)
+    install = [c for c in commands if c.startswith("mkdir")]
+    remove = [c for c in commands if c.startswith("rm ")]
+    assert len(install) == 1 and len(remove) == 1, commands
+    assert not (user.config / "vrshark-io").exists()
+    shell(user, install[0])
+    assert (user.config / "vrshark-io" / "crane.csv").read_text() == \
+        (ROOT / "examples" / "crane" / "crane.csv").read_text()
+    assert "`captures/crane_eglink.pcap`" in text and "*Machine data (crane.csv)*" in text
+    rows = frames(user, "crane_eglink.pcap", "vrshark.io", ("frame.number", "vrshark.io.horn",
+                                                            "vrshark.io.hoist_speed", "vrshark.io"))
+    assert [int(r[0]) for r in rows] == [1, 2, 4, 5, 7, 8, 10, 11, 13, 15, 16]
+    assert all(r[3] == "crane.csv" for r in rows)
+    assert [r[2] for r in rows if r[2]] == ["0", "75.5", "100", "-50"]
+    assert "`vrshark.io.hoist_speed > 50`" in text
+    assert [r[0] for r in frames(user, "crane_eglink.pcap", "vrshark.io.hoist_speed > 50")] == ["5", "8"]
+    tree = user.tshark(["-n", "-2", "-r", str(CAPTURES / "crane_eglink.pcap"), "-V", "-Y", "frame.number == 10"])
+    assert "Machine data (crane.csv)" in tree.stdout and "Load on the hook (t): 52.3 (raw 5230)" in tree.stdout
+    # "The demo list names only the demo crane's devices"
+    assert frames(user, "eglink_analysis_session.pcap", "vrshark_io || vrshark.io") == []
+    shell(user, remove[0])
+    assert frames(user, "crane_eglink.pcap", "vrshark_io || vrshark.io") == []
 
 
 def test_step7_report_installed(user):

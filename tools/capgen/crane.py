@@ -8,6 +8,10 @@ joysticks) as VRCI command data; the crane controller answers with VRCO
 messages (a code and a text) and sends its state (load, hook height, slew
 angle, alarms, cycle counter, wind speed, status text) as VRPO periodic data.
 The layouts are those of examples/crane/crane.csv.
+
+The demo crane has device identities of its own, which no other capture
+uses: the IO list's rows are limited to them (its `device` column), so that
+the demo list, left installed, never names another machine's data.
 """
 import struct
 
@@ -32,6 +36,13 @@ def state(load, height, slew, overload=0, wind_alarm=0, mode=0, cycle=0, wind=0.
     flags = overload | wind_alarm << 1 | mode << 4
     return (struct.pack("<HhHBxIf", load, height, slew, flags, cycle, wind)
             + text.encode("ascii").ljust(16)[:16])
+
+
+# The demo crane's identities (examples/crane/crane.csv, column device).
+EGLINK_ORIGIN = 0x2C01              # the BU's origin
+MCMB2_FIDS = (0x8021, 0x8022)       # MC-MB2-PN uplink, downlink FrameID
+ECLINK_PNIO_FIDS = (0x8023, 0x8024)  # EC-Link in PROFINET: input, output image FrameID
+ECLINK_MODBUS_SERVER = "192.168.2.71"  # EC-Link in Modbus/TCP: the BU (server)
 
 
 # (t, who, type, payload): the session of the demo, in time order.
@@ -62,7 +73,7 @@ def _session():
 @capture("crane_eglink.pcap", "the demo crane (examples/crane/crane.csv) over EG-Link: "
          "operator commands (VRCI), controller messages (VRCO) and crane state (VRPO)")
 def crane_eglink():
-    link = eglink.Link()
+    link = eglink.Link(origin=EGLINK_ORIGIN)
     for t, who, ptype, payload in _session():
         if who == "bu":
             link.bu(t, ptype, payload)
@@ -75,7 +86,7 @@ def crane_eglink():
          "Connect: the operator's terminal 1 uplink (8 bytes), messages downlink (14 bytes)")
 def crane_mcmb2():
     cap = Capture()
-    d = profinet.Mcmb2("duplex", 8, 14, in_fid=0x8001, out_fid=0x8002)
+    d = profinet.Mcmb2("duplex", 8, 14, in_fid=MCMB2_FIDS[0], out_fid=MCMB2_FIDS[1])
     d.connect(cap, 0.0)                                                       # frames 1, 2
     steps = [  # (uplink data, downlink data): frames 3/4, 5/6, 7/8, 9/10
         (operator(start=1), message(0, "")),
@@ -116,7 +127,7 @@ def _eclink_images(i, cmd_in, cmd_out, periodic):
          "crane state (periodic data) in the output image")
 def crane_eclink_pnio():
     cap = Capture()
-    bu = profinet.EclinkBu(224, in_fid=0x8010, out_fid=0x8011)
+    bu = profinet.EclinkBu(224, in_fid=ECLINK_PNIO_FIDS[0], out_fid=ECLINK_PNIO_FIDS[1])
     bu.connect(cap, 0.0)                                                     # frames 1, 2
     for i, step in enumerate(_eclink_steps()):                               # frames 3/4 .. 9/10
         inp, out = _eclink_images(i, *step)
@@ -129,7 +140,7 @@ def crane_eclink_pnio():
          "operator commands in the input image, messages and the crane state (periodic data) in the output image")
 def crane_eclink_modbus():
     cap = Capture()
-    mb = eclink_modbus.ModbusClient(cap)                                     # frames 1-3: TCP handshake
+    mb = eclink_modbus.ModbusClient(cap, server_ip=ECLINK_MODBUS_SERVER)   # frames 1-3: TCP handshake
     for i, step in enumerate(_eclink_steps()):             # frames 4-7, 8-11, 12-15, 16-19
         eclink_modbus.cycle(mb, 0.1 + 0.125 * i, *_eclink_images(i, *step))
     return cap
