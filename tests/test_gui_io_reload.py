@@ -1,7 +1,8 @@
 """The IO list picked up by Wireshark's GUI on View > Reload (Ctrl+R),
 without a Lua reload or a restart (docs/io.md, "When a list changes"), as a
-user has it after the README's personal install: Wireshark opens the demo
-crane's EG-Link capture with no IO list; the demo list is copied into
+user has it after the README's personal install (the demo crane's EG-Link
+capture) and the Lua-only copy (its MC-MB2-PN capture): Wireshark opens
+the capture with no IO list; the demo list is copied into
 ~/.config/wireshark/vrshark-io/; Ctrl+R (xdotool) reloads the capture.
 
 The oracle is a Lua postdissector of the user's (a third party's plugin)
@@ -23,8 +24,6 @@ from io_testlib import ASCII, NAMES, same
 pytestmark = pytest.mark.skipif(not (have_gui() and shutil.which("xdotool")),
                                 reason="wireshark, Xvfb, imagemagick or xdotool missing (tools/setup)")
 
-CAP = CAPTURES / "crane_eglink.pcap"
-FRAMES = 17
 ARTEFACTS = BUILD / "gui-artefacts"
 
 # Each start of dissection (Proto.init) begins a generation "init N"; each
@@ -94,42 +93,50 @@ def wait_for(what, timeout=120):
     return what()
 
 
-def complete(path, after=0):
-    """The last generation after `after` in which every frame was dissected, or None."""
+def complete(path, count, after=0):
+    """The last generation after `after` in which all count frames were dissected, or None."""
     gens = generations(path)
-    done = [g for g, frames in gens.items() if g > after and len(frames) == FRAMES]
+    done = [g for g, frames in gens.items() if g > after and len(frames) == count]
     return (max(done), gens[max(done)]) if done else None
 
 
-@pytest.fixture(scope="module")
-def user():
-    inst = Installed("personal")
+# install -> (capture, frames in it, frames the demo list names in one pass)
+CASES = {"personal": ("crane_eglink.pcap", 17, 10), "lua-only": ("crane_mcmb2.pcap", 10, 8)}
+
+
+@pytest.fixture(params=sorted(CASES))
+def user(request):
+    inst = Installed(request.param)
     inst.add_lua_plugin("zz-io-probe/io_probe.lua", PROBE)
     yield inst
     inst.remove()
 
 
 def test_io_list_picked_up_on_reload(user):
+    name, count, named = CASES[user.kind]
+    title = name.replace(".pcap", "")
+    cap = CAPTURES / name
     probe = user.home / "io-probe.txt"
     gui = Gui(user, ARTEFACTS)
     env = user.env(DISPLAY=gui.display, XDG_RUNTIME_DIR=str(gui.run_dir))
-    ws = subprocess.Popen(user.command("wireshark", ["-r", str(CAP)]), env=env, stdout=subprocess.PIPE,
+    ws = subprocess.Popen(user.command("wireshark", ["-r", str(cap)]), env=env, stdout=subprocess.PIPE,
                           stderr=subprocess.STDOUT, cwd=str(user.home))
     try:
-        first = wait_for(lambda: complete(probe))
+        first = wait_for(lambda: complete(probe, count))
         assert first, "the probe saw no complete dissection: %s" % (probe.read_text() if probe.exists() else "")
         gen, frames = first
         assert not any(frames.values()), "machine data named before any IO list: %s" % frames
         user.add_io_list(ROOT / "examples" / "crane" / "crane.csv")
-        window = subprocess.run(["xdotool", "search", "--sync", "--onlyvisible", "--name", "crane_eglink"],
-                                env=dict(env), capture_output=True, text=True, timeout=60).stdout.split()
+        window = subprocess.run(["xdotool", "search", "--sync", "--onlyvisible", "--name", title],
+                                env=env, capture_output=True, text=True, timeout=60).stdout.split()
         assert window, "no Wireshark window"
         subprocess.run(["xdotool", "windowfocus", "--sync", window[0]], env=env, check=True, timeout=30)
         subprocess.run(["xdotool", "key", "--clearmodifiers", "ctrl+r"], env=env, check=True, timeout=30)
-        reloaded = wait_for(lambda: complete(probe, gen))
+        reloaded = wait_for(lambda: complete(probe, count, gen))
         assert reloaded, "no complete dissection after Ctrl+R: %s" % probe.read_text()[-3000:]
         picture = gui.screenshot()
-        subprocess.run(["convert", "ppm:-", str(gui.artefacts / "io_reload.png")], input=picture, check=True)
+        png = gui.artefacts / ("io_reload_%s.png" % user.kind)
+        subprocess.run(["convert", "ppm:-", str(png)], input=picture, check=True)
     finally:
         ws.kill()
         output = ws.communicate()[0].decode(errors="replace")
@@ -137,11 +144,11 @@ def test_io_list_picked_up_on_reload(user):
     for bad in ("Lua Error", "Dissector bug", "dissector bug"):
         assert bad not in output, output
     # What tshark, started with the list in place, names in each frame in
-    # one pass, as the GUI's first pass that the probe saw (frame 1, the
-    # controller's before any packet of the BU, gets its names in a later
-    # dissection, once the BU is known).
+    # one pass, as the GUI's first pass that the probe saw (on EG-Link,
+    # frame 1, the controller's before any packet of the BU, gets its names
+    # in a later dissection, once the BU is known).
     fields = ["frame.number"] + ["vrshark.io." + n for n in NAMES]
-    args = ["-n", "-r", str(CAP), "-T", "fields", "-E", "occurrence=f"]
+    args = ["-n", "-r", str(cap), "-T", "fields", "-E", "occurrence=f"]
     for f in fields:
         args += ["-e", f]
     proc = user.tshark(args)
@@ -149,9 +156,9 @@ def test_io_list_picked_up_on_reload(user):
     want = {}
     for line in proc.stdout.splitlines():
         cells = line.split("\t")
-        named = {n: {"True": "1", "False": "0"}.get(v, v) for n, v in zip(NAMES, cells[1:]) if v}
-        if named:
-            want[int(cells[0])] = named
-    assert len(want) == 10
+        row = {n: {"True": "1", "False": "0"}.get(v, v) for n, v in zip(NAMES, cells[1:]) if v}
+        if row:
+            want[int(cells[0])] = row
+    assert len(want) == named
     got = {n: f for n, f in reloaded[1].items() if f}
     same(got, want)

@@ -5,7 +5,7 @@ change at all without a description."""
 import pytest
 
 from conftest import CAPTURES
-from io_testlib import crane, described, expect_all, io_tshark, write  # noqa: F401 (crane is a fixture)
+from io_testlib import crane, described, expect_all, io_tshark, problems, write  # noqa: F401 (crane is a fixture)
 
 CAP = CAPTURES / "crane_eglink.pcap"
 
@@ -132,6 +132,31 @@ def test_device_keys_select_the_origin(conf_dir, work_dir):
         t.expect(CAP, 15, {"vrshark.io.cycle_here": 5, "vrshark.io.cycle_elsewhere": None}, two_pass=two_pass)
         assert all(f["vrshark.io.op_elsewhere"] == "" and f["vrshark.io.cycle_elsewhere"] == ""
                    for f in frames.values())
+
+
+def test_several_device_keys(conf_dir, work_dir):
+    """A device cell with several keys (separated by ';') applies wherever
+    any of them matches; rows overlap when they share a bit and any device;
+    a bad key among several is named."""
+    t = described(conf_dir, work_dir, "multi.csv", [
+        "area,byte,type,name,device",
+        "cmd.from_ru,6,u8,op_here,origin=0x2002; origin=0x2C01",            # 2
+        "cmd.from_ru,6,u8,op_elsewhere,origin=0x3003;server=10.0.0.1",       # 3
+        "cmd.from_ru,6,u8,op_clash,origin=0x4004;origin=0x2002",             # 4
+        "cmd.from_ru,7,u8,op_bad,origin=0x2C01;unit=3",                      # 5
+        ])
+    names = ["vrshark.io.op_here", "vrshark.io.op_elsewhere"]   # the rows left out have no field
+    for two_pass in (False, True):
+        t.expect(CAP, 2, {"vrshark.io.op_here": 7, "vrshark.io.op_elsewhere": None}, two_pass=two_pass)
+        frames = t.frames(CAP, names, two_pass=two_pass)
+        assert sorted(n for n, f in frames.items() if f["vrshark.io.op_here"]) == [2, 5, 8, 13]
+        assert not any(f["vrshark.io.op_elsewhere"] for f in frames.values())
+    proc = t.run(["-n", "-r", str(CAP), "-c", "1"])
+    assert problems(proc) == [
+        "multi.csv line 4: 'op_clash' overlaps 'op_here' (line 2) in cmd.from_ru; fix: check byte, bit and type "
+        "of both rows; two fields may not share a bit of the same area and device",
+        "multi.csv line 5: bad device key 'unit=3'; fix: write terminal=N, slot=N, frame_id=0xNNNN, origin=0xNNNN "
+        "or server=<IP address>, or leave it empty for any device"]
 
 
 def test_reassembled_periodic_data(conf_dir, work_dir):
