@@ -110,6 +110,8 @@ def test_list_added_after_startup_is_read_at_capture_open(swap, crane, lua_only)
     want = typed_values(variant(crane, lua_only), capture)
     assert want and len(want) >= 8
     same(got, want)
+    marked = swap.run(["-Y", "vrshark.io", "-T", "fields", "-e", "frame.number"], capture, lua_only).stdout
+    assert [int(n) for n in marked.split()] == sorted(got)
     proc = swap.run(["-V"], capture, lua_only)
     assert "IO lists read again" in proc.stderr
     text = proc.stdout

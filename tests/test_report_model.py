@@ -394,7 +394,7 @@ def test_generated_capture_controller_first(vrshark_report, tmp_path):
     junit = tmp_path / "r.xml"
     proc = vrshark_report("--json", "--junit", junit, "captures/crane_eglink.pcap")
     assert [(d["name"], d["frames"], d["first_frame"]) for d in devices(proc)] == [
-        ("EG-Link BU 0x1001 (192.168.32.10 to 239.255.42.20:5825)", 17, 1)]
+        ("EG-Link BU 0x2c01 (192.168.32.10 to 239.255.42.20:5825)", 17, 1)]
     assert len(list(ET.parse(junit).getroot().iter("testcase"))) == 1
 
 
