@@ -302,7 +302,7 @@ def test_decode_as(report):
     # without it: a candidate, with the setting under which its traffic is judged
     without = as_json(report("--json", "captures/eclink_modbus_port5020.pcap"))["captures"][0]
     assert [(d["kind"], d["address"]) for d in without["devices"]] == [
-        ("candidate", {"server": "192.168.2.41", "port": 5020, "setting": "eclink_modbus.port:5020"})]
+        ("candidate", {"server": "192.168.2.41", "port": 5020, "setting": "eclink_modbus.port:502,5020"})]
     with_rule = as_json(report("--json", "-d", "tcp.port==5020,eclink_modbus",
                                "captures/eclink_modbus_port5020.pcap"))["captures"][0]
     assert [d["name"] for d in with_rule["devices"]] == ["EC-Link BU, Modbus/TCP server 192.168.2.41:5020"]
