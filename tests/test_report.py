@@ -469,8 +469,9 @@ def test_json_schema(report):
     assert set(doc) == {"schema", "fail_on", "expect", "exit_status", "captures"}
     assert (doc["fail_on"], doc["expect"], doc["exit_status"]) == ("error", [], 1)
     cap = doc["captures"][0]
-    assert set(cap) == {"capture", "error", "frames", "start", "start_epoch", "duration",
+    assert set(cap) == {"capture", "error", "frames", "tcp_frames", "start", "start_epoch", "duration",
                         "devices", "timeline", "counts", "missing"}
+    assert (cap["frames"], cap["tcp_frames"]) == (52, 0)
     assert cap["counts"] == {"note": 0, "warning": 0, "error": 2}
     assert set(cap["devices"][0]) == {"id", "kind", "name", "address", "layout", "frames",
                                       "first_frame", "last_frame", "start", "end", "initial",

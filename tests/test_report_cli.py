@@ -18,6 +18,7 @@ import signal
 import subprocess
 import sys
 import threading
+import time
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -686,14 +687,28 @@ def test_no_tcp_says_no_modbus(cmd):
 
 @pytest.fixture(scope="module")
 def plant_excerpt():
-    """The first 17 frames of a real plant (test_eclink_modbus_realstack: a
-    pymodbus BU on 127.0.0.1 and the ordinary servers beside it, one port
-    other than 502)."""
+    """The first 17 frames of a real plant's connection (test_eclink_modbus_realstack:
+    a pymodbus BU on 127.0.0.1, on a port other than 502), its PLC reading
+    the input image and writing the output image every 50 ms."""
     import test_eclink_modbus_realstack as rs
-    gen = rs.captured()
+
+    def plc(log):
+        bu = rs._client(rs.BU)
+        for pco in range(20):
+            assert not bu.read_input_registers(0, count=32, device_id=1).isError()
+            assert not bu.write_registers(0, rs._output_registers(pco, 5), device_id=1).isError()
+            time.sleep(0.05)
+        bu.close()
+    gen = rs.captured("commands", plc)
     cap, _ = next(gen)
+    # from the SYN of the connection the server accepted (the client's tries
+    # before the server listened are refused: SYN, RST)
+    synack = subprocess.run(["tshark", "-n", "-r", str(cap), "-Y", "tcp.flags.syn == 1 && tcp.flags.ack == 1",
+                             "-T", "fields", "-e", "frame.number"], capture_output=True, text=True,
+                            env={"PATH": "/usr/bin:/bin", "HOME": str(cap.parent)}).stdout.split()
+    first = int(synack[0]) - 1
     excerpt = cap.parent / "plant-17.pcapng"
-    subprocess.run(["editcap", "-r", str(cap), str(excerpt), "1-17"], check=True)
+    subprocess.run(["editcap", "-r", str(cap), str(excerpt), "%d-%d" % (first, first + 16)], check=True)
     excerpt.chmod(0o644)
     yield excerpt, rs.PORT
     gen.close()
@@ -704,7 +719,7 @@ def test_plant_excerpt_first_suggestion_decodes(cmd, plant_excerpt):
     its port, and it decodes the BU in the second run."""
     excerpt, port = plant_excerpt
     proc = run(cmd, "--expect", "eclink", excerpt)
-    assert proc.returncode == 1, proc.stderr
+    assert proc.returncode == 1 and "to decode: -o " in proc.stderr, proc.stderr
     first = proc.stderr.split("to decode: -o ", 1)[1].split(", ")[0].rstrip(")\n")
     assert first == "eclink_modbus.servers:127.0.0.1:%d" % port, proc.stderr
     proc = run(cmd, "--json", "--expect", "eclink", "-o", first, excerpt)
