@@ -41,11 +41,14 @@ eclink_modbus.candidate on that ADU, saying what the evidence still lacks
 and the setting that decodes it now (eclink_modbus.candidate_setting); not
 on a second pass once the connection was accepted later.
 
-Port: eclink_modbus.port, or with 0 (the default) the port of Wireshark's
-Modbus/TCP dissector, mbtcp.tcp.port (502 unless set): one setting is enough,
-whichever the user sets. Wireshark's Modbus/TCP dissector tells queries from
-responses by its own port, so on another port the BU's port is presented to
-it as that one while it runs, and on its own port it is left alone.
+Ports: every port of eclink_modbus.port (a range preference, "502" by
+default, e.g. "502,5020") and the port of Wireshark's Modbus/TCP dissector,
+mbtcp.tcp.port (502 unless set): either setting adds a port, neither takes
+one away (vrshark/modbus_ports.luam), and every hint names the ports already
+decoded with the new one. Wireshark's Modbus/TCP dissector tells queries
+from responses by its own port, so on another port the BU's port is
+presented to it as that one while it runs, and on its own port it is left
+alone.
 
 Per connection, on the first pass, the latest value of every image byte is
 kept (so each frame can show the assembled images as of that frame), the
@@ -66,6 +69,7 @@ local fe = require("vrshark.frontends")
 local append_info = fe.append_info
 local detect = require("vrshark.modbus_detect")
 local servers = require("vrshark.modbus_servers")
+local ports = require("vrshark.modbus_ports")
 local record = require("vrshark.pnio_record") -- add_time(): times to the ms, as over PROFINET
 local iodata = require("vrshark.iodata") -- vrshark_io hook
 -- (methods called as functions on the per-frame paths: vrshark/api.luam says why)
@@ -188,8 +192,9 @@ local DETECT_HEURISTIC, DETECT_ALWAYS, DETECT_OFF = 0, 1, 2
 -- ADUs of a connection the heuristic looks at before it gives up (the C front
 -- end's VRSHARK_MB_CANDIDATE_TRIES counts frames: the same bound)
 local CANDIDATE_TRIES = 1024
-proto.prefs.port = Pref.uint("Modbus/TCP port", 0, "TCP port of the BU's Modbus/TCP server; "
-    .. "0: the port of Wireshark's Modbus/TCP dissector (mbtcp.tcp.port, 502 unless set)")
+proto.prefs.port = Pref.range("Modbus/TCP ports", "502", "TCP ports of BUs' Modbus/TCP servers, a list or "
+    .. "ranges (502,5020); the port of Wireshark's Modbus/TCP dissector (mbtcp.tcp.port) is decoded too: "
+    .. "a port added here or there never takes another away", 65535)
 proto.prefs.detection = Pref.enum("Detection", DETECT_HEURISTIC,
     "heuristic: decode a connection once its traffic shows a BU (input images whose PCI moves every 125 ms, "
     .. "or an input image and a written output image); always: every connection on the port; off: leave "
@@ -207,8 +212,9 @@ proto.prefs.assembled = Pref.bool("Show assembled images", false,
     "Show on every EC-Link frame the input and output images as assembled from all accesses so far")
 
 local tcp_port_table = DissectorTable.get("tcp.port")
-local current_port = 0      -- without the C plugin: the port the decoder sits on
-local displaced = false     -- that port held Wireshark's Modbus/TCP dissector before
+-- without the C plugin: port -> true when the decoder took it from Wireshark's
+-- Modbus/TCP dissector, false when it was free
+local placed = {}
 -- Wireshark's Modbus/TCP dissector tells queries from responses by its own
 -- port preference, mbtcp.tcp.port (Lua-only; the C front end reads it).
 local mbtcp_port = 502
@@ -254,26 +260,33 @@ local function find_mbtcp_port()
     return found or 502
 end
 
--- Without the C plugin: the decoder on its port (eclink_modbus.port, or
--- mbtcp.tcp.port when that is 0), at each file start and preference change.
--- A later DissectorTable add (a plugin loaded after this one putting
--- Modbus/TCP back) replaces ours silently, so the port is taken again each
--- time. With the C plugin its front end does the same in C (own_mb_port).
+-- Without the C plugin: the decoder on its ports (every port of
+-- eclink_modbus.port and mbtcp.tcp.port's), at each file start and
+-- preference change. A later DissectorTable add (a plugin loaded after this
+-- one putting Modbus/TCP back) replaces ours silently, so the ports are taken
+-- again each time. With the C plugin its front end does the same in C
+-- (own_mb_port).
 local function place_on_port()
     if C then return end
     local ours = Dissector.get("eclink_modbus")     -- (tostring of a Proto is not its dissector's)
-    -- the port of the last file given back first (to mbtcp if it had it), so
-    -- that mbtcp's own port is found in the table as Wireshark set it
-    if current_port ~= 0 and holds(current_port, ours) then
-        tcp_port_table:remove(current_port, front)
-        if displaced then tcp_port_table:add(current_port, mbtcp) end
+    -- the ports of the last file given back first (to mbtcp where it had
+    -- them), so that mbtcp's own port is found in the table as Wireshark set it
+    for port, displaced in pairs(placed) do
+        if holds(port, ours) then
+            tcp_port_table:remove(port, front)
+            if displaced then tcp_port_table:add(port, mbtcp) end
+        end
     end
+    placed = {}
     mbtcp_port = find_mbtcp_port()
-    local port = proto.prefs.port
-    if port == 0 then port = mbtcp_port end
-    displaced = holds(port, mbtcp)
-    tcp_port_table:add(port, front)
-    current_port = port
+    local want = ports.parse(proto.prefs.port)
+    want[mbtcp_port] = true
+    for port in pairs(want) do
+        if not holds(port, ours) then
+            placed[port] = holds(port, mbtcp)
+            tcp_port_table:add(port, front)
+        end
+    end
 end
 
 -- The ports named in eclink_modbus.servers are decoded too: the decoder (or
@@ -328,6 +341,9 @@ proto.prefs_changed = prefs_changed
 local conns      -- connection key -> connection state
 local keys_by_ports -- client port * 65536 + server port -> { { client Address, server Address, key }, ... }
 local adus       -- ADU key -> what the first pass worked out for it (but plain records: below)
+-- requests on a port no setting names (port_hint): per connection what they
+-- could prove (detect.requests), per frame the setting the note named
+local hint_conns, hint_of, hint_short
 
 -- seconds (a difference of pcap timestamps) to the microsecond: the times a
 -- record keeps (shown to the microsecond; the flat records keep them as
@@ -405,6 +421,7 @@ local function init_state()
     once = passes.once()
     conns, keys_by_ports = {}, {}
     adus = {}
+    hint_conns, hint_of, hint_short = {}, {}, {}
     at_key, at_age, at_la, at_time, far_links = framemap.packed_refs(), framemap.packed_us(), framemap.packed_refs(),
         framemap.packed_us(), {}
     access_memo, access_memo_n = {}, 0
@@ -965,7 +982,7 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb, 
         local addr = tostring(is_request and pinfo.dst or pinfo.src)
         local port = is_request and pinfo.dst_port or pinfo.src_port
         c.pinned = opt.any_servers and servers.listed(opt.servers, addr, port, pinfo.match_uint) or false
-        c.setting = servers.setting(addr, port)
+        c.setting = servers.setting(addr, port, proto.prefs.servers)
     end
     local tkey = (tid * 256 + unit) * 256 + fc
     local t = p_abs_ts(pinfo)
@@ -1418,9 +1435,13 @@ local HOOKS = { heuristic = true, always = true, server = true }
 -- request whose MBAP headers fill the segment exactly and which reads a
 -- whole input image or writes an output image (the accesses a BU's
 -- evidence needs: modbus_detect.luam) gets the candidate note, with the
--- setting under which the detection judges its server (eclink_modbus.port:
--- an ordinary IO device is polled the same way). Nothing is kept: one pass
--- and two agree.
+-- setting that decodes it: the ports already decoded with this one
+-- (eclink_modbus.port:502,5020), under which the detection judges the
+-- server (an ordinary IO device is polled the same way), once its
+-- connection's requests could carry the evidence; before that (an excerpt
+-- too short for the heuristic) the server with its port
+-- (eclink_modbus.servers:ADDR:PORT), which decodes it from its first frame.
+-- Worked out on the first pass and kept per frame: one pass and two agree.
 -- With the C plugin its front end checks the same in C and calls hook
 -- "port_hint"; without it this is a heuristic of TCP. Either way it is asked
 -- before Wireshark's own TCP heuristics (rpcap takes some Modbus requests
@@ -1428,6 +1449,7 @@ local HOOKS = { heuristic = true, always = true, server = true }
 local function image_request(tvb)
     local n, off, shaped = tvb:len(), 0, false
     if n < 12 or n > 4096 then return false end
+    local reads, writes = false, false
     while off < n do
         if off + 12 > n then return false end
         local _, _, p1, p2, l1, l2, _, fc = tvb:raw(off, 8):byte(1, 8)
@@ -1436,32 +1458,64 @@ local function image_request(tvb)
         -- the heuristic's own tests (look()): a whole input image read, the output image written
         local tname = FC_TABLE[fc]
         local r = tname and parse_request_pdu(tvb, off + 7, adu - 7, fc)
-        if r and ((READS[fc] and r.count and full_input(tname, r.start, r.count))
-                  or (r.wstart and full_output_write({ write = true, tname = tname, start = r.wstart,
-                                                        count = r.wcount }))) then
-            shaped = true
+        if r and READS[fc] and r.count and full_input(tname, r.start, r.count) then
+            shaped, reads = true, true
+        end
+        if r and r.wstart and full_output_write({ write = true, tname = tname, start = r.wstart,
+                                                   count = r.wcount }) then
+            shaped, writes = true, true
         end
         off = off + adu
     end
-    return shaped
+    return shaped, reads, writes
 end
 
 local data_dissector = Dissector.get("data")
 
+-- The setting a request's note names, worked out on the first pass (kept
+-- per frame: two passes agree): the ports already decoded with this one
+-- (the detection then judges the server, as on 502) once the connection's
+-- requests could carry the evidence (detect.requests), else, for an
+-- excerpt too short for the heuristic, the server with its port (decoded
+-- from its first frame; the entries already listed kept).
+local function hint_setting(pinfo, port, reads, writes)
+    local n = p_number(pinfo)
+    if p_visited(pinfo) and hint_of[n] then return hint_of[n], hint_short[n] end
+    local key = conn_key(pinfo, true, pinfo.src_port, port)
+    local reqs = hint_conns[key]
+    if not reqs then
+        reqs = {}
+        hint_conns[key] = reqs
+    end
+    local t, enough = p_abs_ts(pinfo), false
+    if writes then enough = detect.requests(reqs, "write", t) end
+    if reads then enough = detect.requests(reqs, "read", t) end
+    local addr = tostring(pinfo.dst)
+    local setting
+    if enough or not servers.ipv4(addr) then
+        setting = "eclink_modbus.port:" .. ports.with(proto.prefs.port, port)
+    else
+        setting = servers.setting(addr, port, proto.prefs.servers, true)
+    end
+    hint_of[n], hint_short[n] = setting, not enough
+    return setting, not enough
+end
+
 local function port_hint(tvb, pinfo, tree)
-    if opt.detection == DETECT_OFF or not image_request(tvb) then return 0 end
+    if opt.detection == DETECT_OFF then return 0 end
+    local shaped, reads, writes = image_request(tvb)
+    if not shaped then return 0 end
     local port = pinfo.dst_port
     -- (a port some dissector sits on had its turn, or has it next: TCP's
     -- "try heuristic sub-dissectors first")
     if tcp_port_table:get_dissector(port) then return 0 end
-    -- (the port, not the server: the detection then judges it, as on 502)
-    local setting = "eclink_modbus.port:" .. port
+    local setting, short = hint_setting(pinfo, port, reads, writes)
     data_dissector:call(tvb, pinfo, tree)
     local item = add(tree, pf.candidate_setting, tvb(), setting)
     item:set_generated()
     item:add_proto_expert_info(ef.candidate, string.format("Looks like a request to a BU's Modbus/TCP server "
-        .. "(an image access) on TCP port %d, which Wireshark does not read as Modbus/TCP: not decoded; "
-        .. "to decode it: %s", port, setting))
+        .. "(an image access) on TCP port %d, which is not read as Modbus/TCP: not decoded%s; to decode it: %s",
+        port, short and ", too few requests yet for the heuristic" or "", setting))
     pinfo.cols.protocol = "Modbus/TCP?"
     pinfo.cols.info = string.format("Modbus/TCP request? to port %d, which is not read as Modbus/TCP "
         .. "[to decode: %s]", port, setting)

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import CAPTURES
+from conftest import CAPTURES, Tshark
 from modbus_testlib import FastTcpConnection, Traffic, bu_connection, modbus_client, read_input
 from tools.capgen import eclink_modbus as mbgen
 
@@ -172,30 +172,73 @@ def test_port_preference_one_setting(tshark, capture_file):
     assert tshark.frames(cap, ["eclink.image"], display_filter="eclink") == {}
 
 
-def test_port_not_set_says_which_setting(tshark, capture_file):
+@pytest.fixture(scope="module")
+def lua_only_tshark(conf_dir):
+    """tools/tshark without the C plugin (the Lua-only install's path)."""
+    t = Tshark(conf_dir)
+    t.env["VRSHARK_NO_C_PLUGIN"] = "1"
+    return t
+
+
+def test_port_not_set_says_which_setting(tshark, lua_only_tshark, capture_file):
     """Neither setting names port 5020: each request that reads the input
     image or writes the output image carries the candidate note naming the
-    port's setting; the responses and the handshake stay plain TCP. One
-    pass and two agree; with the setting the note is gone and the BU
-    decoded."""
+    setting that decodes its server: while the requests are too few for the
+    heuristic (two input image reads, frames 4-10) the server with its port,
+    from the third read 250 ms after the first (frame 12) the ports already
+    decoded with 5020, under which the heuristic judges it. The responses
+    and the handshake stay plain TCP. One pass and two agree; with either
+    setting the note is gone and the BU decoded."""
     cap = capture_file("eclink_modbus_port5020.pcap")
-    note = ("Looks like a request to a BU's Modbus/TCP server (an image access) on TCP port 5020, which Wireshark "
-            "does not read as Modbus/TCP: not decoded; to decode it: eclink_modbus.port:5020")
+    note = ("Looks like a request to a BU's Modbus/TCP server (an image access) on TCP port 5020, which is not "
+            "read as Modbus/TCP: not decoded%s; to decode it: %s")
+    pin, port = "eclink_modbus.servers:192.168.2.41:5020", "eclink_modbus.port:502,5020"
     fields = ["tcp.dstport", "eclink_modbus.candidate_setting", "_ws.expert.message", "_ws.col.Protocol"]
-    for two_pass in (False, True):
-        got = tshark.frames(cap, fields, two_pass=two_pass)
-        requests = [n for n, row in got.items() if row["tcp.dstport"] == "5020" and n > 3]
-        assert len(requests) == 8
-        for n, row in got.items():
-            if n in requests:
-                assert row == {"tcp.dstport": "5020", "eclink_modbus.candidate_setting": "eclink_modbus.port:5020",
-                               "_ws.expert.message": note, "_ws.col.Protocol": "Modbus/TCP?"}, n
-            else:
-                assert (row["eclink_modbus.candidate_setting"], row["_ws.col.Protocol"]) == ("", "TCP"), n
-    decoded = tshark.frames(cap, ["eclink_modbus.candidate", "eclink.image"], prefs={"eclink_modbus.port": "5020"},
-                            two_pass=True)
-    assert [r["eclink_modbus.candidate"] for r in decoded.values()] == [""] * len(decoded)
-    assert sum(1 for r in decoded.values() if r["eclink.image"]) == 8   # 4 input images read, 4 outputs written
+    for t in (tshark, lua_only_tshark):
+        for two_pass in (False, True):
+            got = t.frames(cap, fields, two_pass=two_pass)
+            requests = [n for n, row in got.items() if row["tcp.dstport"] == "5020" and n > 3]
+            assert requests == [4, 6, 8, 10, 12, 14, 16, 18]
+            for n, row in got.items():
+                if n in requests:
+                    setting = pin if n < 12 else port
+                    short = ", too few requests yet for the heuristic" if n < 12 else ""
+                    assert row == {"tcp.dstport": "5020", "eclink_modbus.candidate_setting": setting,
+                                   "_ws.expert.message": note % (short, setting),
+                                   "_ws.col.Protocol": "Modbus/TCP?"}, n
+                else:
+                    assert (row["eclink_modbus.candidate_setting"], row["_ws.col.Protocol"]) == ("", "TCP"), n
+    for prefs in ({"eclink_modbus.port": "502,5020"}, {"eclink_modbus.servers": "192.168.2.41:5020"}):
+        decoded = tshark.frames(cap, ["eclink_modbus.candidate", "eclink.image"], prefs=prefs, two_pass=True)
+        assert [r["eclink_modbus.candidate"] for r in decoded.values()] == [""] * len(decoded)
+        assert sum(1 for r in decoded.values() if r["eclink.image"]) == 8   # 4 input images read, 4 outputs written
+    # the settings of the notes keep what the user has set and add to it
+    got = tshark.frames(cap, ["eclink_modbus.candidate_setting"], display_filter="eclink_modbus.candidate",
+                        prefs={"eclink_modbus.port": "502,600-610", "eclink_modbus.servers": "10.0.0.1"})
+    assert [v["eclink_modbus.candidate_setting"] for v in got.values()] == [
+        "eclink_modbus.servers:10.0.0.1,192.168.2.41:5020"] * 4 + ["eclink_modbus.port:502,600-610,5020"] * 4
+
+
+@pytest.mark.parametrize("prefs", [{"eclink_modbus.port": "5020"}, {"mbtcp.tcp.port": "5020"},
+                                   {"eclink_modbus.port": "502,5020"}, {"eclink_modbus.port": "5000-5030"}],
+                         ids=["ours", "wiresharks", "list", "range"])
+@pytest.mark.parametrize("lua_only", [False, True], ids=["C", "lua-only"])
+def test_port_setting_adds_never_takes_away(tshark, lua_only_tshark, capture_file, prefs, lua_only):
+    """eclink_modbus.port is a range (502 by default) and the port of
+    Wireshark's Modbus/TCP dissector is decoded too: a port set here or
+    there adds to 502, never takes it away. The BU on 502 (faults capture)
+    and the one on 5020 decode in the same run as each alone, with the C
+    front end and without."""
+    t = lua_only_tshark if lua_only else tshark
+    fields = ["eclink.image", "eclink.pci", "eclink_modbus.accepted_in", "_ws.expert.message"]
+    on502 = capture_file("eclink_modbus_faults.pcap")
+    alone = t.frames(on502, fields, two_pass=True)
+    assert sum(1 for v in alone.values() if v["eclink.image"]) >= 15
+    assert t.frames(on502, fields, two_pass=True, prefs=prefs) == alone
+    on5020 = t.frames(capture_file("eclink_modbus_port5020.pcap"), fields, two_pass=True, prefs=prefs)
+    assert sum(1 for v in on5020.values() if v["eclink.image"]) == 8
+
+
 
 
 def _poll_gap_capture(work_dir):

@@ -357,20 +357,30 @@ def test_neither_port_setting_as_wireshark_alone_but_for_the_note(tshark, real_c
         ["tshark"] + args, env={"PATH": "/usr/bin:/bin", "HOME": str(work_dir), "TZ": "UTC",
                                 "WIRESHARK_CONFIG_DIR": str(work_dir)}, capture_output=True, text=True).stdout.splitlines()]
     assert len(ours) == len(alone) > 100
-    note = "Modbus/TCP request? to port %d, which is not read as Modbus/TCP [to decode: eclink_modbus.port:%d]" % (
-        PORT, PORT)
+    note = "Modbus/TCP request? to port %d, which is not read as Modbus/TCP [to decode: %%s]" % PORT
+    settings = tshark.frames(cap, ["ip.dst", "eclink_modbus.candidate_setting"],
+                             display_filter="eclink_modbus.candidate")
     hinted = []
     for o, a in zip(ours, alone):
         if o != a:
             # (Wireshark alone reads some of these requests as rpcap, and fails)
             hinted.append(int(o[0]))
             assert a[1].split(":tcp")[0] == o[1].split(":tcp")[0] and o[1].endswith(":tcp:eclink_modbus:data") \
-                and o[2] == note, o
+                and o[2] == note % settings[int(o[0])]["eclink_modbus.candidate_setting"], o
     assert hinted == image_requests(cap, work_dir) and len(hinted) > 30
     assert tshark.frames(cap, ["eclink.image"], display_filter="eclink") == {}
-    assert tshark.frames(cap, ["eclink_modbus.candidate_setting"], display_filter="eclink_modbus.candidate",
-                         two_pass=True) == {n: {"eclink_modbus.candidate_setting": "eclink_modbus.port:%d" % PORT}
-                                            for n in hinted}
+    assert tshark.frames(cap, ["ip.dst", "eclink_modbus.candidate_setting"], display_filter="eclink_modbus.candidate",
+                         two_pass=True) == settings
+    # each server's first requests (too few for the heuristic) name the server
+    # with its port, its later ones the ports with this one: the last note
+    # (the report's) decodes under the heuristic, keeping port 502
+    port_form = "eclink_modbus.port:502,%d" % PORT
+    last = {}
+    for n in hinted:
+        v = settings[n]
+        assert v["eclink_modbus.candidate_setting"] in (port_form, "eclink_modbus.servers:%s:%d" % (v["ip.dst"], PORT))
+        last[v["ip.dst"]] = v["eclink_modbus.candidate_setting"]
+    assert last == {ip: port_form for ip in [BU, BU_LIKE] + sorted(ORDINARY)}
 
 
 def test_io_device_polled_like_a_bu_never_decoded(tshark, real_capture):

@@ -36,7 +36,7 @@ CASES = {
     "mcmb2_duplex_e010_noconnect.pcap": "mcmb2.candidate",
     # a BU on a port no setting names: the note on its image requests
     # (a TCP heuristic: asked before Wireshark's own in every layout)
-    "eclink_modbus_port5020.pcap": "eclink_modbus.candidate_setting == \"eclink_modbus.port:5020\"",
+    "eclink_modbus_port5020.pcap": "eclink_modbus.candidate_setting == \"eclink_modbus.port:502,5020\"",
     "crane_eglink.pcap": "vrshark_io",
     "crane_mcmb2.pcap": "vrshark_io",
     "crane_eclink_modbus.pcap": "vrshark_io",

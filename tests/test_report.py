@@ -302,7 +302,7 @@ def test_decode_as(report):
     # without it: a candidate, with the setting under which its traffic is judged
     without = as_json(report("--json", "captures/eclink_modbus_port5020.pcap"))["captures"][0]
     assert [(d["kind"], d["address"]) for d in without["devices"]] == [
-        ("candidate", {"server": "192.168.2.41", "port": 5020, "setting": "eclink_modbus.port:5020"})]
+        ("candidate", {"server": "192.168.2.41", "port": 5020, "setting": "eclink_modbus.port:502,5020"})]
     with_rule = as_json(report("--json", "-d", "tcp.port==5020,eclink_modbus",
                                "captures/eclink_modbus_port5020.pcap"))["captures"][0]
     assert [d["name"] for d in with_rule["devices"]] == ["EC-Link BU, Modbus/TCP server 192.168.2.41:5020"]
@@ -469,8 +469,9 @@ def test_json_schema(report):
     assert set(doc) == {"schema", "fail_on", "expect", "exit_status", "captures"}
     assert (doc["fail_on"], doc["expect"], doc["exit_status"]) == ("error", [], 1)
     cap = doc["captures"][0]
-    assert set(cap) == {"capture", "error", "frames", "start", "start_epoch", "duration",
+    assert set(cap) == {"capture", "error", "frames", "tcp_frames", "start", "start_epoch", "duration",
                         "devices", "timeline", "counts", "missing"}
+    assert (cap["frames"], cap["tcp_frames"]) == (52, 0)
     assert cap["counts"] == {"note": 0, "warning": 0, "error": 2}
     assert set(cap["devices"][0]) == {"id", "kind", "name", "address", "layout", "frames",
                                       "first_frame", "last_frame", "start", "end", "initial",

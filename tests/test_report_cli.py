@@ -12,24 +12,27 @@ import json
 import os
 import pty
 import select
+import shlex
+import shutil
 import signal
 import subprocess
 import sys
 import threading
+import time
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import pytest
 
 from conftest import CAPTURES, ROOT
-from installed_testlib import Installed
+from installed_testlib import IS_ROOT, RUN_UID, Installed
 
 PUBLIC = ROOT.parent / "shared" / "captures" / "public"
 PORT5020 = str(CAPTURES / "eclink_modbus_port5020.pcap")
 VRPO_GAP = str(CAPTURES / "eglink_analysis_vrpo_gap.pcap")
 BAD_CRC = str(CAPTURES / "eglink_bad_crc.pcap")
 MCMB2 = str(CAPTURES / "mcmb2_duplex_watchdog.pcap")
-HINT_ECLINK = "a Modbus/TCP BU on another port: -d tcp.port==PORT,eclink_modbus"
+NO_MODBUS = "the capture holds no Modbus/TCP (no TCP frame at all)"
 
 
 class Checkout:
@@ -129,12 +132,13 @@ def summary(cap):
 
 def test_expect_missing_protocol(cmd):
     """The plant on port 5020: without the rule no EC-Link device, exit 1, one
-    line naming the setting its candidate notes give."""
+    line naming the setting its candidate notes give: the port with the one
+    already decoded (502), so that a BU there still decodes."""
     proc = run(cmd, "--json", "--expect", "eclink", PORT5020)
     assert proc.returncode == 1
     assert proc.stderr.splitlines() == [
         "vrshark-report: %s: expected EC-Link, none found (19 frames read; not recognised, to decode: "
-        "-o eclink_modbus.port:5020)" % PORT5020]
+        "-o eclink_modbus.port:502,5020)" % PORT5020]
     cap = captures(proc)[0]
     assert ([d["kind"] for d in cap["devices"]], cap["missing"]) == (["candidate"], ["eclink"])
     assert json.loads(proc.stdout)["expect"] == ["eclink"]
@@ -166,7 +170,7 @@ def test_expect_excerpt_and_subsets(cmd, work):
         "another UDP port: -o eglink.input_port:PORT; a base whose Connect is not in the capture: "
         "-o mcmb2.layouts, docs/profinet.md)" % pnio,
         "vrshark-report: %s: expected EG-Link and EC-Link, none found (52 frames read; EG-Link on "
-        "another UDP port: -o eglink.input_port:PORT; %s)" % (MCMB2, HINT_ECLINK)]
+        "another UDP port: -o eglink.input_port:PORT; %s)" % (MCMB2, NO_MODBUS)]
     proc = run(cmd, "--expect", "eclink", pnio)
     assert (proc.returncode, proc.stderr) == (0, "")
 
@@ -222,6 +226,14 @@ def test_expect_junit(cmd, work):
         assert suite.get("name") == capture
         case = suite.find("testcase[@name='expected EC-Link']")
         assert case.find("failure").get("message").startswith("expected EC-Link, none found (")
+    # the message names the setting, as the line on stderr does
+    lines = proc.stderr.splitlines()
+    assert [s.find("testcase[@name='expected EC-Link']/failure").get("message") for s in suites] == [
+        "expected EC-Link, none found (19 frames read; not recognised, to decode: -o eclink_modbus.port:502,5020)",
+        "expected EC-Link, none found (%s frames read; %s)" % (
+            lines[1].split("(", 1)[1].split(" ")[0], NO_MODBUS)]
+    assert lines == ["vrshark-report: %s: %s" % (c, s.find("testcase[@name='expected EC-Link']/failure").get(
+        "message")) for c, s in zip((PORT5020, BAD_CRC), suites)]
     # (the plant on port 5020 is a candidate: its own failing case, with the setting)
     assert [c.get("name") for c in suites[0].findall("testcase")] == [
         "Modbus/TCP server 192.168.2.41:5020, not decoded", "expected EC-Link"]
@@ -569,3 +581,147 @@ def test_junit_time_and_span(cmd, work):
     assert props == {"kind": "eglink", "frames": "56", "first_frame": "1", "last_frame": "56",
                      "traffic_start_s": "0.000", "traffic_end_s": "4.440", "traffic_span_s": "4.440"}
 
+
+
+# --- a gate that a pipe or a folder cannot turn green ------------------------------------
+
+FAULTS = [str(CAPTURES / "eclink_modbus_faults.pcap"), VRPO_GAP, BAD_CRC]
+
+
+def shell(cmd, args, tail, user=False):
+    """The report in a bash pipeline under `set -o pipefail`: (status, stderr)."""
+    argv = cmd.argv(args)
+    if user and isinstance(cmd, Checkout) and IS_ROOT:
+        argv = ["setpriv", "--reuid=%d" % RUN_UID, "--regid=%d" % RUN_UID, "--clear-groups"] + argv
+    proc = subprocess.run(["bash", "-c", "set -o pipefail; %s %s" % (shlex.join(argv), tail)],
+                          env=cmd.env(), cwd=str(cmd.cwd), stdin=subprocess.DEVNULL, capture_output=True,
+                          text=True, timeout=300)
+    return proc.returncode, proc.stderr
+
+
+@pytest.mark.parametrize("tail", ["| head -1", "| true", "> /dev/full", ""])
+@pytest.mark.parametrize("args, status", [(["--fail-on", "warn"], 1), (["--fail-on", "error", "--json"], 1),
+                                          (["--expect", "mcmb2"], 1), ([], 0)])
+def test_closed_output_keeps_the_gate(cmd, tail, args, status):
+    """The reader of the report goes away (| head -1, | true): the report
+    stops writing, says the gate's line on stderr and exits with the gate's
+    status, never 0 for a failed gate and never a traceback. Output that
+    cannot be written (a full disk) is exit 2 with one line."""
+    got, err = shell(cmd, args + FAULTS, tail)
+    if tail == "> /dev/full":
+        assert (got, "Traceback" in err) == (2, False), err
+        assert "vrshark-report: cannot write the report: No space left on device" in err.splitlines()
+        return
+    assert (got, "Traceback" in err) == (status, False), err
+    if "--fail-on" in args:
+        assert err.splitlines()[-1].startswith("vrshark-report: FAIL (--fail-on %s): " % args[1]), err
+
+
+def test_closed_output_with_junit(cmd, work):
+    """The JUnit file is written whole although standard output was closed."""
+    out = work / "closed.xml"
+    got, err = shell(cmd, ["--junit", out, "--fail-on", "warn"] + FAULTS, "| true")
+    assert got == 1, err
+    assert ET.parse(out).getroot().get("failures") != "0"
+
+
+def unreadable_paths(folder):
+    """path -> the reason the report gives, for every way a path cannot be read."""
+    closed = folder / "closed"          # a folder without search permission (mode 644)
+    closed.mkdir()
+    shutil.copy(BAD_CRC, closed / "eglink.pcap")
+    closed.chmod(0o644)
+    private = folder / "private.pcap"   # a file only its owner (root) reads
+    shutil.copy(BAD_CRC, private)
+    private.chmod(0o600)
+    (folder / "loop").symlink_to(folder / "loop")
+    plain = put(folder, "plain.pcap", Path(BAD_CRC).read_bytes())
+    sub = folder / "a-folder"
+    sub.mkdir()
+    denied = "cannot open: permission denied (the file, or a folder on its path, is closed to this user)"
+    return {closed / "eglink.pcap": denied, private: denied,
+            sub: "is a directory, not a capture file",
+            folder / "missing.pcap": "no such file",
+            folder / "loop": "cannot open: Too many levels of symbolic links",
+            plain / "inside.pcap": "cannot open: Not a directory"}
+
+
+@pytest.mark.skipif(not IS_ROOT, reason="the paths are made closed to uid %d as root" % RUN_UID)
+def test_unreadable_paths_one_line_exit_2(cmd, work):
+    """Run as a user (uid 65534): every way a path cannot be read is one line
+    naming the path and the reason, exit 2 (never 1, the gate's failure,
+    and never a traceback), alone and beside a readable capture."""
+    for path, reason in unreadable_paths(work).items():
+        for args in (["--fail-on", "warn", path], ["--fail-on", "warn", "--expect", "eglink", path, BAD_CRC]):
+            got, err = shell(cmd, args, "", user=True)
+            assert got == 2 and "Traceback" not in err, (path, err)
+            assert err.splitlines()[0] == "vrshark-report: %s: %s" % (path, reason), err
+
+
+def test_suggested_setting_decodes_and_keeps_port_502(cmd):
+    """The setting the --expect line names for the BU on port 5020, applied
+    in a second run with the BU on port 502 (eclink_modbus_faults.pcap: 1
+    error, 3 warnings): both BUs decoded, the gate still fails on 502's
+    findings. Wireshark's own port setting (mbtcp.tcp.port) adds too."""
+    on502 = str(CAPTURES / "eclink_modbus_faults.pcap")
+    proc = run(cmd, "--expect", "eclink", PORT5020)
+    setting = proc.stderr.split("to decode: -o ", 1)[1].rstrip(")\n")
+    assert setting == "eclink_modbus.port:502,5020"
+    alone = captures(run(cmd, "--json", on502))[0]
+    assert [d["name"] for d in alone["devices"]] == ["EC-Link BU, Modbus/TCP server 192.168.2.41:502"]
+    for prefs in (["-o", setting], ["-o", "eclink_modbus.port:5020"], ["-o", "mbtcp.tcp.port:5020"]):
+        proc = run(cmd, "--json", "--expect", "eclink", "--fail-on", "warn", *prefs, PORT5020, on502)
+        assert proc.returncode == 1, proc.stderr
+        got = captures(proc)
+        assert [d["name"] for d in got[0]["devices"]] == ["EC-Link BU, Modbus/TCP server 192.168.2.41:5020"]
+        assert summary(got[1]) == summary(alone), prefs
+        assert [line.split(":")[1] for line in proc.stderr.splitlines()] == [" FAIL (--fail-on warn)"], proc.stderr
+
+
+def test_no_tcp_says_no_modbus(cmd):
+    proc = run(cmd, "--expect", "eclink", MCMB2)
+    assert proc.returncode == 1
+    assert proc.stderr == "vrshark-report: %s: expected EC-Link, none found (52 frames read; %s)\n" % (
+        MCMB2, NO_MODBUS)
+
+
+@pytest.fixture(scope="module")
+def plant_excerpt():
+    """The first 17 frames of a real plant's connection (test_eclink_modbus_realstack:
+    a pymodbus BU on 127.0.0.1, on a port other than 502), its PLC reading
+    the input image and writing the output image every 50 ms."""
+    import test_eclink_modbus_realstack as rs
+
+    def plc(log):
+        bu = rs._client(rs.BU)
+        for pco in range(20):
+            assert not bu.read_input_registers(0, count=32, device_id=1).isError()
+            assert not bu.write_registers(0, rs._output_registers(pco, 5), device_id=1).isError()
+            time.sleep(0.05)
+        bu.close()
+    gen = rs.captured("commands", plc)
+    cap, _ = next(gen)
+    # from the SYN of the connection the server accepted (the client's tries
+    # before the server listened are refused: SYN, RST)
+    synack = subprocess.run(["tshark", "-n", "-r", str(cap), "-Y", "tcp.flags.syn == 1 && tcp.flags.ack == 1",
+                             "-T", "fields", "-e", "frame.number"], capture_output=True, text=True,
+                            env={"PATH": "/usr/bin:/bin", "HOME": str(cap.parent)}).stdout.split()
+    first = int(synack[0]) - 1
+    excerpt = cap.parent / "plant-17.pcapng"
+    subprocess.run(["editcap", "-r", str(cap), str(excerpt), "%d-%d" % (first, first + 16)], check=True)
+    excerpt.chmod(0o644)
+    yield excerpt, rs.PORT
+    gen.close()
+
+
+def test_plant_excerpt_first_suggestion_decodes(cmd, plant_excerpt):
+    """Too short for the heuristic: the first suggestion is the server with
+    its port, and it decodes the BU in the second run."""
+    excerpt, port = plant_excerpt
+    proc = run(cmd, "--expect", "eclink", excerpt)
+    assert proc.returncode == 1 and "to decode: -o " in proc.stderr, proc.stderr
+    first = proc.stderr.split("to decode: -o ", 1)[1].split(", ")[0].rstrip(")\n")
+    assert first == "eclink_modbus.servers:127.0.0.1:%d" % port, proc.stderr
+    proc = run(cmd, "--json", "--expect", "eclink", "-o", first, excerpt)
+    assert (proc.returncode, proc.stderr) == (0, "")
+    assert "EC-Link BU, Modbus/TCP server 127.0.0.1:%d" % port in [d["name"] for d in captures(proc)[0]["devices"]]

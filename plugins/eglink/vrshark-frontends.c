@@ -19,10 +19,10 @@
  *                      source port of a
  *                      Connect request is added to udp.port for the
  *                      response (until the next file).
- *   Modbus/TCP port    "vrshark.mbtcp" (protocol "vrshark_mbtcp", which
+ *   Modbus/TCP ports   "vrshark.mbtcp" (protocol "vrshark_mbtcp", which
  *   (eclink_modbus.    takes itself out of the layer list): mbtcp first,
- *   port, or mbtcp's   then the Lua decoder registered in vrshark.mbtcp.hook
- *   own when that is 0) as "always" (every connection), or as "heuristic":
+ *   port, a range,     then the Lua decoder registered in vrshark.mbtcp.hook
+ *   and mbtcp's own)   as "always" (every connection), or as "heuristic":
  *                      a TCP connection (its two addresses and ports, as
  *                      the Lua side keys it: mb_conn_key_t) becomes a
  *                      candidate when its client first asks for what a BU's image
@@ -839,10 +839,13 @@ mb_evidence_request(tvbuff_t *tvb)
  * mbtcp.tcp.port, 502 unless set), found when each file starts: mbtcp tells
  * queries from responses by it. */
 static guint mb_port;
-/* The port the front end sits on (eclink_modbus.port, or mbtcp's port when
- * that is 0), or 0; and whether it took that port from mbtcp. */
-static guint mb_placed;
-static gboolean mb_displaced;
+/* The ports the front end sits on (eclink_modbus.port, a range, and mbtcp's
+ * port), each with whether it took the port from mbtcp. */
+typedef struct {
+    guint port;
+    gboolean displaced;
+} mb_placed_t;
+static GArray *mb_placed;
 
 /* mbtcp.tcp.port is a Decode As preference, which prefs_get_uint_value()
  * does not read: it is the port the tcp.port table gives mbtcp, one other
@@ -860,36 +863,60 @@ find_mbtcp_port(const gchar *table_name, ftenum_t selector_type, gpointer key, g
         *found = GPOINTER_TO_UINT(key);
 }
 
-/* At each file start: the front end on the BU's port. The port of the last
- * file is given back first (to mbtcp if it had it), so that mbtcp's own port
- * is found in the table as Wireshark set it; then the front end sits on
- * eclink_modbus.port, or on mbtcp's port when that is 0 (the default). Only
- * with the Lua decoders (their preferences exist). */
+/* The front end on one more port (once; 0 is no port). */
+static void
+place_mb_port(guint32 port, gpointer user_data)
+{
+    dissector_table_t tcp = (dissector_table_t)user_data;
+    dissector_handle_t cur;
+    mb_placed_t placed;
+
+    if (port == 0 || port > 65535)
+        return;
+    cur = dissector_get_uint_handle(tcp, port);
+    if (cur == mb_front_handle)
+        return;
+    placed.port = port;
+    placed.displaced = cur == mbtcp_handle;
+    dissector_add_uint("tcp.port", port, mb_front_handle);
+    g_array_append_val(mb_placed, placed);
+}
+
+/* At each file start: the front end on the BUs' ports. The ports of the last
+ * file are given back first (to mbtcp where it had them), so that mbtcp's own
+ * port is found in the table as Wireshark set it; then the front end sits on
+ * every port of eclink_modbus.port (a range, 502 by default) and on mbtcp's
+ * port: either setting adds a port, neither takes one away (the Lua side does
+ * the same without this plugin). Only with the Lua decoders (their
+ * preferences exist). */
 static void
 own_mb_port(void)
 {
     dissector_table_t tcp = find_dissector_table("tcp.port");
-    guint want = 0;
+    range_t *ports;
+    guint i;
 
-    if (mb_placed && dissector_get_uint_handle(tcp, mb_placed) == mb_front_handle) {
-        if (mb_displaced)
-            dissector_add_uint("tcp.port", mb_placed, mbtcp_handle);
+    if (!mb_placed)
+        mb_placed = g_array_new(FALSE, FALSE, sizeof(mb_placed_t));
+    for (i = 0; i < mb_placed->len; i++) {
+        mb_placed_t *placed = &g_array_index(mb_placed, mb_placed_t, i);
+
+        if (dissector_get_uint_handle(tcp, placed->port) != mb_front_handle)
+            continue;
+        if (placed->displaced)
+            dissector_add_uint("tcp.port", placed->port, mbtcp_handle);
         else
-            dissector_delete_uint("tcp.port", mb_placed, mb_front_handle);
+            dissector_delete_uint("tcp.port", placed->port, mb_front_handle);
     }
-    mb_placed = 0;
+    g_array_set_size(mb_placed, 0);
     mb_port = 0;
     dissector_table_foreach("tcp.port", find_mbtcp_port, &mb_port);
     if (!prefs_find_module("eclink_modbus"))
         return;
-    want = eglink_prefs_get_uint("eclink_modbus", "port");
-    if (want == 0)
-        want = mb_port;
-    if (want == 0)
-        return;
-    mb_displaced = dissector_get_uint_handle(tcp, want) == mbtcp_handle;
-    dissector_add_uint("tcp.port", want, mb_front_handle);
-    mb_placed = want;
+    ports = prefs_get_range_value("eclink_modbus", "port");
+    if (ports)
+        range_foreach(ports, place_mb_port, tcp);
+    place_mb_port(mb_port, tcp);
 }
 
 /* Removes the front end's own entry from the layer list: Modbus/TCP looks as

@@ -106,6 +106,8 @@ def report_one(index, path, tshark, extra, limits, keep_series):
         error = error or rows.error
     except CaptureError as exc:
         error = str(exc)
+    except OSError as exc:  # (a read that fails after the open)
+        error = "cannot read: %s" % (exc.strerror or exc)
     if error and error.startswith("not a network capture"):
         cap = model.Capture(path, limits)
     rep = cap.finish(error)
@@ -209,6 +211,26 @@ def check_tshark(tshark, extra):
          % (" ".join(cmd), proc.returncode))
 
 
+def write_stdout(write):
+    """The report on standard output. A reader that goes away (| head -1)
+    ends the writing, not the run: the gate's lines on stderr, the JUnit
+    file and the exit status stay what they would be, so that a pipeline
+    under `set -o pipefail` fails as the report alone would. Returns the
+    line for output that could not be written otherwise (a full disk), or
+    None."""
+    try:
+        write(sys.stdout)
+        sys.stdout.flush()
+        return None
+    except BrokenPipeError:
+        error = None
+    except OSError as exc:  # (a full disk, ...: the report is lost, exit 2)
+        error = "cannot write the report: %s" % (exc.strerror or exc)
+    # (what is still buffered must not be flushed at exit either)
+    os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    return error
+
+
 def gate(reports, threshold):
     """(findings at or above threshold, the first of them with its capture)."""
     count, first = 0, None
@@ -252,20 +274,22 @@ def main(argv=None):
         html.write(reports, args.html,
                    lambda done, total: bar.show(done / total, "HTML: plots %d/%d" % (done, total)))
     bar.clear()
-    if args.json:
-        jsonout.write(reports, sys.stdout, threshold, status, args.expect)
-    else:
-        text.write(reports, sys.stdout)
-    sys.stdout.flush()
+    unwritten = write_stdout(lambda out: jsonout.write(reports, out, threshold, status, args.expect)
+                             if args.json else text.write(reports, out))
     if args.junit:
         junit.write(results, args.junit, threshold or catalog.WARNING)
-    for rep in reports:
-        if rep["error"]:
-            sys.stderr.write("vrshark-report: %s: %s\n" % (rep["capture"], rep["error"]))
-    for rep in absent:
-        sys.stderr.write("vrshark-report: %s\n" % expect.line(rep))
+    lines = ["%s: %s" % (rep["capture"], rep["error"]) for rep in reports if rep["error"]]
+    if unwritten:
+        lines.append(unwritten)
+        status = 2
+    lines += [expect.line(rep) for rep in absent]
     if count:
-        sys.stderr.write("vrshark-report: FAIL (--fail-on %s): %d finding(s) at %s or above; "
-                         "first: %s frame %d: %s\n" % (args.fail_on, count, threshold, first[0],
-                                                       first[1]["frame"], first[1]["text"]))
+        lines.append("FAIL (--fail-on %s): %d finding(s) at %s or above; first: %s frame %d: %s" % (
+            args.fail_on, count, threshold, first[0], first[1]["frame"], first[1]["text"]))
+    try:
+        for line in lines:
+            sys.stderr.write("vrshark-report: %s\n" % line)
+        sys.stderr.flush()
+    except BrokenPipeError:  # (2>&1 | head -1: the status still tells)
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stderr.fileno())
     return status

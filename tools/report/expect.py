@@ -10,7 +10,7 @@ protocol and the setting that usually brings its devices back.
 PROTOCOLS = {
     "eglink": ("EG-Link", {"eglink"}, "EG-Link on another UDP port: -o eglink.input_port:PORT"),
     "eclink": ("EC-Link", {"eclink_modbus", "eclink_pnio"},
-               "a Modbus/TCP BU on another port: -d tcp.port==PORT,eclink_modbus"),
+               "a Modbus/TCP BU on another port: -o eclink_modbus.port:502,PORT"),
     "mcmb2": ("MC-MB2-PN", {"mcmb2"},
               "a base whose Connect is not in the capture: -o mcmb2.layouts, docs/profinet.md"),
 }
@@ -63,12 +63,19 @@ def hint(rep, name):
     found = settings(rep, name)
     if found:
         return "not recognised, to decode: " + ", ".join(found)
+    if name == "eclink" and rep.get("tcp_frames") == 0:
+        # (no port setting can help: say what the capture holds instead)
+        return "the capture holds no Modbus/TCP (no TCP frame at all)"
     return PROTOCOLS[name][2]
+
+
+def summary(rep, absent):
+    """What is missing and the settings to try: "expected EC-Link, none found
+    (19 frames read; not recognised, to decode: -o ...)"."""
+    return "expected %s, none found (%d frames read; %s)" % (
+        listed([title(n) for n in absent]), rep["frames"], "; ".join(hint(rep, n) for n in absent))
 
 
 def line(rep):
     """The one line for a capture without some expected protocol."""
-    absent = rep["missing"]
-    return "%s: expected %s, none found (%d frames read; %s)" % (
-        rep["capture"], listed([title(n) for n in absent]), rep["frames"],
-        "; ".join(hint(rep, n) for n in absent))
+    return "%s: %s" % (rep["capture"], summary(rep, rep["missing"]))

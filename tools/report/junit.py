@@ -10,7 +10,7 @@ JUnit readers take it for); a device's traffic span is in its properties.
 import xml.etree.ElementTree as ET
 
 from .catalog import severity_at_least
-from .expect import title
+from .expect import summary, title
 
 
 def properties(case, values):
@@ -58,7 +58,7 @@ def document(results, threshold):
         for name in rep.get("missing", []):
             case = ET.SubElement(suite, "testcase", name="expected " + title(name),
                                  classname=rep["capture"])
-            message = "expected %s, none found (%d frames read)" % (title(name), rep["frames"])
+            message = summary(rep, [name])   # (the line stderr gives, the setting with it)
             ET.SubElement(case, "failure", message=message, type="expect").text = message
             counts["tests"] += 1
             counts["failures"] += 1

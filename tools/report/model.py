@@ -44,6 +44,7 @@ EG_JOYSTICKS = [(i, C["eglink_joystick%d" % i]) for i in range(1, 5)]
 EG_INTERVALS = [("VRPI", C["eglink_analysis_time_since_prev_vrpi"], "eglink.vrpi_gap_ms"),
                 ("VRPO", C["eglink_analysis_time_since_prev_vrpo"], "eglink.vrpo_gap_ms")]
 EG_DPORT = C["udp_dstport"]
+TCP_SPORT = C["tcp_srcport"]
 MODBUS_CANDIDATE, PNIO_CANDIDATE = C["eclink_modbus_candidate_setting"], C["mcmb2_candidate_setting"]
 # A failed command (its warning, or the note that its deadline passed): the
 # field that links to the command's frame.
@@ -318,6 +319,7 @@ class Capture:
         self.path = str(path)
         self.limits = limits or dict(DEFAULT_LIMITS)
         self.frames = 0
+        self.tcp_frames = 0         # (none: the capture holds no Modbus/TCP at all)
         self.first_epoch = None
         self.last_time = 0.0
         self.last_frame = 0
@@ -342,6 +344,8 @@ class Capture:
         t = epoch - self.first_epoch
         self.frames += 1
         self.last_time, self.last_frame = t, frame
+        if c[TCP_SPORT]:
+            self.tcp_frames += 1
         if c[C["eglink_type"]]:
             self._eglink(c, frame, t)
         elif c[C["mcmb2_direction"]]:
@@ -443,7 +447,11 @@ class Capture:
         """A frame the dissector says looks like a device's it did not decode."""
         if c[MODBUS_CANDIDATE]:
             server = self._modbus_server(c)
-            key, setting = ("eclink_modbus",) + server, c[MODBUS_CANDIDATE]
+            # (two noted ADUs in one frame: the values joined by commas, and
+            # a port list has commas of its own: the last value)
+            value = c[MODBUS_CANDIDATE]
+            setting = value[value.rfind("eclink_modbus."):]
+            key = ("eclink_modbus",) + server
         else:
             macs = (c[C["eth_src"]], c[C["eth_dst"]])
             key, setting = ("pnio", frozenset(macs)), c[PNIO_CANDIDATE]
@@ -792,6 +800,7 @@ class Capture:
             "capture": self.path,
             "error": error,
             "frames": self.frames,
+            "tcp_frames": self.tcp_frames,
             "start": start.strftime("%Y-%m-%d %H:%M:%S.%f")[:-3] + " UTC" if start else None,
             "start_epoch": self.first_epoch,
             "duration": round(self.last_time, 6),

@@ -7,6 +7,7 @@ the file offset it shares with us tells how far it has got (the progress bar).
 progress: its size is unknown).
 Rows are read line by line, so memory does not grow with the capture.
 """
+import errno
 import os
 import re
 import stat
@@ -120,6 +121,26 @@ def inherited_fd(name):
     return None
 
 
+def open_capture(path):
+    """The capture file opened for reading, or CaptureError with the reason:
+    every way a path cannot be read (no such file, a folder on the way the
+    user may not enter, a file without read permission, a directory, a
+    symbolic link loop, ...) is one line, never a traceback. The open itself
+    decides, not a check before it (Path.exists raises on a folder without
+    search permission)."""
+    try:
+        return open(path, "rb")
+    except IsADirectoryError:
+        raise CaptureError("is a directory, not a capture file")
+    except FileNotFoundError:
+        raise CaptureError("no such file")
+    except OSError as exc:
+        reason = exc.strerror or str(exc)
+        if exc.errno == errno.EACCES:
+            reason = "permission denied (the file, or a folder on its path, is closed to this user)"
+        raise CaptureError("cannot open: %s" % reason)
+
+
 class Rows:
     """The rows (lists of column strings, see COL) of one capture.
 
@@ -153,15 +174,8 @@ class Rows:
         fd = inherited_fd(str(p))
         if fd is not None:
             self._file = os.fdopen(os.dup(fd), "rb")
-        elif not p.exists():
-            raise CaptureError("no such file")
-        elif p.is_dir():
-            raise CaptureError("is a directory, not a capture file")
         else:
-            try:
-                self._file = open(p, "rb")
-            except OSError as exc:
-                raise CaptureError("cannot open: %s" % exc.strerror)
+            self._file = open_capture(p)
         st = os.fstat(self._file.fileno())
         if not stat.S_ISREG(st.st_mode):
             return  # a pipe, FIFO or device: read as it comes, size unknown
