@@ -968,9 +968,13 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb, 
         c.setting = servers.setting(addr, port)
     end
     local tkey = (tid * 256 + unit) * 256 + fc
-    local t = p_abs_ts(pinfo)
+    -- (every rule of the connection goes by a time that never runs
+    -- backwards: a clock step is a finding, no time shown is negative)
+    local t, step = handshake.clock(c.hs, p_abs_ts(pinfo), number,
+        "the PCI, PCO, command deadline and poll gap rules")
     -- the usual per-frame values in the array part (8 slots, no hash part)
     local rec = take_rec()
+    if step then add_finding(rec, { ef.time_backwards, step[2] }) end
     local r
     last_request = false
     if is_request then

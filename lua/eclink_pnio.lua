@@ -115,6 +115,10 @@ local function analyse(rec, ba, t, frame)
         out = out_values
         out.pco, out.cco, out.cao = pco, cco, cao
     end
+    -- (the rules go by a time that never runs backwards: a clock step is a finding)
+    local step
+    t, step = eclink_handshake.clock(hs, t, frame, "the PCI, PCO and command deadline rules")
+    if step then add_finding(rec, "image", eef.time_backwards, step[2]) end
     local r = eclink_handshake.update(hs, inp, out, t, frame, rec)
     local links
     for _, f in ipairs(r.findings) do

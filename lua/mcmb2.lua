@@ -163,6 +163,9 @@ local ef = {
     pn_malformed = expert_new("mcmb2.pn_malformed",
         "Malformed to Wireshark's PROFINET dissector, but the layout fits the frame: decoded",
         expert.group.PROTOCOL, expert.severity.NOTE),
+    time_backwards = expert_new("mcmb2.time_backwards",
+        "Time went backwards (clock step): the watchdog rules restart here", expert.group.SEQUENCE,
+        expert.severity.WARN),
     candidate = expert_new("mcmb2.candidate",
         "Looks like an MC-MB2-PN base or EC-Link BU whose layout was not inferred: a layout-table entry decodes it",
         expert.group.UNDECODED, expert.severity.NOTE),
@@ -170,7 +173,7 @@ local ef = {
 mcmb2.experts = { ef.status_undefined, ef.slot_status_undefined, ef.terminal_not_zero, ef.not_valid, ef.e010,
                   ef.data_not_zero, ef.uplink_stalled, ef.downlink_stalled, ef.terminal_changed,
                   ef.layout_mismatch, ef.iops_bad, ef.iocs_bad, ef.reserved_not_zero, ef.short, ef.learned,
-                  ef.inferred, ef.ambiguous, ef.pn_malformed, ef.candidate }
+                  ef.inferred, ef.ambiguous, ef.pn_malformed, ef.candidate, ef.time_backwards }
 
 ------------------------------------------------------------------------
 -- Preferences
@@ -427,6 +430,12 @@ end
 local function analyse(rec, ba, t, frame)
     local plan = rec.plan
     local d = dev_state(plan.dev)
+    -- (the watchdogs go by a time that never runs backwards: a clock step is a finding)
+    local back, prev
+    t, back, prev = handshake.clock(d, t, frame)
+    if back then
+        add_finding(rec, "top", ef.time_backwards, handshake.backwards_text(back, prev, "the watchdog rules"))
+    end
     record.check_ioxs(rec, ba, ef.iops_bad, ef.iocs_bad)
     if plan.system == "duplex" then
         analyse_duplex(rec, d, ba, t, frame)

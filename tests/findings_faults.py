@@ -138,4 +138,9 @@ FAULTS = {
     # (never accepted): its two input images (2, 10) and its write (5) have
     # a BU's shape; the IO device beside it (0/1 inputs, counting writes) none
     "eclink_modbus.candidate": ("eclink_modbus_excerpt.pcap", [2, 5, 10]),
+    # --- the capture's time steps back 2 s (tools/capgen/clock_step.py): on
+    # the first frame of the conversation after the step
+    "eclink_modbus.time_backwards": ("clockstep_modbus.pcap", [24]),
+    "eclink_pnio.time_backwards": ("clockstep_eclink_pnio.pcap", [50]),
+    "mcmb2.time_backwards": ("clockstep_mcmb2.pcap", [20]),
 }

@@ -101,6 +101,7 @@ EXPERTS = {
     "mcmb2.layout.inferred": (NOTE, "finding", "layout inferred from the cyclic frames (no Connect)"),
     "mcmb2.layout.ambiguous": (NOTE, "finding", "more than one layout fits the cyclic frames"),
     "mcmb2.pn_malformed": (NOTE, "finding", "malformed to Wireshark's PROFINET dissector, decoded by the layout"),
+    "mcmb2.time_backwards": (WARNING, "finding", "time went backwards (clock step): the rules restart there"),
     "mcmb2.candidate": (WARNING, "candidate",
                         "look like an MC-MB2-PN or EC-Link device but were not recognised"),
     # EC-Link images (both transports)
@@ -145,6 +146,7 @@ HANDSHAKE = {
     "cmd_from_ru.late_ack": (WARNING, "finding", "command from RU echoed by CAO late"),
     "cmd_to_ru.late_ack": (WARNING, "finding", "command to RU echoed by CAI late"),
     "bu_state_change": (NOTE, "state", "BU state changed"),
+    "time_backwards": (WARNING, "finding", "time went backwards (clock step): the rules restart there"),
 }
 for _transport in ("eclink_modbus", "eclink_pnio"):
     EXPERTS.update({_transport + "." + name: entry for name, entry in HANDSHAKE.items()})
