@@ -156,6 +156,11 @@ hs_experts[#hs_experts + 1] = ef.periodic_reassembled
 hs_experts[#hs_experts + 1] = ef.candidate
 hs_experts[#hs_experts + 1] = ef.dropped
 hs_experts[#hs_experts + 1] = ef.no_request
+-- A request Wireshark's TCP did not hand over, most often because its
+-- segments came out of order: TCP reassembles those only when told to.
+local NO_REQUEST_TEXT = "Response without a request in the capture: the request was not captured, or its TCP "
+    .. "segments came out of order (TCP Previous segment not captured, Retransmission), which "
+    .. "tcp.reassemble_out_of_order:TRUE reassembles"
 hs_experts[#hs_experts + 1] = ef.poll_gap
 proto.experts = hs_experts
 
@@ -1333,7 +1338,7 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
         set_generated(add(item, pf.time, nstime(rec[R_TIME])))
     end
     if rec[R_RESPONSE] then set_generated(add(item, pf.response_in, rec[R_RESPONSE])) end
-    if rec.no_request then item:add_proto_expert_info(ef.no_request) end
+    if rec.no_request then item:add_proto_expert_info(ef.no_request, NO_REQUEST_TEXT) end
     if rec.poll_gap then
         set_generated(add(item, pf.poll_gap_time, nstime(rec.poll_gap)))
         set_generated(add(item, pf.poll_gap_from, rec.poll_gap_from))

@@ -143,4 +143,9 @@ FAULTS = {
     "eclink_modbus.time_backwards": ("clockstep_modbus.pcap", [24]),
     "eclink_pnio.time_backwards": ("clockstep_eclink_pnio.pcap", [50]),
     "mcmb2.time_backwards": ("clockstep_mcmb2.pcap", [20]),
+    # --- frames the capture cut (tools/capgen/snaplen.py): on each cut frame
+    # decoded by a known layout, and on the cut Connect request and response
+    "mcmb2.cut": ("snaplen_mcmb2.pcap", list(range(11, 31))),
+    "eclink_pnio.cut": ("snaplen_eclink_pnio.pcap", list(range(31, 61))),
+    "mcmb2.connect_cut": ("snaplen_connect.pcap", [1, 2]),
 }

@@ -5,9 +5,13 @@ duration is negative, and every fault of the capture is still found on its
 frame. The stepped captures are the project's own with every frame from
 one on 2 s earlier (tools/capgen/clock_step.py), so their faults are those
 of the original capture, found on the same frames."""
+import json
+import os
+import subprocess
+
 import pytest
 
-from conftest import CAPTURES, expert_infos
+from conftest import CAPTURES, ROOT, expert_infos
 
 # stepped capture: (original, the first frame moved back, the frame before
 # it, protocol, the rules its text names)
@@ -91,3 +95,30 @@ def test_stall_across_the_step_counts_the_time_before_it(tshark):
     assert "Uplink watchdog unchanged for 1.199 s (value 5): bring the system to a safe state" \
         in got[23]["_ws.expert.message"]
     assert [float(got[f]["mcmb2.watchdog_age"]) for f in (19, 20, 21)] == [0.8, 0.799, 0.999]
+
+
+def _report(conf_dir, capture):
+    env = dict(os.environ, TZ="UTC", LC_ALL="C.UTF-8", WIRESHARK_CONFIG_DIR=str(conf_dir))
+    proc = subprocess.run([str(ROOT / "tools" / "vrshark-report"), "--json", "captures/" + capture], env=env,
+                          cwd=str(ROOT), capture_output=True, text=True, timeout=600)
+    return json.loads(proc.stdout)["captures"][0]["timeline"]
+
+
+@pytest.mark.parametrize("stepped", sorted(STEPPED))
+def test_report_lists_the_step_and_every_fault(conf_dir, stepped):
+    """vrshark-report: the step is a warning at its frame; every other entry
+    of the original on the same frame with the same severity (a deadline one
+    frame later where the dissector sees it so, MOVED); no time or duration
+    runs backwards."""
+    original, frame = STEPPED[stepped][:2]
+    got = _report(conf_dir, stepped)
+    step = [e for e in got if e["field"] and e["field"].endswith(".time_backwards")]
+    assert [(e["frame"], e["severity"], e["text"]) for e in step] == [
+        (frame, "warning", "time went backwards (clock step): the rules restart there")]
+    moved = MOVED.get(stepped, {})
+    want = sorted((moved.get(e["frame"], e["frame"]), e["severity"], e["field"] or e["kind"])
+                  for e in _report(conf_dir, original))
+    assert sorted((e["frame"], e["severity"], e["field"] or e["kind"]) for e in got if e not in step) == want
+    times = [e["time"] for e in got]
+    assert times == sorted(times)
+    assert all(e["duration"] is None or e["duration"] >= 0 for e in got)

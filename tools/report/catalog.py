@@ -102,6 +102,8 @@ EXPERTS = {
     "mcmb2.layout.ambiguous": (NOTE, "finding", "more than one layout fits the cyclic frames"),
     "mcmb2.pn_malformed": (NOTE, "finding", "malformed to Wireshark's PROFINET dissector, decoded by the layout"),
     "mcmb2.time_backwards": (WARNING, "finding", "time went backwards (clock step): the rules restart there"),
+    "mcmb2.cut": (NOTE, "finding", "frame cut by the capture (snaplen): only the bytes captured decoded"),
+    "mcmb2.connect_cut": (NOTE, "finding", "Connect cut by the capture (snaplen): its layout not read"),
     "mcmb2.candidate": (WARNING, "candidate",
                         "look like an MC-MB2-PN or EC-Link device but were not recognised"),
     # EC-Link images (both transports)
@@ -129,6 +131,7 @@ EXPERTS = {
     "eclink_pnio.iops.bad": (WARNING, "finding", "IOPS not GOOD"),
     "eclink_pnio.short": (ERROR, "finding", "C-SDU shorter than the layout"),
     "eclink_pnio.layout.inferred": (NOTE, "finding", "layout inferred from the cyclic frames (no Connect)"),
+    "eclink_pnio.cut": (NOTE, "finding", "frame cut by the capture (snaplen): only the bytes captured decoded"),
     "eclink_pnio.pn_malformed": (NOTE, "finding",
                                  "malformed to Wireshark's PROFINET dissector, decoded by the layout"),
 }
