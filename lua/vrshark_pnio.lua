@@ -904,14 +904,14 @@ end
 -- only that, or says it needs show()).
 -- thrown: PN-RT (or PNIO below it) raised an exception on this frame.
 local function cyclic(tvb, pinfo, tree, view, thrown)
-    local consumed = 0
+    local consumed, skipped = 0, false
     -- A frame of ours the capture cut (snaplen): PN-RT would throw an
     -- exception Dissector.call() does not catch (a bounds error ends the
     -- frame's dissection), so it is not called; the decoder's note says
     -- the frame was cut. (Two C calls a frame; the C front end catches it.)
     if not C and tvb_reported_len(tvb) > tvb_len(tvb) and tvb_len(tvb) >= 2
             and (p_visited(pinfo) and fget(frames, p_number(pinfo)) or by_fid[tvb:range(0, 2):uint()]) then
-        thrown, consumed = true, tvb_len(tvb)
+        thrown, consumed, skipped = true, tvb_len(tvb), true
     elseif not C then
         consumed = wrap.call(pn_rt, tvb, pinfo, tree)
         -- A malformed PN-RT frame: Wireshark's report stands. A FrameID of
@@ -946,6 +946,8 @@ local function cyclic(tvb, pinfo, tree, view, thrown)
             if not once then fset(frames, n, rec) end
         end
     end
+    -- (a cut frame of a FrameID of ours from another sender: PN-RT as always)
+    if skipped and not rec then return wrap.call(pn_rt, tvb, pinfo, tree) or tvb_len(tvb) end
     if rec then
         local per = not once and rec.plan and systems.decoder(rec.plan.system).per_frame
         if per then load_per_frame(per, rec, n) end

@@ -117,3 +117,20 @@ def test_cut_at_every_length_never_made_up(tshark, work_dir):
             for name in names:
                 if v[name]:
                     assert v[name] == want[f][name], (snaplen, f, name)
+
+
+def test_cut_frame_of_another_sender_left_to_pn_rt(tshark, work_dir):
+    """A cut frame with one of our FrameIDs from another station is not
+    ours: Wireshark's PN-RT reports the cut, nothing is decoded."""
+    from tools.capgen import profinet
+    from tools.capgen.snaplen import snapped
+    cap = snapped(profinet.duplex_watchdog(), 40, set(range(11, 31)))
+    ts, data, orig_len = cap.records[10]                  # frame 11, an uplink
+    cap.records[10] = (ts, data[:6] + bytes.fromhex("020000000099") + data[12:], orig_len)
+    path = work_dir / "other-sender.pcap"
+    path.write_bytes(cap.to_bytes())
+    path.chmod(0o644)
+    for two_pass in (False, True):
+        got = tshark.frames(path, ["_ws.col.Protocol", "mcmb2.cut", "mcmb2.uplink_watchdog"], two_pass=two_pass)
+        assert got[11] == {"_ws.col.Protocol": "PN-RT", "mcmb2.cut": "", "mcmb2.uplink_watchdog": ""}
+        assert got[13]["mcmb2.cut"] and got[13]["mcmb2.uplink_watchdog"] == "5"
