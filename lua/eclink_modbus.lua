@@ -160,6 +160,11 @@ hs_experts[#hs_experts + 1] = ef.periodic_reassembled
 hs_experts[#hs_experts + 1] = ef.candidate
 hs_experts[#hs_experts + 1] = ef.dropped
 hs_experts[#hs_experts + 1] = ef.no_request
+-- A request Wireshark's TCP did not hand over, most often because its
+-- segments came out of order: TCP reassembles those only when told to.
+local NO_REQUEST_TEXT = "Response without a request in the capture: the request was not captured, or its TCP "
+    .. "segments came out of order (TCP Previous segment not captured, Retransmission), which "
+    .. "tcp.reassemble_out_of_order:TRUE reassembles"
 hs_experts[#hs_experts + 1] = ef.poll_gap
 proto.experts = hs_experts
 
@@ -985,9 +990,13 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb, 
         c.setting = servers.setting(addr, port, proto.prefs.servers)
     end
     local tkey = (tid * 256 + unit) * 256 + fc
-    local t = p_abs_ts(pinfo)
+    -- (every rule of the connection goes by a time that never runs
+    -- backwards: a clock step is a finding, no time shown is negative)
+    local t, step = handshake.clock(c.hs, p_abs_ts(pinfo), number,
+        "the PCI, PCO, command deadline and poll gap rules")
     -- the usual per-frame values in the array part (8 slots, no hash part)
     local rec = take_rec()
+    if step then add_finding(rec, { ef.time_backwards, step[2] }) end
     local r
     last_request = false
     if is_request then
@@ -1346,7 +1355,7 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
         set_generated(add(item, pf.time, nstime(rec[R_TIME])))
     end
     if rec[R_RESPONSE] then set_generated(add(item, pf.response_in, rec[R_RESPONSE])) end
-    if rec.no_request then item:add_proto_expert_info(ef.no_request) end
+    if rec.no_request then item:add_proto_expert_info(ef.no_request, NO_REQUEST_TEXT) end
     if rec.poll_gap then
         set_generated(add(item, pf.poll_gap_time, nstime(rec.poll_gap)))
         set_generated(add(item, pf.poll_gap_from, rec.poll_gap_from))

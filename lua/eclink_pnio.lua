@@ -64,6 +64,8 @@ eef.iops_bad = ProtoExpert.new("eclink_pnio.iops.bad", "IOPS is not GOOD (0x80)"
     expert.severity.WARN)
 eef.short = ProtoExpert.new("eclink_pnio.short", "C-SDU shorter than the layout", expert.group.MALFORMED,
     expert.severity.ERROR)
+eef.cut = ProtoExpert.new("eclink_pnio.cut", "Frame cut by the capture (snaplen): only the bytes captured are decoded",
+    expert.group.MALFORMED, expert.severity.NOTE)
 eef.learned = ProtoExpert.new("eclink_pnio.layout.learned", "Cyclic data layout learned from this Connect",
     expert.group.SEQUENCE, expert.severity.CHAT)
 eef.inferred = ProtoExpert.new("eclink_pnio.layout.inferred", "Cyclic data layout inferred from the cyclic frames",
@@ -71,7 +73,7 @@ eef.inferred = ProtoExpert.new("eclink_pnio.layout.inferred", "Cyclic data layou
 eef.pn_malformed = ProtoExpert.new("eclink_pnio.pn_malformed",
     "Malformed to Wireshark's PROFINET dissector, but the layout fits the frame: decoded",
     expert.group.PROTOCOL, expert.severity.NOTE)
-for _, k in ipairs({ "iops_bad", "short", "learned", "inferred", "pn_malformed" }) do
+for _, k in ipairs({ "iops_bad", "short", "learned", "inferred", "pn_malformed", "cut" }) do
     eclp_experts[#eclp_experts + 1] = eef[k]
 end
 eclp.experts = eclp_experts
@@ -104,7 +106,10 @@ local function analyse(rec, ba, t, frame)
         devs[plan.dev] = hs
     end
     local o = plan.image.off
-    record.check_ioxs(rec, ba, eef.iops_bad, nil)
+    -- (a frame the capture cut: only the counters captured are read, a
+    -- byte not captured reads nil and is no value)
+    local partial = record.partial(rec)
+    if not partial then record.check_ioxs(rec, ba, eef.iops_bad, nil) end
     local inp, out
     if plan.dir == "up" then
         local pci, cci, _, cai = byte(ba, o + 1, o + 4)
@@ -115,6 +120,10 @@ local function analyse(rec, ba, t, frame)
         out = out_values
         out.pco, out.cco, out.cao = pco, cco, cao
     end
+    -- (the rules go by a time that never runs backwards: a clock step is a finding)
+    local step
+    t, step = eclink_handshake.clock(hs, t, frame, "the PCI, PCO and command deadline rules")
+    if step then add_finding(rec, "image", eef.time_backwards, step[2]) end
     local r = eclink_handshake.update(hs, inp, out, t, frame, rec)
     local links
     for _, f in ipairs(r.findings) do
@@ -171,9 +180,14 @@ local function show(rec, tvb, pinfo, tree)
         return root
     end
     local o = plan.image
-    local info = image.dissect(tvb, pinfo, root, { kind = up and "input" or "output", offset = base + o.off,
-        length = o.len, image_len = o.len })
-    if next(iodata.areas) then iodata.decode_eclink(info, { frame_id = tvb(0, 2):uint() }, pinfo) end -- vrshark_io hook
+    -- (a frame the capture cut: the image bytes captured)
+    local partial = record.partial(rec)
+    local len = partial and math.max(0, math.min(o.len, rec.cut - o.off)) or o.len
+    local info = len > 0 and image.dissect(tvb, pinfo, root, { kind = up and "input" or "output",
+        offset = base + o.off, length = len, image_len = o.len })
+    if info and next(iodata.areas) then -- vrshark_io hook
+        iodata.decode_eclink(info, { frame_id = tvb(0, 2):uint() }, pinfo) -- vrshark_io hook
+    end -- vrshark_io hook
     if rec.pci_age then
         record.add_time(root, epf.pci_age, "Time since PCI changed", rec.pci_age, nil, epf.pci_age_ms)
     end
@@ -189,11 +203,12 @@ local function show(rec, tvb, pinfo, tree)
         if ex then (info and info.item or root):add_proto_expert_info(ex, text) end
         if ex == eef.cmd_from_ru_late or ex == eef.cmd_to_ru_late then unacked = true end
     end
-    record.add_ioxs(root, rec, tvb, epf.iops, epf.iocs)
-    record.finish(rec, nil)
+    if not partial then record.add_ioxs(root, rec, tvb, epf.iops, epf.iocs) end
+    record.finish(rec, partial and root or nil)
     cols.info = (up and "Input image " or "Output image ") .. ((info and info.summary) or "")
         .. ((info and info.tags) or "") .. eclink_handshake.tags(rec.pci_age, rec.pco_age)
         .. (unacked and " [unacked]" or "") .. (rec.late_ack and " [late ack]" or "")
+        .. (partial and string.format(" [cut by the capture: %d of %d C-SDU bytes]", rec.cut, rec.size) or "")
     return root
 end
 
@@ -229,7 +244,7 @@ local function sparse(rec, tvb, pinfo, tree, view)
     local plan = rec.plan
     local p = fe.plan(view, SPARSE)
     -- machine data can add findings and Info tags of its own
-    if not p or rec.size < plan.need or (p.cols and next(iodata.areas)) then return false end
+    if not p or rec.size < plan.need or rec.cut or (p.cols and next(iodata.areas)) then return false end
     -- (a tap that walks the tree's top level, -z io,phs, counts the protocol)
     if p.protos then record.root(rec, tvb, tree, eclp, "") end
     if #p.adders > 0 then
@@ -284,7 +299,7 @@ local function show_connect(rec, tvb, tree, text)
     item:add_proto_expert_info(eef.learned, "Cyclic data layout learned: " .. text)
 end
 
-systems.register({ "eclink" }, { proto = eclp, short = eef.short, inferred = eef.inferred,
+systems.register({ "eclink" }, { proto = eclp, short = eef.short, cut = eef.cut, inferred = eef.inferred,
                                  pn_malformed = eef.pn_malformed,
                                  per_frame = { up = "pci_age", down = "pco_age" }, analyse = analyse,
                                  show = show, sparse = sparse,

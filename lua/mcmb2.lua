@@ -153,6 +153,11 @@ local ef = {
         expert.group.PROTOCOL, expert.severity.WARN),
     short = expert_new("mcmb2.short", "C-SDU shorter than the layout", expert.group.MALFORMED,
         expert.severity.ERROR),
+    connect_cut = expert_new("mcmb2.connect_cut",
+        "Connect cut by the capture (snaplen): its layout cannot be read", expert.group.MALFORMED,
+        expert.severity.NOTE),
+    cut = expert_new("mcmb2.cut", "Frame cut by the capture (snaplen): only the bytes captured are decoded",
+        expert.group.MALFORMED, expert.severity.NOTE),
     learned = expert_new("mcmb2.layout.learned", "Cyclic data layout learned from this Connect",
         expert.group.SEQUENCE, expert.severity.CHAT),
     inferred = expert_new("mcmb2.layout.inferred", "Cyclic data layout inferred from the cyclic frames",
@@ -163,6 +168,9 @@ local ef = {
     pn_malformed = expert_new("mcmb2.pn_malformed",
         "Malformed to Wireshark's PROFINET dissector, but the layout fits the frame: decoded",
         expert.group.PROTOCOL, expert.severity.NOTE),
+    time_backwards = expert_new("mcmb2.time_backwards",
+        "Time went backwards (clock step): the watchdog rules restart here", expert.group.SEQUENCE,
+        expert.severity.WARN),
     candidate = expert_new("mcmb2.candidate",
         "Looks like an MC-MB2-PN base or EC-Link BU whose layout was not inferred: a layout-table entry decodes it",
         expert.group.UNDECODED, expert.severity.NOTE),
@@ -170,7 +178,8 @@ local ef = {
 mcmb2.experts = { ef.status_undefined, ef.slot_status_undefined, ef.terminal_not_zero, ef.not_valid, ef.e010,
                   ef.data_not_zero, ef.uplink_stalled, ef.downlink_stalled, ef.terminal_changed,
                   ef.layout_mismatch, ef.iops_bad, ef.iocs_bad, ef.reserved_not_zero, ef.short, ef.learned,
-                  ef.inferred, ef.ambiguous, ef.pn_malformed, ef.candidate }
+                  ef.inferred, ef.ambiguous, ef.pn_malformed, ef.candidate, ef.time_backwards, ef.cut,
+                  ef.connect_cut }
 
 ------------------------------------------------------------------------
 -- Preferences
@@ -424,9 +433,29 @@ local function analyse_polled_down(rec, d, ba, t, frame)
     rec.groups, rec.slots = groups, slots
 end
 
+-- A frame the capture cut (snaplen): the watchdog, when its byte was
+-- captured, counts as received; nothing else is read.
+local function analyse_cut(rec, d, ba, t, frame)
+    local plan = rec.plan
+    local h = plan.header.off
+    if #ba < h + 2 then return end
+    if plan.dir == "up" then
+        watchdog(rec, d.up_wd, byte(ba, h + 2), t, frame, up_limit, ef.uplink_stalled, "Uplink")
+    else
+        watchdog(rec, d.down_wd, byte(ba, h + 2), t, frame, down_limit, ef.downlink_stalled, "Downlink")
+    end
+end
+
 local function analyse(rec, ba, t, frame)
     local plan = rec.plan
     local d = dev_state(plan.dev)
+    -- (the watchdogs go by a time that never runs backwards: a clock step is a finding)
+    local back, prev
+    t, back, prev = handshake.clock(d, t, frame)
+    if back then
+        add_finding(rec, "top", ef.time_backwards, handshake.backwards_text(back, prev, "the watchdog rules"))
+    end
+    if record.partial(rec) then return analyse_cut(rec, d, ba, t, frame) end
     record.check_ioxs(rec, ba, ef.iops_bad, ef.iocs_bad)
     if plan.system == "duplex" then
         analyse_duplex(rec, d, ba, t, frame)
@@ -649,6 +678,35 @@ local function info_tags(rec)
     return tags
 end
 
+-- A frame the capture cut (snaplen): the header bytes captured, no data.
+local function show_cut(rec, tvb, pinfo, root)
+    local plan = rec.plan
+    local up = plan.dir == "up"
+    local h = rec.base + plan.header.off
+    local have = rec.cut - plan.header.off
+    local wd = ""
+    if have >= 1 then
+        local hr = range(tvb, h, 1)
+        if up then
+            attach(rec, "status", add(root, pf.status, hr))
+            if plan.system == "duplex" then add(root, pf.terminal, hr) end
+        elseif plan.system == "duplex" then
+            add(root, pf.base_unit, hr)
+        else
+            attach(rec, "reserved", add(root, pf.reserved, hr))
+        end
+    end
+    if have >= 2 then
+        local wr = range(tvb, h + 1, 1)
+        add_watchdog(root, rec, up and pf.uplink_watchdog or pf.downlink_watchdog, wr)
+        wd = ", watchdog " .. DEC[wr:uint()]
+    end
+    record.finish(rec, root)
+    write_cols(pinfo, string.format("%s %s: cut by the capture (%d of %d C-SDU bytes)", up and "Uplink" or "Downlink",
+        plan.system, rec.cut, rec.size), wd, info_tags(rec), "")
+    return root
+end
+
 local function show(rec, tvb, pinfo, tree)
     local plan, base = rec.plan, rec.base
     local up = plan.dir == "up"
@@ -666,6 +724,7 @@ local function show(rec, tvb, pinfo, tree)
         cols.info = "MC-MB2-PN: C-SDU too short for the layout"
         return root
     end
+    if record.partial(rec) then return show_cut(rec, tvb, pinfo, root) end
     local h = base + plan.header.off
     local hr, wr = range(tvb, h, 1), range(tvb, h + 1, 1)
     if up then
@@ -784,7 +843,7 @@ local ctx = {}
 local function sparse(rec, tvb, pinfo, tree, view)
     local plan = rec.plan
     local p = frontends.plan(view, SPARSE)
-    if not p or rec.size < plan.need then return false end
+    if not p or rec.size < plan.need or rec.cut then return false end
     -- machine data can add findings and Info tags of its own
     if (p.cols or p.experts) and (iodata.areas["mcmb2.up"] or iodata.areas["mcmb2.down"]) then return false end
     local h = rec.base + plan.header.off
@@ -826,7 +885,16 @@ local function show_candidate(rec, tvb, tree)
     end
 end
 
-systems.register({ "duplex", "polled" }, { proto = mcmb2, short = ef.short, inferred = ef.inferred,
+-- A DCE/RPC datagram the capture cut that may be a Connect
+-- (vrshark_pnio.lua cut_datagram()).
+local function show_cut_connect(rec, tvb, tree)
+    local item = tree:add(mcmb2, tvb:range(0, 0))
+    item:append_text(": Connect cut by the capture, layout not read")
+    item:add_proto_expert_info(ef.connect_cut, rec.text)
+end
+
+systems.register({ "duplex", "polled" }, { proto = mcmb2, short = ef.short, cut = ef.cut, inferred = ef.inferred,
                                           pn_malformed = ef.pn_malformed,
                                           analyse = analyse, show = show, sparse = sparse,
-                                          show_connect = show_connect, show_candidate = show_candidate })
+                                          show_connect = show_connect, show_candidate = show_candidate,
+                                          show_cut_connect = show_cut_connect })

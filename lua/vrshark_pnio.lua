@@ -61,7 +61,7 @@ local systems = require("vrshark.pnio_systems")
 local wrap = require("vrshark.wrap")
 -- (methods called as functions: vrshark/api.luam says why)
 local api = require("vrshark.api")
-local tvb_len, tvb_raw = api.len, api.raw
+local tvb_len, tvb_raw, tvb_reported_len = api.len, api.raw, api.reported_len
 -- (the pinfo attributes read on every cyclic frame)
 local p_number, p_visited, p_abs_ts, p_dl_src, p_dl_dst, p_match_string = api.pinfo.number,
     api.pinfo.visited, api.pinfo.abs_ts, api.pinfo.dl_src, api.pinfo.dl_dst, api.pinfo.match_string
@@ -105,6 +105,7 @@ local runs        -- vrshark.pnio_infer state: the runs of FrameIDs without a la
 local addr_of     -- station key of pnio_infer (tostring of an Ethernet address) -> Address
 local hint_recs   -- hint of pnio_infer -> the record of its candidate frames
 local unsettled   -- second pass: whether a run was left unsettled (nil: not asked yet)
+local cut_connect -- the first DCE/RPC datagram that may be a Connect the capture cut (cut_datagram()), or nil
 local heuristic, learn -- the preferences mcmb2.heuristic and mcmb2.connect, read in init()
 
 local function register(plan)
@@ -211,7 +212,7 @@ local function init()
     for port in pairs(cm_ports or {}) do udp_table:remove(port, carrier) end
     by_fid, pending_down, tries, ars, cm_ports, not_ours, frags = {}, {}, {}, {}, {}, {}, {}
     runs = infer.new()
-    addr_of, hint_recs, unsettled = {}, {}, nil
+    addr_of, hint_recs, unsettled, cut_connect = {}, {}, nil, nil
     -- (packed: vrshark/framemap.luam says why; the ages are rounded to the ms)
     frames, per_frame = framemap.packed_refs(), framemap.packed_ms()
     last_rec, per_frame.n, spare = {}, 0, nil
@@ -671,14 +672,27 @@ local function shared_record(rec, n)
 end
 
 -- The record of one cyclic frame of a known plan (C-SDU as string s).
-local function analysed(plan, s, t, frame)
+-- cut (a frame the capture cut, snaplen): { size = the C-SDU's bytes on
+-- the wire, cap = the frame's bytes captured, wire = on the wire }; s then
+-- holds the C-SDU bytes captured, rec.cut their number, and the decoder
+-- reads only those (pnio_record.luam).
+local function analysed(plan, s, t, frame, cut)
     local dec = systems.decoder(plan.system)
     if not dec then return nil end
-    local rec = new_record(plan, 2, #s)
-    if #s < plan.need then
+    local size = cut and cut.size or #s
+    local rec = new_record(plan, 2, size)
+    if size < plan.need then
         record.add_finding(rec, "top", dec.short, string.format(
-            "C-SDU has %d bytes, the layout needs %d", #s, plan.need))
+            "C-SDU has %d bytes, the layout needs %d", size, plan.need))
         return rec
+    end
+    if cut then
+        rec.cut = #s
+        record.add_finding(rec, "top", dec.cut, string.format(
+            "Cut by the capture at %d of its %d bytes (snaplen): %s; only the bytes captured are decoded, "
+            .. "the counters from what survived", cut.cap, cut.wire, #s >= size
+            and "the C-SDU is whole, the APDU status is not in the capture"
+            or string.format("C-SDU bytes %d..%d of %d are not in the capture", #s, size - 1, size)))
     end
     dec.analyse(rec, s, t, frame)
     return rec
@@ -711,8 +725,10 @@ local function settle(res)
         local rec = analysed(f[4], f[2], f[3], f[1])
         if rec and f[1] == res.last then
             record.add_finding(rec, "top", systems.decoder(f[4].system).inferred, string.format(
-                "Cyclic data layout inferred from frames %d..%d (no Connect in the capture); to pin it, "
-                .. "add to mcmb2.layouts: %s", res.first, res.last, res.entry))
+                "Cyclic data layout inferred from frames %d..%d (%s); to pin it, "
+                .. "add to mcmb2.layouts: %s", res.first, res.last, cut_connect
+                and string.format("no Connect read: the capture cut the PNIO-CM datagram in frame %d", cut_connect)
+                or "no Connect in the capture", res.entry))
         end
         fset(frames, f[1], rec and shared_record(rec, f[1]))
     end
@@ -798,13 +814,26 @@ local function refused_note(plan)
     return plan.note
 end
 
--- tvb: the PN-RT frame from the FrameID on, len bytes; n: the frame number.
-local function first_pass(fid, tvb, pinfo, len, n)
+-- tvb: the PN-RT frame from the FrameID on, len bytes captured; n: the
+-- frame number; thrown: PN-RT raised an exception on it (a frame the
+-- capture cut is one: its C-SDU size comes from the reported length, the
+-- last 4 bytes captured are no APDU status).
+local function first_pass(fid, tvb, pinfo, len, n, thrown)
     local cands = by_fid[fid]
     local base = 2
     local size = len - base - 4
+    local cut
+    if thrown then
+        local rl = tvb:reported_len()
+        if rl > len then
+            size = rl - base - 4
+            cut = { size = size, cap = pinfo.caplen, wire = pinfo.len }
+        end
+    end
     if size <= 0 then return nil end
     local plan = cands and lookup(cands, p_dl_src(pinfo))
+    -- (a cut frame is decoded by a layout known, never used to find one)
+    if cut and (not plan or plan.unsettled or plan.deferred or plan.refused) then return nil end
     local missed
     if plan and plan.unsettled then
         plan = resettle(plan, fid, tvb, base, size)
@@ -818,7 +847,8 @@ local function first_pass(fid, tvb, pinfo, len, n)
     end
     if not plan then return missed and down_note(missed, fid) end
     if plan.refused then return refused_note(plan) end
-    local rec = analysed(plan, tvb_raw(tvb, base, size), p_abs_ts(pinfo), n)
+    local rec = analysed(plan, tvb_raw(tvb, base, cut and math.min(len - base, size) or size), p_abs_ts(pinfo), n,
+        cut)
     -- (fresh: nobody else holds rec in a one-pass run)
     if once then return rec, true end
     return rec and shared_record(rec, n)
@@ -874,8 +904,15 @@ end
 -- only that, or says it needs show()).
 -- thrown: PN-RT (or PNIO below it) raised an exception on this frame.
 local function cyclic(tvb, pinfo, tree, view, thrown)
-    local consumed = 0
-    if not C then
+    local consumed, skipped = 0, false
+    -- A frame of ours the capture cut (snaplen): PN-RT would throw an
+    -- exception Dissector.call() does not catch (a bounds error ends the
+    -- frame's dissection), so it is not called; the decoder's note says
+    -- the frame was cut. (Two C calls a frame; the C front end catches it.)
+    if not C and tvb_reported_len(tvb) > tvb_len(tvb) and tvb_len(tvb) >= 2
+            and (p_visited(pinfo) and fget(frames, p_number(pinfo)) or by_fid[tvb:range(0, 2):uint()]) then
+        thrown, consumed, skipped = true, tvb_len(tvb), true
+    elseif not C then
         consumed = wrap.call(pn_rt, tvb, pinfo, tree)
         -- A malformed PN-RT frame: Wireshark's report stands. A FrameID of
         -- ours is decoded all the same (pn_malformed_note); others are not.
@@ -905,16 +942,19 @@ local function cyclic(tvb, pinfo, tree, view, thrown)
         if fid and (by_fid[fid] or (fid >= 0x8000 and fid <= 0xFBFF and heuristic
                     and ((tries[fid] or 0) < HEUR_TRIES or #pending_down > 0
                          or not infer.given_up(runs, fid, tostring(p_dl_src(pinfo)), tostring(p_dl_dst(pinfo)))))) then
-            rec, fresh = first_pass(fid, tvb, pinfo, len, n)
+            rec, fresh = first_pass(fid, tvb, pinfo, len, n, thrown)
             if not once then fset(frames, n, rec) end
         end
     end
+    -- (a cut frame of a FrameID of ours from another sender: PN-RT as always)
+    if skipped and not rec then return wrap.call(pn_rt, tvb, pinfo, tree) or tvb_len(tvb) end
     if rec then
         local per = not once and rec.plan and systems.decoder(rec.plan.system).per_frame
         if per then load_per_frame(per, rec, n) end
         if not view then
             local root = show(rec, tvb, pinfo, tree)
-            if thrown and root then pn_malformed_note(rec, tvb, root) end
+            -- (a frame the capture cut: its own note says why PN-RT threw)
+            if thrown and root and not rec.cut then pn_malformed_note(rec, tvb, root) end
         elseif not view.quiet then
             local dec = rec.plan and systems.decoder(rec.plan.system)
             if not (dec and dec.sparse and dec.sparse(rec, tvb, pinfo, tree, view)) then
@@ -933,7 +973,40 @@ end
 -- UDP 34964 (and the controllers' ports): the UDP heuristics (DCE/RPC)
 -- first, then the Connect blocks.
 -- With the C front end DCE/RPC has run already, and it learns the ports.
+-- A DCE/RPC datagram the capture cut (snaplen): when it may be a Connect
+-- (a request or response whose operation is 0, or was cut before it), the
+-- note that its layout cannot be read and what decodes its cyclic frames
+-- instead; cut_connect keeps its frame for the notes of those frames.
+-- Returns 0: the datagram is left to DCE/RPC, which reports the cut.
+local function cut_datagram(tvb, pinfo, tree)
+    local rec
+    if pinfo.visited then
+        rec = fget(frames, pinfo.number)
+    elseif learn then
+        local cap = tvb:len()
+        local ptype = cap >= 2 and tvb:range(1, 1):uint()
+        local opnum
+        if cap >= 70 then
+            -- (the byte order of the DCE/RPC header: its data representation, byte 4)
+            local r = tvb:range(68, 2)
+            opnum = bit.band(tvb:range(4, 1):uint(), 0x10) ~= 0 and r:le_uint() or r:uint()
+        end
+        if (ptype == 0 or ptype == 2) and (opnum == nil or opnum == 0) then
+            local what = (opnum and "Connect " or "PNIO-CM ") .. (ptype == 0 and "request" or "response")
+            rec = { kind = "cut_connect", text = string.format("%s cut by the capture at %d of %d bytes "
+                .. "(snaplen)%s: its layout cannot be read; the cyclic frames are decoded by the layout inferred "
+                .. "from them, or by their mcmb2.layouts entry", what, pinfo.caplen, pinfo.len,
+                opnum and "" or ", before its operation number") }
+            cut_connect = cut_connect or pinfo.number
+            fset(frames, pinfo.number, rec)
+        end
+    end
+    if rec then systems.decoder("duplex").show_cut_connect(rec, tvb, tree) end
+    return 0
+end
+
 local function connect(tvb, pinfo, tree)
+    if tvb:reported_len() > tvb:len() then return cut_datagram(tvb, pinfo, tree) end
     if not C then
         if not is_dcerpc_dg(tvb) then return 0 end
         if not DissectorTable.try_heuristics("udp", tvb, pinfo, tree) then return 0 end

@@ -138,4 +138,14 @@ FAULTS = {
     # (never accepted): its two input images (2, 10) and its write (5) have
     # a BU's shape; the IO device beside it (0/1 inputs, counting writes) none
     "eclink_modbus.candidate": ("eclink_modbus_excerpt.pcap", [2, 5, 10]),
+    # --- the capture's time steps back 2 s (tools/capgen/clock_step.py): on
+    # the first frame of the conversation after the step
+    "eclink_modbus.time_backwards": ("clockstep_modbus.pcap", [24]),
+    "eclink_pnio.time_backwards": ("clockstep_eclink_pnio.pcap", [50]),
+    "mcmb2.time_backwards": ("clockstep_mcmb2.pcap", [20]),
+    # --- frames the capture cut (tools/capgen/snaplen.py): on each cut frame
+    # decoded by a known layout, and on the cut Connect request and response
+    "mcmb2.cut": ("snaplen_mcmb2.pcap", list(range(11, 31))),
+    "eclink_pnio.cut": ("snaplen_eclink_pnio.pcap", list(range(31, 61))),
+    "mcmb2.connect_cut": ("snaplen_connect.pcap", [1, 2]),
 }

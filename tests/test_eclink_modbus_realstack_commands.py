@@ -15,6 +15,8 @@ logged (not by anything the project generated):
   [unacked] on that first frame after the deadline instead, naming and
   linking the command.
 """
+import re
+import subprocess
 import time
 
 import pytest
@@ -102,3 +104,62 @@ def test_findings_on_the_frames_that_carry_them(tshark, commands_capture):
             in one[deadline]["_ws.expert.message"].split(",")
         assert not one[cmd]["eclink_modbus.deadline_in"] and "[unacked]" not in one[cmd]["_ws.col.Info"]
     assert "[late ack]" in one[echo]["_ws.col.Info"] and not one[echo]["eclink_modbus.cmd_from_ru.late"]
+
+
+def _stepped_back(capture, frame, folder, seconds=2.0):
+    """The capture with frames `frame`.. moved `seconds` earlier, with
+    Wireshark's own tools (editcap -r / -t, mergecap -a): a clock set back
+    while capturing."""
+    head, tail, moved, out = (folder / n for n in ("head.pcapng", "tail.pcapng", "moved.pcapng",
+                                                    "stepped.pcapng"))
+    subprocess.run(["editcap", "-r", str(capture), str(head), "1-%d" % (frame - 1)], check=True)
+    subprocess.run(["editcap", "-r", str(capture), str(tail), "%d-999999999" % frame], check=True)
+    subprocess.run(["editcap", "-t", "-%g" % seconds, str(tail), str(moved)], check=True)
+    subprocess.run(["mergecap", "-a", "-w", str(out), str(head), str(moved)], check=True)
+    out.chmod(0o644)
+    return out
+
+
+def test_clock_step_hides_no_command(tshark, commands_capture, work_dir):
+    """Time stepped back 2 s one second after the command CCI 6: the first
+    ADU after the step has the clock step warning, the commands not
+    acknowledged and the late echo are found on the same frames as without
+    the step, and no time is negative (one pass and two)."""
+    cap, _ = commands_capture
+    names = NAMES + ["eclink_modbus.time_backwards", "eclink_modbus.pci_age", "eclink_modbus.pco_age",
+                     "eclink_modbus.time", "_ws.expert.message"]
+    want = tshark.frames(cap, names, prefs=rs.PREFS, two_pass=True)
+    first_6 = next(f for f, v in sorted(want.items()) if v["eclink.image"] == "input" and v["eclink.cci"] == "6")
+    t6 = float(want[first_6]["frame.time_relative"])
+    step = next(f for f, v in sorted(want.items())
+                if float(v["frame.time_relative"]) > t6 + 1.0 and v["modbus.func_code"])
+    stepped = _stepped_back(cap, step, work_dir)
+    for two_pass in (True, False):
+        got = tshark.frames(stepped, names, prefs=rs.PREFS, two_pass=two_pass)
+        ref = want if two_pass else tshark.frames(cap, names, prefs=rs.PREFS)
+        assert [f for f, v in got.items() if v["eclink_modbus.time_backwards"]] == [step]
+        assert re.search(r"Time went backwards by 1\.\d{3} s after frame \d+ \(clock step\): the PCI, PCO, "
+                         r"command deadline and poll gap rules restart here", got[step]["_ws.expert.message"])
+        def on(frames, field):
+            return sorted(f for f, v in frames.items() if v[field])
+
+        # the commands (two passes) and the late echo: the same frames
+        assert on(got, "eclink_modbus.cmd_from_ru.late_ack") == on(ref, "eclink_modbus.cmd_from_ru.late_ack")
+        if two_pass:
+            assert on(got, "eclink_modbus.cmd_from_ru.late") == on(ref, "eclink_modbus.cmd_from_ru.late")
+        # where a deadline is seen passing: the step counts as no time, so
+        # the first frame past it comes at most the step's own gap later
+        gap = float(want[step]["frame.time_relative"]) - float(want[step - 1]["frame.time_relative"])
+        field = "eclink_modbus.cmd_from_ru.deadline" if two_pass else "eclink_modbus.cmd_from_ru.late"
+        moved, orig = on(got, field), on(ref, field)
+        assert len(moved) == len(orig) == 2, (two_pass, moved, orig)
+        for m, o in zip(moved, orig):
+            t_o = float(want[o]["frame.time_relative"])
+            skipped = [f for f in want if o <= f < m and want[f]["modbus.func_code"] and float(want[f]["frame.time_relative"]) - t_o > gap + 0.001]
+            assert m >= o and not skipped, (two_pass, m, o, gap, skipped)
+        for f, v in got.items():
+            for field in ("eclink_modbus.pci_age", "eclink_modbus.pco_age", "eclink_modbus.time",
+                          "eclink_modbus.cmd_from_ru_latency"):
+                assert all(float(x) >= 0 for x in v[field].split(",") if x), (f, field, v[field])
+        echo = next(f for f, v in got.items() if v["eclink_modbus.cmd_from_ru.late_ack"])
+        assert float(got[echo]["eclink_modbus.cmd_from_ru_latency"]) > 2.0

@@ -501,7 +501,8 @@ call_lua_frame_id(guint16 fid, tvbuff_t *tvb, packet_info *pinfo, proto_tree *tr
  * decoder, as hook "frame_id.malformed" (everything shown). Wireshark 4.6
  * reads an RT_CLASS_1 frame as secured when two C-SDU bytes equal a length
  * it expects, and PNIO, knowing the IOCR from the Connect, then throws; the
- * Connect's layout fits the frame all the same (the decoder says so). */
+ * Connect's layout fits the frame all the same (the decoder says so). A
+ * frame the capture cut throws too; the decoder says that instead. */
 static int
 call_pn_rt_known(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data, gboolean *thrown)
 {
@@ -513,7 +514,9 @@ call_pn_rt_known(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data
     TRY {
         consumed = call_dissector_only(pn_rt_handle, tvb, pinfo, tree, data);
     }
-    CATCH_NONFATAL_ERRORS {
+    /* (bounds errors too: a frame the capture cut, snaplen, goes to the
+     * decoder, which decodes the bytes captured and says it was cut) */
+    CATCH_BOUNDS_AND_DISSECTOR_ERRORS {
         show_exception(tvb, pinfo, tree, EXCEPT_CODE, GET_MESSAGE);
         *thrown = TRUE;
     }
@@ -739,12 +742,22 @@ dissect_pn_cm(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
     heur_dtbl_entry_t *hdtbl_entry;
     pn_subs_key_t subs;
     gboolean keyed = FALSE;
+    gboolean cut = FALSE;
 
+    /* A DCE/RPC datagram the capture cut (snaplen): the carrier says so
+     * first (a cut Connect's layout cannot be read), as DCE/RPC may throw
+     * on it; it is handed over once. */
+    if (tvb_captured_length(tvb) < tvb_reported_length(tvb) && tvb_captured_length(tvb) >= 2 &&
+        tvb_get_uint8(tvb, 0) == DCERPC_DG_VERSION && dissector_get_string_handle(pn_hook_table, "connect")) {
+        pn_lua_calling();
+        dissector_try_string_with_data(pn_hook_table, "connect", tvb, pinfo, tree, FALSE, NULL);
+        cut = TRUE;
+    }
     if (!is_dcerpc_dg(tvb))
         return 0;
     if (!dissector_try_heuristic(udp_heur_list, tvb, pinfo, tree, &hdtbl_entry, data))
         return 0;
-    if (is_connect(tvb) && dissector_get_string_handle(pn_hook_table, "connect")) {
+    if (!cut && is_connect(tvb) && dissector_get_string_handle(pn_hook_table, "connect")) {
         if (!pinfo->fd->visited && tvb_get_uint8(tvb, 1) == DCERPC_DG_REQUEST)
             learn_controller_port(pinfo);
         if (pn_taken_by)

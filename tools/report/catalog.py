@@ -101,6 +101,9 @@ EXPERTS = {
     "mcmb2.layout.inferred": (NOTE, "finding", "layout inferred from the cyclic frames (no Connect)"),
     "mcmb2.layout.ambiguous": (NOTE, "finding", "more than one layout fits the cyclic frames"),
     "mcmb2.pn_malformed": (NOTE, "finding", "malformed to Wireshark's PROFINET dissector, decoded by the layout"),
+    "mcmb2.time_backwards": (WARNING, "finding", "time went backwards (clock step): the rules restart there"),
+    "mcmb2.cut": (NOTE, "finding", "frame cut by the capture (snaplen): only the bytes captured decoded"),
+    "mcmb2.connect_cut": (NOTE, "finding", "Connect cut by the capture (snaplen): its layout not read"),
     "mcmb2.candidate": (WARNING, "candidate",
                         "look like an MC-MB2-PN or EC-Link device but were not recognised"),
     # EC-Link images (both transports)
@@ -128,6 +131,7 @@ EXPERTS = {
     "eclink_pnio.iops.bad": (WARNING, "finding", "IOPS not GOOD"),
     "eclink_pnio.short": (ERROR, "finding", "C-SDU shorter than the layout"),
     "eclink_pnio.layout.inferred": (NOTE, "finding", "layout inferred from the cyclic frames (no Connect)"),
+    "eclink_pnio.cut": (NOTE, "finding", "frame cut by the capture (snaplen): only the bytes captured decoded"),
     "eclink_pnio.pn_malformed": (NOTE, "finding",
                                  "malformed to Wireshark's PROFINET dissector, decoded by the layout"),
 }
@@ -145,6 +149,7 @@ HANDSHAKE = {
     "cmd_from_ru.late_ack": (WARNING, "finding", "command from RU echoed by CAO late"),
     "cmd_to_ru.late_ack": (WARNING, "finding", "command to RU echoed by CAI late"),
     "bu_state_change": (NOTE, "state", "BU state changed"),
+    "time_backwards": (WARNING, "finding", "time went backwards (clock step): the rules restart there"),
 }
 for _transport in ("eclink_modbus", "eclink_pnio"):
     EXPERTS.update({_transport + "." + name: entry for name, entry in HANDSHAKE.items()})

@@ -321,6 +321,10 @@ class Capture:
         self.frames = 0
         self.tcp_frames = 0         # (none: the capture holds no Modbus/TCP at all)
         self.first_epoch = None
+        # where the capture's time steps back, the step counts as no time,
+        # as in the dissectors (vrshark/handshake.luam clock()): the seconds
+        # every later frame is moved forward, and the previous frame's time
+        self._clock_shift, self._prev_epoch = 0.0, None
         self.last_time = 0.0
         self.last_frame = 0
         self.devices = {}
@@ -341,7 +345,10 @@ class Capture:
         epoch = float(c[1]) if c[1] else (self.first_epoch or 0.0) + self.last_time
         if self.first_epoch is None:
             self.first_epoch = epoch
-        t = epoch - self.first_epoch
+        if self._prev_epoch is not None and epoch < self._prev_epoch:
+            self._clock_shift += self._prev_epoch - epoch
+        self._prev_epoch = epoch
+        t = epoch - self.first_epoch + self._clock_shift
         self.frames += 1
         self.last_time, self.last_frame = t, frame
         if c[TCP_SPORT]:
