@@ -30,6 +30,9 @@ FAULTS = {
     # mcmb2_duplex_watchdog: the downlink watchdog keeps 5 from frame 12 (t
     # 0.2 s); 2 s later (t 2.2 s) is frame 34
     "mcmb2.downlink_watchdog.stalled": ("mcmb2_duplex_watchdog.pcap", [34]),
+    # mcmb2_simplex_unwritten: the downlink watchdog stays 0 from frame 4 (t
+    # 0.101 s), the base reports Terminal present; past 2 s at frame 32 (2.201 s)
+    "mcmb2.downlink_watchdog.unwritten": ("mcmb2_simplex_unwritten.pcap", [32]),
     # --- stalls: first frame past the limit that carries the counter
     # ... the uplink watchdog keeps 5 from frame 11 (t 0.2 s): past 1 s at 1.2 s
     "mcmb2.uplink_watchdog.stalled": ("mcmb2_duplex_watchdog.pcap", [23]),

@@ -332,6 +332,20 @@ def duplex_watchdog(connect=True):
     return cap
 
 
+@capture("mcmb2_simplex_unwritten.pcap",
+         "MC-MB2-PN simplex with its Connect whose controller never writes the downlink watchdog, the base "
+         "reporting Terminal present (not configured to monitor it, SP-14-023 3.2.2): a note, not E010")
+def simplex_unwritten():
+    cap = Capture()
+    d = Mcmb2("duplex", 8, 0, in_fid=0x8005, out_fid=0x8006)
+    d.connect(cap, 0.0)                                          # frames 1, 2
+    for i in range(16):                                          # 3/4, 5/6 ...
+        t = 0.1 + i * 0.15
+        d.uplink(cap, t, [0x11, (i + 1) & 0xFF], [_duplex_payload(8, i)])
+        d.downlink(cap, t + 0.001, [0, 0], [])                   # past 2 s at i = 14: frame 32
+    return cap
+
+
 @capture("mcmb2_duplex_midsession.pcap",
          "The same simplex base without its Connect (captured mid-session): layout inferred from the cyclic frames")
 def duplex_midsession():

@@ -92,6 +92,9 @@ EXPERTS = {
     "mcmb2.data_not_zero": (WARNING, "finding", "data not 0 while the terminal is not present"),
     "mcmb2.uplink_watchdog.stalled": (ERROR, "stall", "uplink watchdog"),
     "mcmb2.downlink_watchdog.stalled": (ERROR, "stall", "downlink watchdog"),
+    "mcmb2.downlink_watchdog.unwritten": (NOTE, "finding",
+                                          "simplex downlink watchdog not written, no E010: the base may not "
+                                          "monitor it (mcmb2.simplex_downlink)"),
     "mcmb2.slot.terminal_changed": (NOTE, "state", "slot serves another terminal"),
     "mcmb2.layout_mismatch": (ERROR, "finding", "Y, Z or slots differ from the configured layout"),
     "mcmb2.iops.bad": (WARNING, "finding", "IOPS not GOOD"),
