@@ -113,7 +113,7 @@ local function analyse(rec, ba, t, frame)
     else
         local pco, cco, _, cao = byte(ba, o + 1, o + 4)
         out = out_values
-        out.pco, out.cco, out.cao = pco, cco, cao
+        out.pco, out.cco, out.cao, out.len = pco, cco, cao, plan.image.len
     end
     local r = eclink_handshake.update(hs, inp, out, t, frame, rec)
     local links

@@ -43,6 +43,10 @@ FAULTS = {
     # eclink_pnio_connect: PCI kept from frame 23 for 625 ms; PCO from 38 for 2125 ms
     "eclink_pnio.pci_stalled": ("eclink_pnio_connect.pcap", [31]),
     "eclink_pnio.pco_stalled": ("eclink_pnio_connect.pcap", [72]),
+    # --- Input + Commands mode (TS-0007 2.1, 8.4): the first output image of
+    # the conversation (Modbus: the first write request, cycle 0's frame 6)
+    "eclink_modbus.commands_mode": ("eclink_modbus_commands.pcap", [6]),
+    "eclink_pnio.commands_mode": ("eclink_pnio_commands.pcap", [4]),
     # --- EG-Link periodic gaps (eglink_analysis.py)
     # vrpi_gap: VRPI every 125 ms, none from frame 10 (t 0.5 s) to frame 20
     # (t 1.375 s); the first BU packet past 500 ms is the VRPO at 16

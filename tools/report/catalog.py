@@ -148,6 +148,7 @@ HANDSHAKE = {
     "cmd_from_ru.late_ack": (WARNING, "finding", "command from RU echoed by CAO late"),
     "cmd_to_ru.late_ack": (WARNING, "finding", "command to RU echoed by CAI late"),
     "bu_state_change": (NOTE, "state", "BU state changed"),
+    "commands_mode": (NOTE, "finding", "Input + Commands mode (20-byte output image): PCO not supervised"),
 }
 for _transport in ("eclink_modbus", "eclink_pnio"):
     EXPERTS.update({_transport + "." + name: entry for name, entry in HANDSHAKE.items()})
