@@ -802,6 +802,9 @@ local function analyse(c, rec, t, frame, touched_in, touched_out)
         -- registers) uses Input + Commands mode (TS-0007 2.1, 5.2)
         ov.pco, ov.cco, ov.cao = pco, cco, cao
         ov.len = known(out, 20, 2) and 224 or handshake.COMMANDS_LEN
+        -- the mode's note waits for a frame of the recognised connection
+        -- (one pass shows none before it)
+        ov.pending = rec.pending
     end
     local r = handshake.update(c.hs, iv, ov, t, frame, rec)
     -- (numeric loops: the lists are empty on most frames)

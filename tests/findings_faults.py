@@ -44,8 +44,9 @@ FAULTS = {
     "eclink_pnio.pci_stalled": ("eclink_pnio_connect.pcap", [31]),
     "eclink_pnio.pco_stalled": ("eclink_pnio_connect.pcap", [72]),
     # --- Input + Commands mode (TS-0007 2.1, 8.4): the first output image of
-    # the conversation (Modbus: the first write request, cycle 0's frame 6)
-    "eclink_modbus.commands_mode": ("eclink_modbus_commands.pcap", [6]),
+    # the conversation (Modbus: the first write request of the recognised
+    # connection, recognised at 13 by cycle 2's read response: cycle 2's write, 14)
+    "eclink_modbus.commands_mode": ("eclink_modbus_commands.pcap", [14]),
     "eclink_pnio.commands_mode": ("eclink_pnio_commands.pcap", [4]),
     # --- EG-Link periodic gaps (eglink_analysis.py)
     # vrpi_gap: VRPI every 125 ms, none from frame 10 (t 0.5 s) to frame 20
