@@ -820,7 +820,13 @@ local function analyse(c, rec, t, frame, touched_in, touched_out)
     if touched_out and known(out, 0, 4) then
         ov = out_values
         local pco, cco, _, cao = sbyte(out.data, 1, 4)
+        -- a controller that has written only the first 20 bytes (10 holding
+        -- registers) uses Input + Commands mode (TS-0007 2.1, 5.2)
         ov.pco, ov.cco, ov.cao = pco, cco, cao
+        ov.len = known(out, 20, 2) and 224 or handshake.COMMANDS_LEN
+        -- the mode's note waits for a frame of the recognised connection
+        -- (one pass shows none before it)
+        ov.pending = rec.pending
     end
     local r = handshake.update(c.hs, iv, ov, t, frame, rec)
     -- (numeric loops: the lists are empty on most frames)

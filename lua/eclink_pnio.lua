@@ -118,7 +118,7 @@ local function analyse(rec, ba, t, frame)
     else
         local pco, cco, _, cao = byte(ba, o + 1, o + 4)
         out = out_values
-        out.pco, out.cco, out.cao = pco, cco, cao
+        out.pco, out.cco, out.cao, out.len = pco, cco, cao, plan.image.len
     end
     -- (the rules go by a time that never runs backwards: a clock step is a finding)
     local step

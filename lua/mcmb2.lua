@@ -29,6 +29,7 @@ local dir = debug.getinfo(1, "S").source:match("^@(.*)[/\\]")
 package.path = dir .. "/?.luam;" .. package.path
 set_plugin_info(require("vrshark.version").info("Cavotec MC-MB2-PN radio base unit in PROFINET IO cyclic data"))
 local handshake = require("vrshark.handshake")
+local layout = require("vrshark.pnio_layout")
 local record = require("vrshark.pnio_record")
 local systems = require("vrshark.pnio_systems")
 local iodata = require("vrshark.iodata") -- vrshark_io hook
@@ -140,6 +141,9 @@ local ef = {
     downlink_stalled = expert_new("mcmb2.downlink_watchdog.stalled",
         "Downlink watchdog unchanged for over 2000 ms: the base shows E010", expert.group.SEQUENCE,
         expert.severity.ERROR),
+    downlink_unmonitored = expert_new("mcmb2.downlink_watchdog.unwritten",
+        "Simplex downlink watchdog not written, the base reports no E010: it may not monitor it (SP-14-023 3.2.2)",
+        expert.group.SEQUENCE, expert.severity.NOTE),
     terminal_changed = expert_new("mcmb2.slot.terminal_changed",
         "Slot changed terminal (dynamic polling)", expert.group.SEQUENCE, expert.severity.NOTE),
     layout_mismatch = expert_new("mcmb2.layout_mismatch",
@@ -176,7 +180,8 @@ local ef = {
         expert.group.UNDECODED, expert.severity.NOTE),
 }
 mcmb2.experts = { ef.status_undefined, ef.slot_status_undefined, ef.terminal_not_zero, ef.not_valid, ef.e010,
-                  ef.data_not_zero, ef.uplink_stalled, ef.downlink_stalled, ef.terminal_changed,
+                  ef.data_not_zero, ef.uplink_stalled, ef.downlink_stalled, ef.downlink_unmonitored,
+                  ef.terminal_changed,
                   ef.layout_mismatch, ef.iops_bad, ef.iocs_bad, ef.reserved_not_zero, ef.short, ef.learned,
                   ef.inferred, ef.ambiguous, ef.pn_malformed, ef.candidate, ef.time_backwards, ef.cut,
                   ef.connect_cut }
@@ -196,6 +201,17 @@ mcmb2.prefs.uplink_timeout = Pref.uint("Uplink watchdog timeout (ms)", 1000,
     "Flag an uplink watchdog that keeps its value longer than this")
 mcmb2.prefs.downlink_timeout = Pref.uint("Downlink watchdog timeout (ms)", 2000,
     "Flag a downlink watchdog that keeps its value longer than this (the base shows E010)")
+-- SP-14-023 3.2.2: a simplex base without multiple-select "may be configured
+-- to not monitor the downlink watchdog counter", and its controller then
+-- need not write it. Per base: the layout table's +monitored / +unmonitored.
+local SIMPLEX_AUTO, SIMPLEX_MONITORED, SIMPLEX_UNMONITORED = 0, 1, 2
+mcmb2.prefs.simplex_downlink = Pref.enum("Simplex downlink watchdog", SIMPLEX_AUTO,
+    "On a simplex base (downlink header only): auto: a downlink watchdog not seen moving is an error only "
+    .. "while the base reports E010, else a note; monitored: always an error (the base monitors it); "
+    .. "unmonitored: not checked (the base is configured not to monitor it). A layout-table entry "
+    .. "simplex+monitored or simplex+unmonitored sets it for that base",
+    { { 1, "auto", SIMPLEX_AUTO }, { 2, "monitored", SIMPLEX_MONITORED },
+      { 3, "unmonitored", SIMPLEX_UNMONITORED } }, false)
 
 systems.set_prefs(mcmb2.prefs)
 
@@ -204,10 +220,16 @@ systems.set_prefs(mcmb2.prefs)
 ------------------------------------------------------------------------
 local devs        -- device key (plan.dev) -> { up_wd, down_wd, slot_term, z, used }
 local up_limit, down_limit -- watchdog timeouts (s), read from the preferences in init()
+local simplex_mode, simplex_by_fid -- the preference, and the layout table's per base (downlink FrameID)
+local SIMPLEX_OPTION = { monitored = SIMPLEX_MONITORED, unmonitored = SIMPLEX_UNMONITORED }
 
 systems.on_init(function()
     devs = {}
     up_limit, down_limit = mcmb2.prefs.uplink_timeout / 1000, mcmb2.prefs.downlink_timeout / 1000
+    simplex_mode, simplex_by_fid = mcmb2.prefs.simplex_downlink, {}
+    for _, e in ipairs(layout.parse_table(mcmb2.prefs.layouts)) do
+        if e.downlink_watchdog and e.out_fid then simplex_by_fid[e.out_fid] = SIMPLEX_OPTION[e.downlink_watchdog] end
+    end
 end)
 
 local function dev_state(key)
@@ -288,6 +310,11 @@ local function ms(s)
     return math.floor(s * 1000 + 0.5) / 1000
 end
 
+local function stalled_text(what, age, value)
+    return string.format("%s watchdog unchanged for %.3f s (value %d)%s", what, ms(age), value,
+        (what == "Uplink") and ": bring the system to a safe state" or ": the base shows E010")
+end
+
 -- The watchdog's age in this frame; past the limit the frame is "stalled"
 -- (Info tag on every such frame, the finding on the first).
 local function watchdog(rec, st, value, t, frame, limit, ex, what)
@@ -295,9 +322,43 @@ local function watchdog(rec, st, value, t, frame, limit, ex, what)
     rec.wd_age = ms(t - st.t)
     if t - st.t > limit then rec.wd_since = st.frame end
     if r and r.kind == "stalled" then
-        add_finding(rec, "wd", ex, string.format("%s watchdog unchanged for %.3f s (value %d)%s",
-            what, ms(r.age), r.value,
-            (what == "Uplink") and ": bring the system to a safe state" or ": the base shows E010"))
+        add_finding(rec, "wd", ex, stalled_text(what, r.age, r.value))
+    end
+end
+
+-- The downlink watchdog of a simplex base (SP-14-023 3.2.2: its controller
+-- writes no data, and the base may be configured not to monitor the
+-- watchdog). unmonitored: its age only. auto: while it has not been seen
+-- moving and the base's last uplink status is not E010 (0xA), a stall is a
+-- note naming the setting, with no tag; the error follows on the first
+-- frame still stalled once the base reports E010, or on a stall after it
+-- has moved. monitored: as any downlink.
+local function simplex_watchdog(rec, d, value, t, frame, mode)
+    local st = d.down_wd
+    if st.value ~= nil and st.value ~= value then d.down_moved, st.noted = true, nil end
+    if mode == SIMPLEX_UNMONITORED then
+        handshake.stall(st, value, t, frame, math.huge)
+        rec.wd_age = ms(t - st.t)
+        return
+    end
+    if mode == SIMPLEX_MONITORED or d.down_moved or d.up_status == 0xA then
+        local noted = st.noted
+        watchdog(rec, st, value, t, frame, down_limit, ef.downlink_stalled, "Downlink")
+        -- noted before, in E010 now: the error the note held back (once)
+        if noted and st.flagged and st.value == value and rec.wd_since then
+            st.noted = nil
+            add_finding(rec, "wd", ef.downlink_stalled, stalled_text("Downlink", t - st.t, value))
+        end
+        return
+    end
+    local r = handshake.stall(st, value, t, frame, down_limit)
+    rec.wd_age = ms(t - st.t)
+    if r and r.kind == "stalled" then
+        st.noted = true
+        add_finding(rec, "wd", ef.downlink_unmonitored, string.format(
+            "Simplex downlink watchdog unchanged for %.3f s (value %d), not seen moving, and the base reports no "
+            .. "E010: it may not monitor it (SP-14-023 3.2.2). To decide: mcmb2.simplex_downlink", ms(r.age),
+            r.value))
     end
 end
 
@@ -329,6 +390,10 @@ local function analyse_duplex(rec, d, ba, t, frame)
         end
         watchdog(rec, d.up_wd, byte(ba, h + 2), t, frame, up_limit,
             ef.uplink_stalled, "Uplink")
+        d.up_status = st
+    elseif #plan.modules == 0 then
+        -- simplex: the downlink is its header only
+        simplex_watchdog(rec, d, byte(ba, h + 2), t, frame, simplex_by_fid[plan.fid] or simplex_mode)
     else
         watchdog(rec, d.down_wd, byte(ba, h + 2), t, frame, down_limit,
             ef.downlink_stalled, "Downlink")

@@ -30,6 +30,9 @@ FAULTS = {
     # mcmb2_duplex_watchdog: the downlink watchdog keeps 5 from frame 12 (t
     # 0.2 s); 2 s later (t 2.2 s) is frame 34
     "mcmb2.downlink_watchdog.stalled": ("mcmb2_duplex_watchdog.pcap", [34]),
+    # mcmb2_simplex_unwritten: the downlink watchdog stays 0 from frame 4 (t
+    # 0.101 s), the base reports Terminal present; past 2 s at frame 32 (2.201 s)
+    "mcmb2.downlink_watchdog.unwritten": ("mcmb2_simplex_unwritten.pcap", [32]),
     # --- stalls: first frame past the limit that carries the counter
     # ... the uplink watchdog keeps 5 from frame 11 (t 0.2 s): past 1 s at 1.2 s
     "mcmb2.uplink_watchdog.stalled": ("mcmb2_duplex_watchdog.pcap", [23]),
@@ -40,6 +43,11 @@ FAULTS = {
     # eclink_pnio_connect: PCI kept from frame 23 for 625 ms; PCO from 38 for 2125 ms
     "eclink_pnio.pci_stalled": ("eclink_pnio_connect.pcap", [31]),
     "eclink_pnio.pco_stalled": ("eclink_pnio_connect.pcap", [72]),
+    # --- Input + Commands mode (TS-0007 2.1, 8.4): the first output image of
+    # the conversation (Modbus: the first write request of the recognised
+    # connection, recognised at 13 by cycle 2's read response: cycle 2's write, 14)
+    "eclink_modbus.commands_mode": ("eclink_modbus_commands.pcap", [14]),
+    "eclink_pnio.commands_mode": ("eclink_pnio_commands.pcap", [4]),
     # --- EG-Link periodic gaps (eglink_analysis.py)
     # vrpi_gap: VRPI every 125 ms, none from frame 10 (t 0.5 s) to frame 20
     # (t 1.375 s); the first BU packet past 500 ms is the VRPO at 16

@@ -1,6 +1,7 @@
 """EC-Link raw images (the "eclink" dissector on a user link-layer type), as a
 Profibus DP user decodes a hex dump: text2pcap -l 147, then tshark with a
 user_dlts entry."""
+import os
 import struct
 import subprocess
 
@@ -75,7 +76,7 @@ def test_input_tree_reads_like_eglink(tshark, raw_capture):
     # the next item beside the BU state (its expert info is under it)
     indent = next(len(x) - len(x.lstrip()) for x in tree.splitlines() if x.strip() == lines[bu])
     siblings = [x.strip() for x in tree.splitlines() if len(x) - len(x.lstrip()) == indent]
-    assert siblings[siblings.index("BU state: Unknown (0x05)") + 1] == "[ES-Link relays open: Yes (BU state below 0x10)]"
+    assert siblings[siblings.index("BU state: Unknown (0x05)") + 1] == "[ES-Link relays open: Yes (BU state below 0x10, or RU state Stopped)]"
     assert "Armed RU: 0x1234" in lines and "RU battery: 80 %" in lines
     assert "RU state: Unknown (0x07)" in lines
     assert tshark.field(cap, "_ws.col.Info", extra=["-o", USER_DLT]) == [
@@ -137,7 +138,12 @@ def test_input_checks(tshark, raw_capture):
     assert "Armed RU is 0 but Joystick 1 is not 0" in exp[3]
     relays = tshark.frames(cap, ["eclink.es_relays_open"], extra=["-o", USER_DLT])
     assert_fields(relays[1], {"eclink.es_relays_open": 1})
-    assert_fields(relays[2], {"eclink.es_relays_open": 0})
+    # TS-0007 6.1.3, RU state 4 "Stopped": the armed remote has stopped, the ES-Link relay opens
+    # (BU state Armed 0x11 on this frame)
+    assert_fields(relays[2], {"eclink.es_relays_open": 1})
+    assert_fields(relays[3], {"eclink.es_relays_open": 0})
+    assert list(tshark.frames(cap, [], display_filter="eclink.es_relays_open == 1",
+                              extra=["-o", USER_DLT])) == [1, 2]
 
 
 def test_output_checks(tshark, raw_capture):
@@ -208,3 +214,33 @@ def test_swap_pairs_every_length(lua_probe):
     sees, 32 bytes a step): each length from 0 to 300, odd ones included,
     against a gsub of pairs."""
     assert lua_probe(SWAP_SCRIPT) == ["bad 0"]
+
+
+# (BU state, RU state): Armed and Enabled, Armed and Stopped, Blocked, Stopped BU, Disarmed,
+# Armed with the RU Armed (tilted)
+RELAY_CASES = [(0x11, 3), (0x11, 4), (0x03, 3), (0x01, 4), (0x10, 0), (0x11, 2)]
+
+
+@pytest.mark.skipif(bool(os.environ.get("VRSHARK_NO_C_PLUGIN")), reason="EG-Link is the C plugin")
+def test_relays_open_one_fact_in_eglink_and_eclink(tshark, raw_capture, work_dir):
+    """One fact, one value: the same BU and RU state reads the same
+    "ES-Link relays open" in an EG-Link VRPI (eglink.relays_open) and in an
+    EC-Link input image (eclink.es_relays_open). TS-0007 6.1.1 (BU state
+    below Disarmed) and 6.1.3 (RU state 4, Stopped: the ES-Link relay opens)."""
+    from eglink_testlib import gen
+    from tools.capgen.pcap import Capture
+    link = gen.Link(Capture())
+    for i, (bu, ru) in enumerate(RELAY_CASES):
+        link.bu(0.125 * i, "VRPI", gen.vrpi(bu_state=bu, armed_ru=0x1234, ru_state=ru, battery=80, rssi=90))
+    eg_cap = work_dir / "eglink_relays.pcap"
+    eg_cap.write_bytes(link.cap.to_bytes())
+    eg_cap.chmod(0o644)
+    ec_cap = raw_capture(*(input_image(b20=bu, b28=ru) for bu, ru in RELAY_CASES))
+    eg = tshark.frames(eg_cap, ["eglink.relays_open"])
+    ec = tshark.frames(ec_cap, ["eclink.es_relays_open"], extra=["-o", USER_DLT])
+    want = [1 if bu < 0x10 or ru == 4 else 0 for bu, ru in RELAY_CASES]
+    assert [int(eg[n]["eglink.relays_open"]) for n in sorted(eg)] == want
+    assert [int(ec[n]["eclink.es_relays_open"]) for n in sorted(ec)] == want
+    # the display filters pick the same frames
+    assert list(tshark.frames(eg_cap, [], display_filter="eglink.relays_open == 1")) == \
+        list(tshark.frames(ec_cap, [], display_filter="eclink.es_relays_open == 1", extra=["-o", USER_DLT]))

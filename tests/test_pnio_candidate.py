@@ -130,20 +130,27 @@ def test_a_base_unit_number_that_reads_as_a_status(tshark, work_dir):
     assert [r["mcmb2.direction"] for n, r in sorted(pinned.items())] == ["uplink", "downlink"] * 40
 
 
-def test_an_eclink_bu_whose_controller_stopped(tshark, work_dir):
-    """The input image proves the BU (its PCI chain); the controller's PCO
-    never moves, so the output image gives no evidence: the second pass
-    names the EC-Link entry; one pass names it from the frame whose PCI
-    proved the input image (its third change, pair 64) on."""
+def pco_standing(work_dir, outlen):
+    """An EC-Link BU (DAP of 2) whose PCI moves every 125 ms and whose
+    controller keeps PCO at 7: 300 pairs of frames 2 ms apart."""
     from pnio_testlib import eclink_submodules
     from test_pnio_midsession import eclink_image_in, eclink_image_out
-    d = Device(eclink_submodules(2, 20), mac(42), 0x8044, 0x8045)
+    d = Device(eclink_submodules(2, outlen), mac(42), 0x8044, 0x8045)
     cap = CaptureFile()
     for i in range(300):
         cap.add(d.cyclic("in", {1: eclink_image_in((i * 4) // 125)}), 0.002)
-        cap.add(d.cyclic("out", {2: eclink_image_out(7, length=20)}), 0.002)
-    path = cap.write(work_dir / "eclink_stopped.pcap")
-    setting = "mcmb2.layouts:0x8044/0x8045=eclink:/20@2"
+        cap.add(d.cyclic("out", {2: eclink_image_out(7, length=outlen)}), 0.002)
+    return cap.write(work_dir / ("eclink_pco_standing_%d.pcap" % outlen))
+
+
+def test_an_eclink_bu_whose_controller_stopped(tshark, work_dir):
+    """A Standard BU (224-byte output image): the input image proves the BU
+    (its PCI chain); the controller's PCO never moves, so the output image
+    gives no evidence (TS-0007 8.4: the BU flags it): the second pass
+    names the EC-Link entry; one pass names it from the frame whose PCI
+    proved the input image (its third change, pair 64) on."""
+    path = pco_standing(work_dir, 224)
+    setting = "mcmb2.layouts:0x8044/0x8045=eclink:/224@2"
     two = tshark.frames(path, FIELDS, two_pass=True)
     assert two == {n: {"mcmb2.candidate_setting": setting, "_ws.expert.message": (
         "Looks like an EC-Link BU, but its layout was not inferred (not settled by the end of the capture); "
@@ -153,3 +160,17 @@ def test_an_eclink_bu_whose_controller_stopped(tshark, work_dir):
     assert one == {n: {"mcmb2.candidate_setting": setting, "_ws.expert.message": (
         "Looks like an EC-Link BU, but its layout was not inferred (so far evidence from one direction only); "
         "to decode it now: " + setting)} for n in range(127, 601)}
+
+
+def test_an_input_and_commands_bu_is_decoded_with_its_pco_standing(tshark, work_dir):
+    """The same with a 20-byte output image (Input + Commands, TS-0007 2.1,
+    4.3): its controller need not touch PCO (4.1 skips "update PCO"), so the
+    pair is recognised from the input image's PCI chain and decoded, no
+    candidate note, no PCO stall."""
+    path = pco_standing(work_dir, 20)
+    two = tshark.frames(path, ["eclink.image", "eclink_pnio.layout_entry"], two_pass=True)
+    assert [two[n]["eclink.image"] for n in sorted(two)] == ["input", "output"] * 300
+    assert {two[n]["eclink_pnio.layout_entry"] for n in two} == {"0x8044/0x8045=eclink:/20@2"}
+    for two_pass in (False, True):
+        assert tshark.frames(path, [], display_filter="mcmb2.candidate || eclink_pnio.pco_stalled",
+                             two_pass=two_pass) == {}

@@ -390,3 +390,39 @@ def excerpt():
     bu.conn.client_send(0.250, bu.adu(struct.pack(">BHH", 4, 0, 32), tid=883))  # 15 cut after the request
     io.read_regs(0.260, 4, 0, _io_flags(2))                                  # 16-17
     return cap
+
+
+def _mode_cycles(mb, outputs):
+    """The BU in Input + Commands or Input Only mode (TS-0007 2.1, 5.1): 24
+    cycles 125 ms apart (3 s); its RU sends a command (CCI 1 -> 2) at cycle
+    6. outputs: the controller writes the 20-byte output image (holding
+    registers 0..9), PCO never touched (0), CAO echoing CCI a cycle later;
+    else it only reads."""
+    cci = cao = 1
+    for i in range(24):
+        t = 0.1 + i * 0.125
+        if i == 6 and outputs:         # (Input Only transfers no commands)
+            cci = 2
+        inp = input_image(pci=i + 1, cci=cci, cai=0, cmd=b"CMD-FROM-RU-%02d" % cci, joy=(i * 10, 0, 0, 0))
+        if outputs:
+            cycle(mb, t, inp, output_image(pco=0, cco=0, cao=cao, cmd=b"CMD-TO-RU", std=False))
+            cao = cci
+        else:
+            mb.read_regs(t, 4, 0, regs(inp))
+
+
+@capture("eclink_modbus_commands.pcap",
+         "EC-Link over Modbus/TCP, Input + Commands mode: 20-byte output writes whose PCO never moves (3 s), "
+         "a command from RU echoed by CAO; the mode noted, no PCO stall (TS-0007 2.1, 8.4)")
+def commands_mode():
+    cap = Capture()
+    _mode_cycles(ModbusClient(cap), True)
+    return cap
+
+
+@capture("eclink_modbus_input_only.pcap",
+         "EC-Link over Modbus/TCP, Input Only mode: the controller only reads the input image (3 s)")
+def input_only_mode():
+    cap = Capture()
+    _mode_cycles(ModbusClient(cap), False)
+    return cap

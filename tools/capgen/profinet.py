@@ -332,6 +332,20 @@ def duplex_watchdog(connect=True):
     return cap
 
 
+@capture("mcmb2_simplex_unwritten.pcap",
+         "MC-MB2-PN simplex with its Connect whose controller never writes the downlink watchdog, the base "
+         "reporting Terminal present (not configured to monitor it, SP-14-023 3.2.2): a note, not E010")
+def simplex_unwritten():
+    cap = Capture()
+    d = Mcmb2("duplex", 8, 0, in_fid=0x8005, out_fid=0x8006)
+    d.connect(cap, 0.0)                                          # frames 1, 2
+    for i in range(16):                                          # 3/4, 5/6 ...
+        t = 0.1 + i * 0.15
+        d.uplink(cap, t, [0x11, (i + 1) & 0xFF], [_duplex_payload(8, i)])
+        d.downlink(cap, t + 0.001, [0, 0], [])                   # past 2 s at i = 14: frame 32
+    return cap
+
+
 @capture("mcmb2_duplex_midsession.pcap",
          "The same simplex base without its Connect (captured mid-session): layout inferred from the cyclic frames")
 def duplex_midsession():
@@ -532,3 +546,54 @@ def eclink_noconnect():
         bu.inputs(cap, t, eclink_input(i + 1, 0, 0))
         bu.outputs(cap, t + 0.001, eclink_output(i + 1, 0, 0, length=20))
     return cap
+
+
+def _eclink_mode(outlen, connect, in_fid, out_fid):
+    """A BU in Input + Commands (outlen 20) or Input Only (0) mode, TS-0007
+    2.1 / 4.3: 24 cycles 125 ms apart (3 s). The controller never touches
+    PCO (the mode's guide, 4.1, skips "update PCO"); the RU sends a command
+    (CCI 1 -> 2) at cycle 6, which the controller echoes in CAO at cycle 7
+    (Input + Commands only; Input Only transfers no commands)."""
+    cap = Capture()
+    bu = EclinkBu(outlen, in_fid=in_fid, out_fid=out_fid)
+    if connect:
+        bu.connect(cap, 0.0)                                     # 1, 2
+    cci = cao = 1
+    for i in range(24):
+        t = 0.1 + i * 0.125
+        if i == 6 and outlen:
+            cci = 2
+        if i == 7:
+            cao = cci
+        bu.inputs(cap, t, eclink_input(i + 1, cci, 0))
+        if outlen:
+            bu.outputs(cap, t + 0.001, eclink_output(0, 0, cao, length=outlen))
+        else:
+            bu.frame(cap, t + 0.001, "out", {})                  # IOCS only
+    return cap
+
+
+@capture("eclink_pnio_commands.pcap",
+         "EC-Link BU in Input + Commands mode (64 in / 20 out) with its Connect: PCO never moves (3 s), a "
+         "command from RU echoed by CAO; the mode noted, no PCO stall (TS-0007 2.1, 8.4)")
+def eclink_commands():
+    return _eclink_mode(20, True, 0x8030, 0x8031)
+
+
+@capture("eclink_pnio_commands_noconnect.pcap",
+         "The same Input + Commands BU without its Connect (FrameIDs 0xC030/0xC031): layout inferred from the "
+         "input image's PCI chain, the output image standing")
+def eclink_commands_noconnect():
+    return _eclink_mode(20, False, 0xC030, 0xC031)
+
+
+@capture("eclink_pnio_input_only.pcap",
+         "EC-Link BU in Input Only mode (64 in, no output image: an output CR with IOCS only) with its Connect")
+def eclink_input_only():
+    return _eclink_mode(0, True, 0x8032, 0x8033)
+
+
+@capture("eclink_pnio_input_only_noconnect.pcap",
+         "The same Input Only BU without its Connect (FrameIDs 0xC032/0xC033): layout inferred")
+def eclink_input_only_noconnect():
+    return _eclink_mode(0, False, 0xC032, 0xC033)

@@ -92,6 +92,9 @@ EXPERTS = {
     "mcmb2.data_not_zero": (WARNING, "finding", "data not 0 while the terminal is not present"),
     "mcmb2.uplink_watchdog.stalled": (ERROR, "stall", "uplink watchdog"),
     "mcmb2.downlink_watchdog.stalled": (ERROR, "stall", "downlink watchdog"),
+    "mcmb2.downlink_watchdog.unwritten": (NOTE, "finding",
+                                          "simplex downlink watchdog not written, no E010: the base may not "
+                                          "monitor it (mcmb2.simplex_downlink)"),
     "mcmb2.slot.terminal_changed": (NOTE, "state", "slot serves another terminal"),
     "mcmb2.layout_mismatch": (ERROR, "finding", "Y, Z or slots differ from the configured layout"),
     "mcmb2.iops.bad": (WARNING, "finding", "IOPS not GOOD"),
@@ -150,6 +153,7 @@ HANDSHAKE = {
     "cmd_to_ru.late_ack": (WARNING, "finding", "command to RU echoed by CAI late"),
     "bu_state_change": (NOTE, "state", "BU state changed"),
     "time_backwards": (WARNING, "finding", "time went backwards (clock step): the rules restart there"),
+    "commands_mode": (NOTE, "finding", "Input + Commands mode (20-byte output image): PCO not supervised"),
 }
 for _transport in ("eclink_modbus", "eclink_pnio"):
     EXPERTS.update({_transport + "." + name: entry for name, entry in HANDSHAKE.items()})
