@@ -16,7 +16,7 @@ from pathlib import Path
 from conftest import profile_column_widths
 from installed_testlib import IS_ROOT, RUN_UID
 
-WIDTH, HEIGHT = 1600, 1000
+WIDTH, HEIGHT = 1680, 1000     # the width the profile's columns are made for
 
 
 def _probe_x():
@@ -147,10 +147,12 @@ class Gui:
         return subprocess.run(["import", "-display", self.display, "-window", "root", "-depth", "8", "ppm:-"],
                               capture_output=True, check=True).stdout
 
-    def shot(self, name, args, settle=30):
-        """Wireshark with args until its picture stops changing (bounded):
-        the last screenshot as PPM bytes (also kept as NAME.png), and
-        Wireshark's output."""
+    def shot(self, name, args, settle=30, ready=None):
+        """Wireshark with args until its picture stops changing (bounded),
+        and, with ready, until ready(parsed picture) is true too (a long file
+        loads with a picture that stands still for seconds): the last
+        screenshot as PPM bytes (also kept as NAME.png), and Wireshark's
+        output."""
         env = self.installed.env(DISPLAY=self.display, XDG_RUNTIME_DIR=str(self.run_dir))
         ws = subprocess.Popen(self.installed.command("wireshark", args), env=env, stdout=subprocess.PIPE,
                               stderr=subprocess.STDOUT, cwd=str(self.installed.home))
@@ -161,7 +163,7 @@ class Gui:
                 pic = self.screenshot()
                 same = same + 1 if pic == last else 0
                 last = pic
-                if same >= 2:
+                if same >= 2 and (ready is None or ready(read_ppm(pic))):
                     break
                 time.sleep(1)
         finally:
