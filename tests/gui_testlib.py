@@ -128,7 +128,8 @@ def rows_of(ppm, colours):
 class Gui:
     """An X server and Wireshark runs on it for one installed layout."""
 
-    def __init__(self, installed, artefacts):
+    def __init__(self, installed, artefacts, on=None):
+        """on: another Gui whose X server this one uses (it stops it)."""
         self.installed = installed
         self.artefacts = Path(artefacts)
         self.artefacts.mkdir(parents=True, exist_ok=True)
@@ -138,6 +139,9 @@ class Gui:
         if IS_ROOT:
             for p in (installed.config / "recent_common", self.run_dir):
                 os.chown(p, RUN_UID, RUN_UID)
+        if on is not None:
+            self.display, self.xvfb = on.display, None
+            return
         self.display = ":%d" % (100 + os.getpid() % 400)
         self.xvfb = subprocess.Popen(["Xvfb", self.display, "-screen", "0", "%dx%dx24" % (WIDTH, HEIGHT),
                                       "-nolisten", "tcp"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
@@ -174,5 +178,6 @@ class Gui:
         return read_ppm(last), out
 
     def close(self):
-        self.xvfb.kill()
-        self.xvfb.wait()
+        if self.xvfb is not None:
+            self.xvfb.kill()
+            self.xvfb.wait()

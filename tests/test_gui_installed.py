@@ -16,11 +16,12 @@ import math
 import re
 import shutil
 import struct
+import subprocess
 
 import pytest
 
 from conftest import BUILD, CAPTURES, ROOT, Tshark, _world_dir, profile_column_widths, profile_rules
-from gui_testlib import WIDTH, Gui, column, have_gui, rows_of, rule_colours, runs
+from gui_testlib import WIDTH, Gui, column, have_gui, near, rows_of, rule_colours, runs
 from installed_testlib import Installed
 
 pytestmark = pytest.mark.skipif(not have_gui(), reason="wireshark, Xvfb or imagemagick missing (tools/setup)")
@@ -215,3 +216,121 @@ def test_long_capture_columns_not_cut(gui):
             if state:
                 cut.append("%s of frame %d" % (title, last - k))
     assert not cut, "cut with the profile's widths at %d px: %s (see %s)" % (WIDTH, ", ".join(cut), ARTEFACTS)
+
+
+# -- the Expert Information dialog's Protocol column ---------------------------
+# Read without OCR: the dialog's font is DejaVu Sans (fc-match sans-serif);
+# its size is found from the header "Protocol", rendered by ImageMagick until
+# its width matches, and each cell of the Protocol column is the name whose
+# rendered width is nearest to the cell's (the names differ by 10 px and more).
+PROTOCOL_NAMES = ("ECLINK_PNIO", "MCMB2", "VRSHARK_PNIO", "PNIO", "TCP")  # (those of PROFINET captures)
+EXPERT_CASES = {  # capture -> the protocol of every finding in the dialog
+    "eclink_pnio_connect.pcap": "ECLINK_PNIO",
+    "mcmb2_duplex_watchdog.pcap": "MCMB2",
+}
+
+
+def _dark_extent(ppm, x0, x1, y0, y1):
+    width, _, pixels = ppm
+    xs = [x for y in range(y0, y1) for x in range(x0, x1)
+          if max(pixels[(y * width + x) * 3:(y * width + x) * 3 + 3]) < 110]
+    return (min(xs), max(xs)) if xs else None
+
+
+@functools.lru_cache(maxsize=None)
+def _rendered_width(text, size):
+    out = subprocess.run(["convert", "-font", "DejaVu-Sans", "-pointsize", "%.2f" % size, "label:" + text,
+                          "-trim", "-format", "%w", "info:"], capture_output=True, text=True, check=True)
+    return int(out.stdout)
+
+
+SEVERITY_COLOURS = ((255, 92, 92), (247, 242, 83), (160, 255, 255), (128, 183, 247))  # error .. chat
+
+
+def _severity_bands(ppm, x):
+    """[(top, height)] of the runs of the dialog's severity colours in pixel column x."""
+    out, y = [], 0
+    for c, n in runs(column(ppm, x)):
+        if n >= 14 and any(near(c, s) for s in SEVERITY_COLOURS):
+            out.append((y, n))
+        y += n
+    return out
+
+
+def _expert_rows_shown(ppm):
+    """Whether the dialog shows rows (it fills after the file is read)."""
+    return sum(len(_severity_bands(ppm, x)) for x in range(0, ppm[0], 16)) >= 8
+
+
+def expert_dialog_protocols(ppm):
+    """The Protocol column of the Expert Information dialog in the picture,
+    one name per row, top to bottom."""
+    width, height, _ = ppm
+    # the rows: bands of the severity colours, read in the pixel column of
+    # the dialog's first column that has the most of them (past its texts)
+    def bands(x):
+        return _severity_bands(ppm, x)
+    x_sev = max(range(0, width, 4), key=lambda x: sum(n for _, n in bands(x)))
+    found = bands(x_sev)
+    assert found, "no Expert Information rows in the picture"
+    first = x_sev
+    while first > 0 and bands(first - 1):
+        first -= 1
+    row = functools.reduce(math.gcd, [n for _, n in found])
+    assert 14 <= row <= 30, row
+    rows = [(y + k * row, y + (k + 1) * row) for y, n in found for k in range(n // row)]
+    # the header above the first row: its text clusters (Severity, Summary, Group, Protocol, Count)
+    def dark_xs(yy):
+        return {x for x in range(first - 8, width) if max(ppm[2][(yy * width + x) * 3:(yy * width + x) * 3 + 3]) < 110}
+    y = rows[0][0] - 1
+    while y > 0 and not dark_xs(y):
+        y -= 1
+    band_end = y + 1
+    while y > 0 and dark_xs(y):
+        y -= 1
+    band = range(y + 1, band_end)
+    per_x = {}
+    for yy in band:
+        for x in dark_xs(yy):
+            per_x[x] = per_x.get(x, 0) + 1
+    # (the column separators run the whole height of the header)
+    xs = sorted(x for x, n in per_x.items() if n < len(band))
+    clusters = [[xs[0], xs[0]]]
+    for x in xs[1:]:
+        if x - clusters[-1][1] > 12:
+            clusters.append([x, x])
+        else:
+            clusters[-1][1] = x
+    starts = [c[0] for c in clusters if c[1] - c[0] >= 20]
+    proto_hdr = next(c for c in clusters if c[0] == starts[3])
+    hdr_w = proto_hdr[1] - proto_hdr[0] + 1
+    size = min((s / 4 for s in range(36, 64)), key=lambda s: abs(_rendered_width("Protocol", s) - hdr_w))
+    names = []
+    for y0, y1 in rows:
+        ext = _dark_extent(ppm, starts[3] - 4, starts[4] - 6, y0 + 1, y1 - 1)
+        assert ext, "an empty Protocol cell"
+        w = ext[1] - ext[0] + 1
+        names.append(min(PROTOCOL_NAMES, key=lambda t: abs(_rendered_width(t, size) - w)))
+    return names
+
+
+@pytest.mark.parametrize("kind", ["personal", "lua-only"])
+@pytest.mark.parametrize("capture", sorted(EXPERT_CASES))
+def test_expert_dialog_names_the_protocol(gui, kind, capture):
+    """*Analyze > Expert Information* (opened by `wireshark -z expert`) lists
+    every finding of a device under its own protocol, with the C plugin and
+    with the Lua plugins alone (tests/test_expert_protocols.py: the same in
+    `tshark -z expert`)."""
+    inst = None if kind == "personal" else Installed(kind)
+    g = gui if inst is None else Gui(inst, ARTEFACTS, on=gui)
+    try:
+        name = "expert_%s_%s" % (kind, capture.replace(".pcap", ""))
+        ppm, output = g.shot(name, ["-C", "vrshark", "-r", str(CAPTURES / capture), "-z", "expert"], settle=60,
+                             ready=_expert_rows_shown)
+    finally:
+        if inst is not None:
+            g.close()
+            inst.remove()
+    assert "Lua Error" not in output and "Dissector bug" not in output, output
+    names = expert_dialog_protocols(ppm)
+    assert names and set(names) == {EXPERT_CASES[capture]}, "%s (see %s)" % (names, ARTEFACTS)
