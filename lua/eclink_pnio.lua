@@ -299,6 +299,8 @@ local function show_connect(rec, tvb, tree, text)
     item:add_proto_expert_info(eef.learned, "Cyclic data layout learned: " .. text)
 end
 
+-- (its frames are shown through its own dissector: pnio_systems.through())
+eclp.dissector = systems.dissector
 systems.register({ "eclink" }, { proto = eclp, short = eef.short, cut = eef.cut, inferred = eef.inferred,
                                  pn_malformed = eef.pn_malformed,
                                  per_frame = { up = "pci_age", down = "pco_age" }, analyse = analyse,

@@ -897,6 +897,27 @@ local function pn_malformed_note(rec, tvb, root)
         size))
 end
 
+-- The decoder whose findings a record of a cyclic frame or a Connect holds
+-- (a candidate's note is mcmb2's).
+local function owner(rec)
+    return systems.decoder(rec.plan and rec.plan.system or rec.system or "duplex")
+end
+
+-- The tree and columns of a cyclic frame's record: in full (view nil), or
+-- the decoder's sparse() when it can (view: vrshark/frontends.luam).
+local function display(rec, tvb, pinfo, tree, view, thrown)
+    if not view then
+        local root = show(rec, tvb, pinfo, tree)
+        -- (a frame the capture cut: its own note says why PN-RT threw)
+        if thrown and root and not rec.cut then pn_malformed_note(rec, tvb, root) end
+        return
+    end
+    local dec = rec.plan and systems.decoder(rec.plan.system)
+    if not (dec and dec.sparse and dec.sparse(rec, tvb, pinfo, tree, view)) then
+        show(rec, tvb, pinfo, tree)
+    end
+end
+
 -- EtherType 0x8892: Wireshark's PN-RT first, then our cyclic data. With
 -- the C front end PN-RT has run already; 0 tells it the frame is not ours;
 -- view: what the front end says is looked at (vrshark/frontends.luam view():
@@ -951,14 +972,13 @@ local function cyclic(tvb, pinfo, tree, view, thrown)
     if rec then
         local per = not once and rec.plan and systems.decoder(rec.plan.system).per_frame
         if per then load_per_frame(per, rec, n) end
-        if not view then
-            local root = show(rec, tvb, pinfo, tree)
-            -- (a frame the capture cut: its own note says why PN-RT threw)
-            if thrown and root and not rec.cut then pn_malformed_note(rec, tvb, root) end
-        elseif not view.quiet then
-            local dec = rec.plan and systems.decoder(rec.plan.system)
-            if not (dec and dec.sparse and dec.sparse(rec, tvb, pinfo, tree, view)) then
-                show(rec, tvb, pinfo, tree)
+        if not (view and view.quiet) then
+            -- (under the decoder's own Proto: pnio_systems.through() says why)
+            local dec = owner(rec)
+            if dec.proto == carrier then
+                display(rec, tvb, pinfo, tree, view, thrown)
+            else
+                systems.through(dec, display, rec, tvb, pinfo, tree, view, thrown)
             end
         end
         if fresh and rec.findings == record.NO_FINDINGS then release(rec) end
@@ -1033,7 +1053,11 @@ local function connect(tvb, pinfo, tree)
             if C and request and not rec and blocks.key and not_ours[blocks.key] then return 0 end
         end
     end
-    if rec then show(rec, tvb, pinfo, tree) end
+    if rec then
+        local dec = owner(rec)
+        if dec.proto == carrier then show(rec, tvb, pinfo, tree)
+        else systems.through(dec, show, rec, tvb, pinfo, tree) end
+    end
     if rec and taken_by then
         tree:add_proto_expert_info(ef_taken, string.format('Cyclic frames of this Connect are not decoded: '
             .. 'EtherType 0x8892 is taken by "%s", not by vrshark_pnio', taken_by))
@@ -1060,6 +1084,8 @@ if C then
     heuristic, learn = prefs.heuristic, prefs.connect
     set_hooks()
 else
+    -- (mcmb2's frames shown through its own dissector: pnio_systems.through())
+    systems.mcmb2_proto().dissector = systems.dissector
     ethertype_table:add(ETH_PNRT, carrier)
     udp_table:add(UDP_PNIO_CM, carrier)
 end

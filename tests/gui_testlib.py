@@ -16,7 +16,7 @@ from pathlib import Path
 from conftest import profile_column_widths
 from installed_testlib import IS_ROOT, RUN_UID
 
-WIDTH, HEIGHT = 1600, 1000
+WIDTH, HEIGHT = 1680, 1000     # the width the profile's columns are made for
 
 
 def _probe_x():
@@ -128,7 +128,8 @@ def rows_of(ppm, colours):
 class Gui:
     """An X server and Wireshark runs on it for one installed layout."""
 
-    def __init__(self, installed, artefacts):
+    def __init__(self, installed, artefacts, on=None):
+        """on: another Gui whose X server this one uses (it stops it)."""
         self.installed = installed
         self.artefacts = Path(artefacts)
         self.artefacts.mkdir(parents=True, exist_ok=True)
@@ -138,6 +139,9 @@ class Gui:
         if IS_ROOT:
             for p in (installed.config / "recent_common", self.run_dir):
                 os.chown(p, RUN_UID, RUN_UID)
+        if on is not None:
+            self.display, self.xvfb = on.display, None
+            return
         self.display = ":%d" % (100 + os.getpid() % 400)
         self.xvfb = subprocess.Popen(["Xvfb", self.display, "-screen", "0", "%dx%dx24" % (WIDTH, HEIGHT),
                                       "-nolisten", "tcp"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
@@ -147,10 +151,12 @@ class Gui:
         return subprocess.run(["import", "-display", self.display, "-window", "root", "-depth", "8", "ppm:-"],
                               capture_output=True, check=True).stdout
 
-    def shot(self, name, args, settle=30):
-        """Wireshark with args until its picture stops changing (bounded):
-        the last screenshot as PPM bytes (also kept as NAME.png), and
-        Wireshark's output."""
+    def shot(self, name, args, settle=30, ready=None):
+        """Wireshark with args until its picture stops changing (bounded),
+        and, with ready, until ready(parsed picture) is true too (a long file
+        loads with a picture that stands still for seconds): the last
+        screenshot as PPM bytes (also kept as NAME.png), and Wireshark's
+        output."""
         env = self.installed.env(DISPLAY=self.display, XDG_RUNTIME_DIR=str(self.run_dir))
         ws = subprocess.Popen(self.installed.command("wireshark", args), env=env, stdout=subprocess.PIPE,
                               stderr=subprocess.STDOUT, cwd=str(self.installed.home))
@@ -161,7 +167,7 @@ class Gui:
                 pic = self.screenshot()
                 same = same + 1 if pic == last else 0
                 last = pic
-                if same >= 2:
+                if same >= 2 and (ready is None or ready(read_ppm(pic))):
                     break
                 time.sleep(1)
         finally:
@@ -172,5 +178,6 @@ class Gui:
         return read_ppm(last), out
 
     def close(self):
-        self.xvfb.kill()
-        self.xvfb.wait()
+        if self.xvfb is not None:
+            self.xvfb.kill()
+            self.xvfb.wait()

@@ -245,9 +245,15 @@ def test_every_column_has_a_width():
     keys = ['"%s"' % fmt.rsplit(":", 2)[0] if fmt.startswith("%Cus:") else fmt for _, fmt in prefs]
     assert [k for k, _ in pairs] == keys
     width = dict(zip([t for t, _ in prefs], [w for _, w in pairs]))
-    # at about 8 px a character (DejaVu Sans 9 pt, measured on the screenshots) plus the cell margins
-    for title, text in [("Protocol", "Modbus/TCP"), ("Device", "192.168.2.41:502"), ("Source", "192.168.32.10"),
+    # The packet list's monospace font advances 7.5 px a character (measured
+    # on the screenshots of tests/test_gui_installed.py); a cell takes 12 px
+    # of margins, the No. column another 24 px for the related-frame marks.
+    # (test_long_capture_columns_not_cut checks No., Time and Source in the GUI.)
+    for title, text in [("No.", "1000000"), ("Time", "12345.678901"), ("Source", "Siemens_00:00:01"),
+                        ("Source", "HMSIndus_00:00:02"), ("Source", "255.255.255.255"),
+                        ("Protocol", "Modbus/TCP"), ("Device", "192.168.2.41:502"),
                         ("BU state", "External link error"), ("Watchdog ms", "Watchdog ms")]:
-        assert width[title] >= 8 * len(text) + 10, title
-    # room for Modbus's own text and a tag (about 88 characters) in Info
-    assert sum(width.values()) - width["Info"] <= 1680 - 750
+        assert width[title] >= 7.5 * len(text) + 12 + (24 if title == "No." else 0), (title, text)
+    # room for Modbus's own text and a tag (about 88 characters) in Info,
+    # beside the vertical scroll bar (16 px)
+    assert sum(width.values()) - width["Info"] <= 1680 - 16 - (7.5 * 88 + 12)

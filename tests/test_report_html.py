@@ -12,6 +12,7 @@ from conftest import ROOT
 REPORT = ROOT / "tools" / "vrshark-report"
 sys.path.insert(0, str(ROOT / "tools"))
 from report import browser  # noqa: E402
+from report.cli import plotly_step  # noqa: E402
 
 CAPTURES = ["captures/eglink_analysis_session.pcap", "captures/mcmb2_polled_connect.pcap",
             "captures/eclink_modbus_faults.pcap"]
@@ -105,20 +106,63 @@ def test_text_and_json_need_no_plotly(tmp_path, conf_dir):
     assert run([REPORT, "--json", CAPTURES[0]], env).returncode == 0
     proc = run([REPORT, "--html", tmp_path / "x.html", CAPTURES[0]], env)
     assert proc.returncode == 2
+    # the step for the python3 that ran it (on PATH: here not Debian's own)
+    python = subprocess.run(["python3", "-c", "import sys; print(sys.executable)"], capture_output=True,
+                            text=True).stdout.strip()
     assert proc.stderr == ("vrshark-report: the HTML report needs plotly (plotly is blocked in "
-                           "this test): pip install -r requirements.txt\n")
+                           "this test): %s\n" % plotly_step(python))
+    # Debian's own python3: pip refuses to install into it, Debian's package is the step
+    if os.path.exists("/etc/debian_version") and os.path.exists("/usr/bin/python3"):
+        proc = run(["/usr/bin/python3", REPORT, "--html", tmp_path / "x.html", CAPTURES[0]], env)
+        assert proc.returncode == 2
+        assert proc.stderr.endswith("(plotly is blocked in this test): sudo apt-get install python3-plotly\n")
+
+
+def test_plotly_step():
+    assert plotly_step("/usr/bin/python3", apt=True) == "sudo apt-get install python3-plotly"
+    assert plotly_step("/home/u/venv/bin/python3", apt=True) == "/home/u/venv/bin/python3 -m pip install plotly"
+    assert plotly_step("/usr/bin/python3", apt=False) == "/usr/bin/python3 -m pip install plotly"
+
+
+def _install_report(home):
+    """The report as `cmake --install` puts it for a user whose HOME is home:
+    the installed command."""
+    build = home / "build"
+    for cmd in (["cmake", "-S", ROOT, "-B", build],
+                ["cmake", "--install", build, "--component", "report"]):
+        proc = run(cmd, {"HOME": str(home)})
+        assert proc.returncode == 0, proc.stdout + proc.stderr
+    return home / ".local" / "bin" / "vrshark-report"
+
+
+def test_installed_html_with_the_system_python(tmp_path, conf_dir):
+    """The installed command run by Debian's own python3 (no pip packages:
+    what `/usr/bin/env python3` is for a user without a venv) writes the HTML
+    report with Debian's python3-plotly, which tools/setup installs."""
+    python = "/usr/bin/python3"
+    if not os.path.exists(python):
+        pytest.skip("no system python3")
+    if subprocess.run([python, "-c", "import plotly"], capture_output=True).returncode:
+        pytest.skip("the system python3 has no plotly (tools/setup installs python3-plotly)")
+    installed = _install_report(tmp_path)
+    page = tmp_path / "report.html"
+    proc = run([python, installed, "--html", page, ROOT / "captures" / "eglink_analysis_session.pcap"],
+               {"TSHARK": str(ROOT / "tools" / "tshark"), "WIRESHARK_CONFIG_DIR": str(conf_dir)},
+               stdin=subprocess.DEVNULL)
+    assert proc.returncode == 0, proc.stderr
+    text = page.read_text()
+    assert "Plotly.newPlot" in text and 'id="plot-1-1"' in text
+    assert "ES-Link relays open (BU state Stopped) for 0.500 s, closed in frame 52" in text
+    if browser.chromium() is not None:
+        dom, log = browser.dump_dom(page)
+        assert browser.script_errors(log) == []
+        assert 'class="main-svg"' in dom
 
 
 def test_installed_command(tmp_path, conf_dir):
     """cmake --install puts bin/vrshark-report and its package in lib/vrshark; the
     installed command runs $TSHARK (here tools/tshark, for this checkout's plugins)."""
-    env = {"HOME": str(tmp_path)}
-    build = tmp_path / "build"
-    for cmd in (["cmake", "-S", ROOT, "-B", build],
-                ["cmake", "--install", build, "--component", "report"]):
-        proc = run(cmd, env)
-        assert proc.returncode == 0, proc.stdout + proc.stderr
-    installed = tmp_path / ".local" / "bin" / "vrshark-report"
+    installed = _install_report(tmp_path)
     assert (tmp_path / ".local" / "lib" / "vrshark" / "report" / "model.py").is_file()
     proc = run([installed, "--json", ROOT / "captures" / "eglink_analysis_vrpi_gap.pcap"],
                {"TSHARK": str(ROOT / "tools" / "tshark"), "WIRESHARK_CONFIG_DIR": str(conf_dir)},

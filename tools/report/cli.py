@@ -243,6 +243,17 @@ def gate(reports, threshold):
     return count, first
 
 
+def plotly_step(python=None, apt=None):
+    """The one step that gives this python3 plotly: Debian's package for
+    Debian's own python3 (pip refuses to install into it), else pip for the
+    python3 that runs the report (a venv, another OS)."""
+    python = python or sys.executable
+    apt = os.path.exists("/etc/debian_version") if apt is None else apt
+    if apt and os.path.dirname(python) in ("/usr/bin", "/bin"):
+        return "sudo apt-get install python3-plotly"
+    return "%s -m pip install plotly" % python
+
+
 def main(argv=None):
     args = parse_args(sys.argv[1:] if argv is None else argv)
     stop.install()
@@ -254,7 +265,7 @@ def main(argv=None):
         try:
             from . import html  # plotly is needed for this output only
         except ImportError as exc:
-            _die("the HTML report needs plotly (%s): pip install -r requirements.txt" % exc)
+            _die("the HTML report needs plotly (%s): %s" % (exc, plotly_step()))
     tshark = tshark_command(args.tshark)
     check_tshark(tshark, tshark_options(args))
 

@@ -136,6 +136,17 @@ def figure(dev, timeline, t_end):
     return fig
 
 
+def figure_div(fig, div_id):
+    """The figure's <div> and script, the div named div_id."""
+    config = {"displaylogo": False, "responsive": True}
+    try:
+        return fig.to_html(full_html=False, include_plotlyjs=False, div_id=div_id, config=config)
+    except TypeError:
+        # plotly before 5.5 (Debian 12's python3-plotly is 5.4) names the div itself
+        out = fig.to_html(full_html=False, include_plotlyjs=False, config=config)
+        return out.replace(re.search(r'<div id="([^"]+)"', out).group(1), div_id)
+
+
 def capture_section(index, rep, plotted=lambda: None):
     out = ['<h2>%s</h2>' % H.escape(rep["capture"])]
     if rep["error"]:
@@ -166,9 +177,7 @@ def capture_section(index, rep, plotted=lambda: None):
         fig = figure(d, timeline, rep["duration"])
         out.append("<h3>[%d] %s</h3>" % (d["id"], H.escape(d["name"])))
         if fig is not None:
-            out.append(fig.to_html(full_html=False, include_plotlyjs=False,
-                                   div_id="plot-%d-%d" % (index, d["id"]),
-                                   config={"displaylogo": False, "responsive": True}))
+            out.append(figure_div(fig, "plot-%d-%d" % (index, d["id"])))
         plotted()
     out.append("<h3>Timeline</h3>")
     if not rep["timeline"]:
@@ -188,7 +197,9 @@ def capture_section(index, rep, plotted=lambda: None):
 
 
 def plotly_js():
-    """The plotly.js to inline: the basic bundle, else plotly's full one."""
+    """The plotly.js to inline: the basic bundle, else plotly's full one
+    (the one the installed plotly writes figures for), else the basic bundle
+    all the same (a plotly packaged without its plotly.js)."""
     try:
         with gzip.open(BASIC_BUNDLE, "rt", encoding="utf-8") as f:
             js = f.read()
@@ -197,7 +208,10 @@ def plotly_js():
     version = re.search(r"plotly\.js \(basic - minified\) v(\S+)", js[:500])
     if version and version.group(1) == get_plotlyjs_version():
         return js
-    return get_plotlyjs()
+    try:
+        return get_plotlyjs()
+    except OSError:
+        return js
 
 
 def document(reports, progress=None):
