@@ -245,13 +245,14 @@ end
 
 -- mbtcp.tcp.port, which Lua cannot read (a Decode As preference): the port
 -- the tcp.port table gives Wireshark's Modbus/TCP dissector, one other than
--- 502 if there is one (502 keeps it too). About 15 ms; once a file.
+-- 502 if there is one (502 keeps it too); nil when it has none. About 15 ms;
+-- once a file.
 local function find_mbtcp_port()
     local found
     for p = 1, 65535 do
         if holds(p, mbtcp) and (found == nil or found == 502) then found = p end
     end
-    return found or 502
+    return found
 end
 
 -- Without the C plugin: the decoder on its port (eclink_modbus.port, or
@@ -268,10 +269,14 @@ local function place_on_port()
         tcp_port_table:remove(current_port, front)
         if displaced then tcp_port_table:add(current_port, mbtcp) end
     end
-    mbtcp_port = find_mbtcp_port()
+    local found = find_mbtcp_port()
+    mbtcp_port = found or 502
     local port = proto.prefs.port
     if port == 0 then port = mbtcp_port end
-    displaced = holds(port, mbtcp)
+    -- (mbtcp on no port: Analyze > Reload Lua Plugins took the decoder that
+    -- had displaced it out of the table and left the port empty; mbtcp gets
+    -- it back when the decoder leaves it, as if it had been found there)
+    displaced = holds(port, mbtcp) or (found == nil and port == mbtcp_port)
     tcp_port_table:add(port, front)
     current_port = port
 end
