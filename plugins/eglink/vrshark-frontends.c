@@ -57,6 +57,9 @@
  * folders the plugins sit in, and a later hand-off replaces an entry. The
  * Modbus hooks are read once per file (mb_read_hooks): the Lua side sets
  * them only when its preferences change, and Wireshark dissects anew then.
+ * Nothing looked up of the Lua side (protocol ids, fields, hooks) outlives
+ * a file either: Analyze > Reload Lua Plugins registers it all anew under
+ * other ids and then dissects anew (forget_lua_side).
  *
  * The Lua side detects these tables (DissectorTable.get under pcall),
  * registers its decoders and the FrameIDs it learns into them, and stops
