@@ -256,13 +256,14 @@ end
 
 -- mbtcp.tcp.port, which Lua cannot read (a Decode As preference): the port
 -- the tcp.port table gives Wireshark's Modbus/TCP dissector, one other than
--- 502 if there is one (502 keeps it too). About 15 ms; once a file.
+-- 502 if there is one (502 keeps it too); nil when it has none. About 15 ms;
+-- once a file.
 local function find_mbtcp_port()
     local found
     for p = 1, 65535 do
         if holds(p, mbtcp) and (found == nil or found == 502) then found = p end
     end
-    return found or 502
+    return found
 end
 
 -- Without the C plugin: the decoder on its ports (every port of
@@ -283,12 +284,17 @@ local function place_on_port()
         end
     end
     placed = {}
-    mbtcp_port = find_mbtcp_port()
+    local found = find_mbtcp_port()
+    mbtcp_port = found or 502
     local want = ports.parse(proto.prefs.port)
     want[mbtcp_port] = true
     for port in pairs(want) do
         if not holds(port, ours) then
-            placed[port] = holds(port, mbtcp)
+            -- (mbtcp on no port: Analyze > Reload Lua Plugins took the decoder
+            -- that had displaced it out of the table and left the port empty;
+            -- mbtcp gets it back when the decoder leaves it, as if it had been
+            -- found there)
+            placed[port] = holds(port, mbtcp) or (found == nil and port == mbtcp_port)
             tcp_port_table:add(port, front)
         end
     end

@@ -77,7 +77,17 @@ local C = fe.pn_frame_id ~= nil
 local carrier = C and systems.mcmb2_proto() or Proto("vrshark_pnio", "vrshark PROFINET IO cyclic data")
 local ethertype_table = DissectorTable.get("ethertype")
 local udp_table = DissectorTable.get("udp.port")
-local pn_rt = ethertype_table:get_dissector(0x8892)
+-- Wireshark's PN-RT dissector, called first without the C plugin. Found by
+-- name: once the carrier holds EtherType 0x8892 the table names the carrier,
+-- and Analyze > Reload Lua Plugins takes the old carrier out of the table and
+-- leaves the entry empty (PN-RT is not put back).
+local function find_pn_rt()
+    local ok, d = pcall(Dissector.get, "pn_rt")
+    if ok and d then return d end
+    local cur = ethertype_table:get_dissector(0x8892)
+    return cur and tostring(cur) == "PN-RT" and cur or nil
+end
+local pn_rt = find_pn_rt()
 local ETH_PNRT, UDP_PNIO_CM = 0x8892, 34964
 
 -- Failed polled-header checks per unknown FrameID before it is given up.

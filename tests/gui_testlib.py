@@ -181,3 +181,46 @@ class Gui:
         if self.xvfb is not None:
             self.xvfb.kill()
             self.xvfb.wait()
+
+
+def have_keys():
+    """xdotool, to press Wireshark's keys (tools/setup installs it)."""
+    return shutil.which("xdotool") is not None
+
+
+class Session:
+    """One Wireshark run on a Gui's display that stays open for keys and
+    screenshots: the mouse pointer rests on the status bar (a row under it
+    would be drawn highlighted), and a click there gives the window the
+    keyboard (no window manager runs)."""
+
+    STATUS_BAR = (WIDTH // 2, HEIGHT - 12)
+
+    def __init__(self, gui, args):
+        self.gui = gui
+        self.log = gui.installed.top / ("wireshark-%d.log" % time.monotonic_ns())
+        env = gui.installed.env(DISPLAY=gui.display, XDG_RUNTIME_DIR=str(gui.run_dir))
+        with open(self.log, "wb") as log:
+            self.proc = subprocess.Popen(gui.installed.command("wireshark", args), env=env, stdout=log,
+                                         stderr=subprocess.STDOUT, cwd=str(gui.installed.home))
+
+    def xdotool(self, *args):
+        subprocess.run(["xdotool"] + list(args), env=dict(os.environ, DISPLAY=self.gui.display),
+                       capture_output=True, check=True)
+
+    def focus(self):
+        x, y = self.STATUS_BAR
+        self.xdotool("mousemove", str(x), str(y), "click", "1")
+
+    def press(self, keys):
+        """keys (xdotool's names, e.g. "ctrl+shift+l") to the main window."""
+        self.focus()
+        self.xdotool("key", keys)
+
+    def output(self):
+        return self.log.read_text(errors="replace")
+
+    def close(self):
+        self.proc.kill()
+        self.proc.wait()
+        return self.output()

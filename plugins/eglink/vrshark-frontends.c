@@ -57,6 +57,9 @@
  * folders the plugins sit in, and a later hand-off replaces an entry. The
  * Modbus hooks are read once per file (mb_read_hooks): the Lua side sets
  * them only when its preferences change, and Wireshark dissects anew then.
+ * Nothing looked up of the Lua side (protocol ids, fields, hooks) outlives
+ * a file either: Analyze > Reload Lua Plugins registers it all anew under
+ * other ids and then dissects anew (forget_lua_side).
  *
  * The Lua side detects these tables (DissectorTable.get under pcall),
  * registers its decoders and the FrameIDs it learns into them, and stops
@@ -1197,20 +1200,39 @@ dissect_mb_port_hint(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *
 
 /* ---- Registration ----------------------------------------------------------- */
 
+/* What was looked up of the Lua side: protocol ids, their fields, the
+ * views made of them, the -e fields. Analyze > Reload Lua Plugins
+ * deregisters the Lua protocols and fields and registers them anew under
+ * other ids (the old ones then name nothing: "Unregistered hf!"), and is
+ * followed by a new dissection, which starts here. Each file starts here
+ * too: nothing of the Lua side is kept from one to the next. */
+static void
+forget_lua_side(void)
+{
+    lua_view_t *views[] = { &view_pn, &view_mb_always, &view_mb_heuristic, &view_mb_server };
+    guint i;
+
+    for (i = 0; i < G_N_ELEMENTS(views); i++) {
+        lua_view_free(views[i]);
+        memset(views[i]->ids, 0, sizeof views[i]->ids);
+    }
+    if (named_fields)
+        g_array_free(named_fields, TRUE);
+    named_fields = NULL;
+    named_other = FALSE;
+    mb_hooks.read = FALSE;
+    pn_pending = -1;
+}
+
 static void
 frontends_init(void)
 {
     guint i;
 
     memset(pn_tries, 0, sizeof pn_tries);
-    pn_pending = -1;
-    view_fields_drop(&view_pn);
-    view_fields_drop(&view_mb_always);
-    view_fields_drop(&view_mb_heuristic);
-    view_fields_drop(&view_mb_server);
+    forget_lua_side();
     mb_state = wmem_map_new(wmem_file_scope(), mb_conn_hash, mb_conn_equal);
     pn_foreign_subs = wmem_map_new(wmem_file_scope(), pn_subs_hash, pn_subs_equal);
-    mb_hooks.read = FALSE;
     for (i = 0; i < pn_learned_ports->len; i++)
         dissector_delete_uint("udp.port", g_array_index(pn_learned_ports, guint32, i), pn_cm_handle);
     g_array_set_size(pn_learned_ports, 0);
@@ -1223,16 +1245,10 @@ static void
 frontends_shutdown(void)
 {
     g_array_free(pn_learned_ports, TRUE);
-    lua_view_free(&view_pn);
-    lua_view_free(&view_mb_always);
-    lua_view_free(&view_mb_heuristic);
-    lua_view_free(&view_mb_server);
+    forget_lua_side();
     if (view_scratch)
         g_array_free(view_scratch, TRUE);
     view_scratch = NULL;
-    if (named_fields)
-        g_array_free(named_fields, TRUE);
-    named_fields = NULL;
 }
 
 void
