@@ -123,6 +123,15 @@ FAULTS = {
     "eclink_pnio.cmd_from_ru.deadline": ("eclink_pnio_connect.pcap", [76]),
     # --- shared group: the first packet of each BU and controller once two share it
     "eglink.analysis.shared_group": ("eglink_analysis_shared_group.pcap", [2, 3, 4, 5]),
+    # wrong_port: the controller's VRAO to port 6001 (8), its VRCO to the input port (14)
+    "eglink.analysis.wrong_port": ("eglink_analysis_wrong_port.pcap", [8, 14]),
+    # clock_step: the first packet after the clock was set back 2 s
+    "eglink.analysis.time_backwards": ("eglink_analysis_clock_step.pcap", [20]),
+    # corrupted: serial 103 with a bad CRC (8) before the VRPI at 10, the VRPO
+    # with a wrong Size (13) before the VRPO at 14
+    "eglink.analysis.serial_corrupted": ("eglink_analysis_corrupted.pcap", [10, 14]),
+    # eglink_truncated: every packet cut by the snap length
+    "eglink.cut": ("eglink_truncated.pcap", [1, 2, 3, 4, 5, 6]),
     # --- state changes, retransmissions, inferred layouts
     # session: Initial -> Disarmed (10) -> Armed (19) -> Stopped (41) -> Armed (52)
     "eglink.analysis.bu_state_changed": ("eglink_analysis_session.pcap", [10, 19, 41, 52]),

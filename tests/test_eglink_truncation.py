@@ -1,6 +1,7 @@
 """EG-Link: one packet of each type cut at every length, as a short UDP datagram
 and as a frame snapped by the capture. Never a dissector bug; a short datagram is
-decoded as far as it goes with expert info, a snapped frame ends in the usual
+decoded as far as it goes with expert info, a snapped frame says it was cut
+(eglink.cut) and ends in the usual
 'packet size limited' exception."""
 import pytest
 
@@ -81,7 +82,7 @@ def test_shipped_truncated_capture(tshark, capture_file):
     info = ["VRPI BU=Armed RU 0xbeef=Enabled J1=-500[Packet size limited during capture]",
             "VRPO Pkt=0 64 bytes[Packet size limited during capture]",
             "VRCI Cmd=8[Packet size limited during capture]",
-            "VRCO[Packet size limited during capture]",
+            "VRCO (truncated)[Packet size limited during capture]",
             "VRAI Cmd=8[Packet size limited during capture]",
             "VRA[Packet size limited during capture]"]
     got = expect_frames(tshark, capture_file("eglink_truncated.pcap"), {

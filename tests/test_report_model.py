@@ -226,12 +226,30 @@ def test_controller_packets_before_the_bus_first_vrpi():
 
 
 def test_second_bu_on_a_shared_channel_is_its_own():
+    """A controller the analysis does not join to either BU of its channel is
+    listed apart (issue 45: not guessed to be the first BU's)."""
     rep = run_model([eglink_row(1, "VRPI", 0, eglink__origin="0x1001"),
                      eglink_row(2, "VRPI", 1, src="192.168.32.11", eglink__origin="0x1002"),
                      eglink_row(3, "VRPO", src="192.168.32.20")])
-    assert [(d["name"], d["frames"]) for d in rep["devices"]] == [
-        ("EG-Link BU 0x1001 (192.168.32.10 to 239.255.42.20:5825)", 2),
-        ("EG-Link BU 0x1002 (192.168.32.11 to 239.255.42.20:5825)", 1)]
+    assert [(d["id"], d["name"], d["frames"]) for d in rep["devices"]] == [
+        (1, "EG-Link BU 0x1001 (192.168.32.10 to 239.255.42.20:5825)", 1),
+        (2, "EG-Link BU 0x1002 (192.168.32.11 to 239.255.42.20:5825)", 1),
+        (3, "EG-Link controller 192.168.32.20 to 239.255.42.20:5827, BU not known (no command "
+            "acknowledged between it and a BU of the group: pairing unknown)", 1)]
+
+
+def test_controller_joined_later_is_its_bus():
+    """Joined by an acknowledgement (its packets carry the BU's stream from
+    then on): its packets from before are the BU's too, and no device is
+    left apart."""
+    rep = run_model([eglink_row(1, "VRPI", 0, eglink__origin="0x1001"),
+                     eglink_row(2, "VRPI", 1, src="192.168.32.11", eglink__origin="0x1002"),
+                     eglink_row(3, "VRPO", src="192.168.32.20"),
+                     eglink_row(4, "VRAO", 1, src="192.168.32.20"),
+                     eglink_row(5, "VRPI", 0, eglink__origin="0x1001")])
+    assert [(d["id"], d["name"], d["frames"], d["first_frame"]) for d in rep["devices"]] == [
+        (1, "EG-Link BU 0x1001 (192.168.32.10 to 239.255.42.20:5825)", 2, 1),
+        (2, "EG-Link BU 0x1002 (192.168.32.11 to 239.255.42.20:5825)", 3, 2)]
 
 
 @pytest.mark.parametrize("prefs, layout", [

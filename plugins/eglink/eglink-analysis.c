@@ -50,6 +50,12 @@
 #define EGLINK_CMD_SLOTS 8
 /* A serial this far behind the last one is a restart, not a repeat. */
 #define EGLINK_SERIAL_REPEAT_WINDOW 1024
+/* Packets of a sender with a bad CRC or size remembered until its next valid one. */
+#define EGLINK_BAD_SLOTS 4
+/* Time going back less than this between EG-Link packets is taken as packets
+ * of two interfaces a little out of order (no finding, no time below 0);
+ * more is a clock step. */
+#define EGLINK_CLOCK_JITTER_NS 1000000
 
 static int proto_eglink = -1;
 static int eglink_tap = -1;
@@ -73,6 +79,9 @@ static int hf_deadline_in = -1;
 static int hf_incomplete_burst = -1;
 static int hf_last_vrpi = -1;
 static int hf_last_vrpo = -1;
+static int hf_corrupted_in = -1;
+static int hf_expected_port = -1;
+static int hf_time_backwards_after = -1;
 
 static int hf_fragments = -1;
 static int hf_fragment = -1;
@@ -110,6 +119,9 @@ static expert_field ei_burst_size = EI_INIT;
 static expert_field ei_shared_group = EI_INIT;
 static expert_field ei_command = EI_INIT;
 static expert_field ei_ack = EI_INIT;
+static expert_field ei_serial_corrupted = EI_INIT;
+static expert_field ei_wrong_port = EI_INIT;
+static expert_field ei_time_backwards = EI_INIT;
 
 /* Preferences */
 static guint pref_vrpi_gap_ms = 500;
@@ -148,6 +160,8 @@ typedef struct {
     guint16 command_id;
     guint8 dir;                 /* EGLINK_DIR_IN: VRCI, EGLINK_DIR_OUT: VRCO */
     guint8 failed;              /* the deadline passed unacknowledged */
+    guint8 clock_step;          /* the clock stepped back while it waited: its deadline counts
+                                 * from the step, its acknowledgement time is not known */
 } eglink_cmd_t;
 
 /* Where the packets of BUs and controllers meet: a multicast group and the
@@ -160,14 +174,22 @@ typedef struct {
 
 typedef struct eglink_bu eglink_bu_t;
 typedef struct eglink_ctrl eglink_ctrl_t;
+typedef struct eglink_chan eglink_chan_t;
 
+/* The channels of one multicast group or unicast address pair, any port. */
 typedef struct {
+    eglink_chan_t *chans;
+} eglink_group_t;
+
+struct eglink_chan {
     const char *where;          /* "239.255.42.20 port 5825" */
+    guint32 port;               /* the BU's input port */
+    eglink_chan_t *group_next;  /* in its group's chans */
     eglink_bu_t *bus;           /* the BUs seen on it, newest first */
     eglink_ctrl_t *ctrls;       /* the machine controllers seen on it, newest first */
     guint n_bus;
     guint n_ctrls;
-} eglink_chan_t;
+};
 
 /* What one sender (a BU or a machine controller) tracks of its own packets:
  * serials, its periodic packets (VRPI of a BU, VRPO of a controller) and
@@ -185,6 +207,14 @@ typedef struct {
     guint cmd_next;
 
     gboolean shared_reported;   /* the shared-group warning was given */
+    gboolean clock_restart;     /* the clock stepped back: no interval to the next periodic packet */
+
+    /* Its packets with a bad CRC or size since its last valid one: a serial
+     * gap they fill is no loss. */
+    guint32 bad_frame[EGLINK_BAD_SLOTS];
+    guint16 bad_serial[EGLINK_BAD_SLOTS];
+    guint8 bad_crc[EGLINK_BAD_SLOTS];   /* TRUE: bad CRC, FALSE: wrong size */
+    guint n_bad;
 } eglink_sender_t;
 
 /* A BU: its origin and its address, on one channel. */
@@ -199,6 +229,7 @@ struct eglink_bu {
     gboolean have_bu_state;
     guint8 bu_state;
     nstime_t state_since;       /* the VRPI that first reported bu_state */
+    gboolean state_since_step;  /* ... or the clock step after it: its length is not known */
     eglink_bu_t *next;          /* in chan->bus */
 };
 
@@ -210,6 +241,7 @@ typedef struct {
     guint32 first_frame;
     guint16 next;               /* packet number expected next */
     guint16 missing;            /* first missing packet number */
+    gboolean missing_cut;       /* ... in the capture, cut by its snap length */
     guint32 bytes;
 } eglink_burst_t;
 
@@ -244,8 +276,15 @@ typedef enum {
     FND_BURST_DONE,             /* value: reassembly ID of the previous burst it completes */
     FND_BURST_INCOMPLETE,       /* frame: first packet of the burst, value: missing packet number */
     FND_BURST_SIZE,             /* value: bytes in the burst, ns: configured size */
-    FND_SHARED_GROUP            /* value: BUs on the channel, ns: controllers on it */
+    FND_SHARED_GROUP,           /* value: BUs on the channel, ns: controllers on it */
+    FND_CORRUPTED,              /* frame: a packet of the serial gap that failed its check,
+                                 * value: its serial | EGLINK_CORRUPTED_CRC */
+    FND_WRONG_PORT,             /* value: the port it belongs on */
+    FND_TIME_BACKWARDS          /* frame: the EG-Link packet before, ns: how far back */
 } eglink_finding_kind_t;
+
+#define EGLINK_CORRUPTED_CRC    0x10000u    /* FND_CORRUPTED: a bad CRC (else a wrong size) */
+#define EGLINK_BURST_CUT        0x10000u    /* FND_BURST_INCOMPLETE: the packet is cut, not missing */
 
 typedef struct eglink_finding {
     struct eglink_finding *next;
@@ -325,7 +364,11 @@ slot_layer(guint16 flags)
 #define EGLINK_SLOT_PAGE_SIZE (1u << EGLINK_SLOT_PAGE_BITS)
 
 static wmem_map_t *eglink_chans;
+static wmem_map_t *eglink_groups;      /* group or address pair (port 0): eglink_group_t */
 static guint32 eglink_burst_count;
+/* The time of the latest EG-Link packet, to see the clock step back. */
+static nstime_t eglink_last_ts;
+static guint32 eglink_last_ts_frame;   /* 0: none yet */
 /* File scope: the BUs and controllers by index, and the pages of slots by frame number. */
 static wmem_array_t *eglink_bu_by_index;
 static wmem_array_t *eglink_ctrl_by_index;
@@ -338,6 +381,8 @@ static void
 eglink_analysis_init(void)
 {
     eglink_burst_count = 0;
+    eglink_last_ts_frame = 0;
+    nstime_set_zero(&eglink_last_ts);
     eglink_bu_by_index = NULL;
     eglink_ctrl_by_index = NULL;
     eglink_slot_pages = NULL;
@@ -442,12 +487,21 @@ eglink_frame_fetch(packet_info *pinfo, guint32 key, guint16 serial, eglink_frame
 }
 
 static gint64
-ns_between(const nstime_t *later, const nstime_t *earlier)
+ns_signed(const nstime_t *later, const nstime_t *earlier)
 {
     nstime_t d;
 
     nstime_delta(&d, later, earlier);
     return (gint64)d.secs * 1000000000 + d.nsecs;
+}
+
+/* A time between two packets, never below 0: a clock step back restarts
+ * every time the analysis measures (check_clock()), and packets a little
+ * out of order count as simultaneous. */
+static gint64
+ns_between(const nstime_t *later, const nstime_t *earlier)
+{
+    return MAX(0, ns_signed(later, earlier));
 }
 
 static nstime_t
@@ -512,35 +566,66 @@ eglink_chan_equal(gconstpointer k1, gconstpointer k2)
     return x->port == y->port && addresses_equal(&x->a, &y->a) && addresses_equal(&x->b, &y->b);
 }
 
-static eglink_chan_t *
-eglink_chan_lookup(packet_info *pinfo, eglink_type_t type)
+/* The key of the channel on this port of the packet's group or address pair. */
+static void
+eglink_chan_key(packet_info *pinfo, guint32 port, eglink_chan_key_t *key)
 {
-    eglink_chan_key_t key, *stored;
-    eglink_chan_t *chan;
-    guint32 port = pinfo->destport;
-
-    if (!eglink_is_input(type) && port >= 2)
-        port -= 2;
-    key.port = port;
+    key->port = port;
     if (address_is_multicast(&pinfo->dst)) {
-        key.a = pinfo->dst;
-        clear_address(&key.b);
+        key->a = pinfo->dst;
+        clear_address(&key->b);
     } else if (cmp_address(&pinfo->src, &pinfo->dst) <= 0) {
-        key.a = pinfo->src;
-        key.b = pinfo->dst;
+        key->a = pinfo->src;
+        key->b = pinfo->dst;
     } else {
-        key.a = pinfo->dst;
-        key.b = pinfo->src;
+        key->a = pinfo->dst;
+        key->b = pinfo->src;
     }
+}
+
+static eglink_chan_key_t *
+eglink_chan_key_copy(const eglink_chan_key_t *key)
+{
+    eglink_chan_key_t *stored = wmem_new(wmem_file_scope(), eglink_chan_key_t);
+
+    copy_address_wmem(wmem_file_scope(), &stored->a, &key->a);
+    copy_address_wmem(wmem_file_scope(), &stored->b, &key->b);
+    stored->port = key->port;
+    return stored;
+}
+
+/* The channels of the packet's group or address pair, on any port. */
+static eglink_group_t *
+eglink_group(packet_info *pinfo, gboolean create)
+{
+    eglink_chan_key_t key;
+    eglink_group_t *group;
+
+    eglink_chan_key(pinfo, 0, &key);
+    group = (eglink_group_t *)wmem_map_lookup(eglink_groups, &key);
+    if (!group && create) {
+        group = wmem_new0(wmem_file_scope(), eglink_group_t);
+        wmem_map_insert(eglink_groups, eglink_chan_key_copy(&key), group);
+    }
+    return group;
+}
+
+/* The channel of the packet's group or address pair on this input port;
+ * NULL when there is none and !create. */
+static eglink_chan_t *
+eglink_chan_find(packet_info *pinfo, guint32 port, gboolean create)
+{
+    eglink_chan_key_t key;
+    eglink_chan_t *chan;
+    eglink_group_t *group;
+
+    eglink_chan_key(pinfo, port, &key);
     chan = (eglink_chan_t *)wmem_map_lookup(eglink_chans, &key);
-    if (chan)
+    if (chan || !create)
         return chan;
 
-    stored = wmem_new(wmem_file_scope(), eglink_chan_key_t);
-    copy_address_wmem(wmem_file_scope(), &stored->a, &key.a);
-    copy_address_wmem(wmem_file_scope(), &stored->b, &key.b);
-    stored->port = key.port;
     chan = wmem_new0(wmem_file_scope(), eglink_chan_t);
+    chan->port = port;
     if (key.b.type == AT_NONE)
         chan->where = wmem_strdup_printf(wmem_file_scope(), "%s port %u",
                                          address_to_str(pinfo->pool, &key.a), key.port);
@@ -548,8 +633,56 @@ eglink_chan_lookup(packet_info *pinfo, eglink_type_t type)
         chan->where = wmem_strdup_printf(wmem_file_scope(), "%s <-> %s port %u",
                                          address_to_str(pinfo->pool, &key.a),
                                          address_to_str(pinfo->pool, &key.b), key.port);
-    wmem_map_insert(eglink_chans, stored, chan);
+    wmem_map_insert(eglink_chans, eglink_chan_key_copy(&key), chan);
+    group = eglink_group(pinfo, TRUE);
+    chan->group_next = group->chans;
+    group->chans = chan;
     return chan;
+}
+
+static gboolean
+ctrl_on_chan(const eglink_chan_t *chan, const address *addr)
+{
+    const eglink_ctrl_t *ctrl;
+
+    for (ctrl = chan->ctrls; ctrl; ctrl = ctrl->next)
+        if (addresses_equal(&ctrl->addr, addr))
+            return TRUE;
+    return FALSE;
+}
+
+/* The channel of a controller packet. TS-0006 has the controller send to
+ * the BU's input port + 2; a packet it sends to another port (the input
+ * port, a wrong one) is still part of its conversation: the channel of its
+ * group where it talks to a BU already, or the BU whose input port it went
+ * to. *expected is then the port it belongs on (flagged), else 0. A port
+ * that is neither (a controller on a port of its own, found by the
+ * heuristic) is the output port of a channel of its own. */
+static eglink_chan_t *
+eglink_ctrl_chan(packet_info *pinfo, guint32 *expected)
+{
+    guint32 port = pinfo->destport;
+    guint32 input = port >= 2 ? port - 2 : port;
+    eglink_chan_t *chan = eglink_chan_find(pinfo, input, FALSE);
+    eglink_chan_t *other;
+    eglink_group_t *group;
+
+    *expected = 0;
+    if (chan && chan->n_bus)
+        return chan;
+    group = eglink_group(pinfo, FALSE);
+    for (other = group ? group->chans : NULL; other; other = other->group_next) {
+        if (other != chan && other->n_bus && ctrl_on_chan(other, &pinfo->src)) {
+            *expected = other->port + 2;
+            return other;
+        }
+    }
+    other = eglink_chan_find(pinfo, port, FALSE);
+    if ((other && other->n_bus) || (!eglink_is_input_port(input) && eglink_is_input_port(port))) {
+        *expected = port + 2;
+        return other ? other : eglink_chan_find(pinfo, port, TRUE);
+    }
+    return chan ? chan : eglink_chan_find(pinfo, input, TRUE);
 }
 
 /* Two BUs with the same origin and address on different ports or groups
@@ -648,6 +781,107 @@ add_finding(eglink_frame_t *fd, eglink_finding_kind_t kind, guint32 frame, guint
 /* ---------------------------------------------------------------------- */
 /* First pass                                                              */
 
+/* A packet of this sender that failed its CRC or size check: not analysed,
+ * but its serial, if it holds one, is in the capture. */
+static void
+remember_corrupted(eglink_sender_t *s, packet_info *pinfo, const eglink_info_t *info)
+{
+    guint i;
+
+    if (!info->has_serial)
+        return;
+    i = s->n_bad < EGLINK_BAD_SLOTS ? s->n_bad++ : EGLINK_BAD_SLOTS - 1;
+    s->bad_frame[i] = pinfo->num;
+    s->bad_serial[i] = info->serial;
+    s->bad_crc[i] = !info->crc_ok;
+}
+
+/* The serials missing before this packet (count of them from expected) that
+ * arrived, with a bad CRC or size: no loss, each named on this packet. */
+static void
+match_corrupted(const eglink_sender_t *s, eglink_frame_t *fd, guint16 expected, guint16 count)
+{
+    guint i;
+
+    for (i = 0; i < s->n_bad; i++)
+        if ((guint16)(s->bad_serial[i] - expected) < count)
+            add_finding(fd, FND_CORRUPTED, s->bad_frame[i],
+                        s->bad_serial[i] | (s->bad_crc[i] ? EGLINK_CORRUPTED_CRC : 0), 0);
+}
+
+/* Packets lost before this one: the serial gap less the packets in it that
+ * arrived corrupted. */
+static guint
+serial_lost(const eglink_frame_t *fd, guint16 serial)
+{
+    const eglink_finding_t *f;
+    guint lost;
+
+    if (fd->serial_status != SERIAL_LOST)
+        return 0;
+    lost = (guint16)(serial - fd->expected_serial);
+    for (f = fd->findings; f; f = f->next)
+        if (f->kind == FND_CORRUPTED && lost)
+            lost--;
+    return lost;
+}
+
+/* The clock stepped back: every time the analysis measures (intervals,
+ * periodic packets missing, command deadlines, BU state periods) starts
+ * again from now. */
+static void
+sender_restart_clock(eglink_sender_t *s, const nstime_t *now)
+{
+    int i;
+
+    if (s->last_periodic_frame) {
+        s->last_periodic_ts = *now;
+        s->clock_restart = TRUE;
+    }
+    for (i = 0; i < EGLINK_CMD_SLOTS; i++) {
+        eglink_cmd_t *cmd = s->cmds[i];
+        if (cmd && !cmd->ack_frame && !cmd->failed) {
+            cmd->first_ts = cmd->last_ts = *now;
+            cmd->clock_step = TRUE;
+        }
+    }
+}
+
+static void
+restart_clock(const nstime_t *now)
+{
+    guint i;
+
+    for (i = 0; eglink_bu_by_index && i < wmem_array_get_count(eglink_bu_by_index); i++) {
+        eglink_bu_t *bu = *(eglink_bu_t **)wmem_array_index(eglink_bu_by_index, i);
+        sender_restart_clock(&bu->s, now);
+        bu->state_since = *now;
+        bu->state_since_step = TRUE;
+    }
+    for (i = 0; eglink_ctrl_by_index && i < wmem_array_get_count(eglink_ctrl_by_index); i++)
+        sender_restart_clock(&(*(eglink_ctrl_t **)wmem_array_index(eglink_ctrl_by_index, i))->s, now);
+}
+
+/* Time going backwards from one EG-Link packet to the next (a clock set
+ * back while capturing, or captures of two clocks merged) is a finding on
+ * the packet where it happens, and the rules that measure time restart
+ * there. Going back less than EGLINK_CLOCK_JITTER_NS is not: the latest
+ * time is kept. */
+static void
+check_clock(packet_info *pinfo, eglink_frame_t *fd)
+{
+    gint64 back = eglink_last_ts_frame ? ns_signed(&eglink_last_ts, &pinfo->abs_ts) : 0;
+
+    if (back > EGLINK_CLOCK_JITTER_NS) {
+        add_finding(fd, FND_TIME_BACKWARDS, eglink_last_ts_frame, 0, back);
+        restart_clock(&pinfo->abs_ts);
+    } else if (back > 0) {
+        return;
+    }
+    eglink_last_ts = pinfo->abs_ts;
+    eglink_last_ts_frame = pinfo->num;
+}
+
 static void
 track_serial(eglink_sender_t *s, eglink_frame_t *fd, packet_info *pinfo, guint16 serial)
 {
@@ -667,6 +901,7 @@ track_serial(eglink_sender_t *s, eglink_frame_t *fd, packet_info *pinfo, guint16
             return;
         } else if (delta < 0x8000) {
             fd->serial_status = SERIAL_LOST;
+            match_corrupted(s, fd, expected, (guint16)(delta - 1));
         } else if ((guint16)(s->last_serial - serial) <= EGLINK_SERIAL_REPEAT_WINDOW) {
             fd->serial_status = SERIAL_REPEAT;
             add_finding(fd, FND_REPEAT, 0, s->last_serial, 0);
@@ -679,6 +914,7 @@ track_serial(eglink_sender_t *s, eglink_frame_t *fd, packet_info *pinfo, guint16
     s->have_serial = TRUE;
     s->last_serial = serial;
     s->last_serial_frame = pinfo->num;
+    s->n_bad = 0;
 }
 
 static gint64
@@ -864,18 +1100,24 @@ vrco_acknowledged(eglink_bu_t *bu, guint16 command_id)
 static void
 track_ack(eglink_cmd_t *cmd, eglink_frame_t *fd, packet_info *pinfo, int dir, guint16 command_id)
 {
+    gint64 age;
+
     if (!cmd) {
         add_finding(fd, FND_UNKNOWN_ACK, 0, command_id, 0);
         return;
     }
     fd->cmd = cmd;
-    fd->delta_ns = ns_between(&pinfo->abs_ts, &cmd->first_ts);
-    fd->flags |= FF_DELTA;
+    age = ns_between(&pinfo->abs_ts, &cmd->first_ts);
+    /* (after a clock step the age counts from the step: no acknowledgement time) */
+    if (!cmd->clock_step) {
+        fd->delta_ns = age;
+        fd->flags |= FF_DELTA;
+    }
     if (!cmd->ack_frame) {
         cmd->ack_frame = pinfo->num;
         fd->flags |= FF_FIRST_ACK;
-        if (fd->delta_ns > ack_timeout_ns(dir)) {
-            add_finding(fd, FND_LATE_ACK, cmd->first_frame, command_id, fd->delta_ns);
+        if (age > ack_timeout_ns(dir)) {
+            add_finding(fd, FND_LATE_ACK, cmd->first_frame, command_id, age);
             /* The acknowledgement is the first packet after the deadline:
              * the deadline was seen passing here. */
             if (!cmd->failed) {
@@ -916,7 +1158,7 @@ track_burst(eglink_burst_t *b, eglink_frame_t *fd, packet_info *pinfo, const egl
             add_finding(fd, FND_BURST_DONE, b->first_frame, b->id, 0);
         } else {
             add_finding(fd, FND_BURST_INCOMPLETE, b->first_frame,
-                        b->broken ? b->missing : b->next, 0);
+                        b->broken ? b->missing | (b->missing_cut ? EGLINK_BURST_CUT : 0) : b->next, 0);
         }
         b->open = FALSE;
     }
@@ -933,6 +1175,13 @@ track_burst(eglink_burst_t *b, eglink_frame_t *fd, packet_info *pinfo, const egl
             b->open = FALSE;
             return;
         }
+        if (info->cut) {
+            /* its data is not all in the capture: no reassembly */
+            b->broken = b->missing_cut = TRUE;
+            b->missing = 0;
+            b->id = 0;
+            return;
+        }
         b->id = ++eglink_burst_count;
         fd->burst_id = b->id;
         return;
@@ -942,13 +1191,18 @@ track_burst(eglink_burst_t *b, eglink_frame_t *fd, packet_info *pinfo, const egl
         /* Its packet 0 was not captured (or lost). */
         b->open = TRUE;
         b->broken = TRUE;
+        b->missing_cut = FALSE;
         b->missing = 0;
         b->id = 0;
         b->first_frame = pinfo->num;
         b->bytes = 0;
     } else if (!b->broken && pn != b->next) {
         b->broken = TRUE;
+        b->missing_cut = FALSE;
         b->missing = b->next;
+    } else if (!b->broken && info->cut) {
+        b->broken = b->missing_cut = TRUE;
+        b->missing = pn;
     }
     b->next = (guint16)(pn + 1);
     b->bytes += (guint32)len;
@@ -956,7 +1210,8 @@ track_burst(eglink_burst_t *b, eglink_frame_t *fd, packet_info *pinfo, const egl
         fd->burst_id = b->id;
     if (burst_ends_here(b, len)) {
         if (b->broken) {
-            add_finding(fd, FND_BURST_INCOMPLETE, b->first_frame, b->missing, 0);
+            add_finding(fd, FND_BURST_INCOMPLETE, b->first_frame,
+                        b->missing | (b->missing_cut ? EGLINK_BURST_CUT : 0), 0);
         } else {
             fd->flags |= FF_BURST_LAST;
             burst_check_size(b, fd);
@@ -970,7 +1225,7 @@ static void
 track_interval(eglink_sender_t *s, eglink_frame_t *fd, packet_info *pinfo, guint threshold_ms,
                eglink_finding_kind_t gap)
 {
-    if (s->last_periodic_frame) {
+    if (s->last_periodic_frame && !s->clock_restart) {
         fd->delta_ns = ns_between(&pinfo->abs_ts, &s->last_periodic_ts);
         fd->flags |= FF_DELTA;
         if (fd->delta_ns > ms_to_ns(threshold_ms))
@@ -979,6 +1234,7 @@ track_interval(eglink_sender_t *s, eglink_frame_t *fd, packet_info *pinfo, guint
     s->last_periodic_frame = pinfo->num;
     s->last_periodic_ts = pinfo->abs_ts;
     s->periodic_missing_reported = FALSE;
+    s->clock_restart = FALSE;
 }
 
 static void
@@ -990,8 +1246,11 @@ track_vrpi(eglink_bu_t *bu, eglink_frame_t *fd, packet_info *pinfo, const eglink
             /* The finding carries the length of the period that ends here
              * (for Statistics > EG-Link). */
             if (bu->bu_state != info->bu_state) {
-                add_finding(fd, FND_BU_STATE, 0, bu->bu_state, ns_between(&pinfo->abs_ts, &bu->state_since));
+                /* (-1: its length is not known, the clock stepped back) */
+                add_finding(fd, FND_BU_STATE, 0, bu->bu_state,
+                            bu->state_since_step ? -1 : ns_between(&pinfo->abs_ts, &bu->state_since));
                 bu->state_since = pinfo->abs_ts;
+                bu->state_since_step = FALSE;
             }
         } else {
             bu->state_since = pinfo->abs_ts;
@@ -1015,12 +1274,15 @@ check_shared(eglink_chan_t *chan, eglink_sender_t *s, eglink_frame_t *fd)
 static void
 analyse_packet(packet_info *pinfo, const eglink_info_t *info, eglink_frame_t *fd)
 {
-    eglink_chan_t *chan = eglink_chan_lookup(pinfo, info->type);
     gboolean input = eglink_is_input(info->type);
+    guint32 expected_port = 0;
+    eglink_chan_t *chan = input ? eglink_chan_find(pinfo, pinfo->destport, TRUE)
+                                : eglink_ctrl_chan(pinfo, &expected_port);
     eglink_bu_t *bu = NULL;
     eglink_ctrl_t *ctrl = NULL;
     eglink_sender_t *s;
 
+    check_clock(pinfo, fd);
     if (input) {
         bu = eglink_bu_lookup(pinfo, chan, info->origin);
         s = &bu->s;
@@ -1035,11 +1297,15 @@ analyse_packet(packet_info *pinfo, const eglink_info_t *info, eglink_frame_t *fd
         fd->flags |= FF_ORIGIN;
         fd->bu_origin = fd->bu->origin;
     }
-    /* Receivers silently drop illegal packets (TS-0006 5.1.5); so does the analysis. */
+    /* Receivers silently drop illegal packets (TS-0006 5.1.5); so does the
+     * analysis, but for their serial: a gap it fills is no loss. */
     if (!info->crc_ok || !info->size_ok) {
         fd->flags |= FF_INVALID;
+        remember_corrupted(s, pinfo, info);
         return;
     }
+    if (expected_port)
+        add_finding(fd, FND_WRONG_PORT, 0, expected_port, 0);
 
     if (input && !bu->origin_known) {
         /* Known so far only from packets that failed their check: no origin
@@ -1135,8 +1401,8 @@ show_serial(proto_tree *at, tvbuff_t *tvb, packet_info *pinfo, const eglink_info
     if (fd->serial_status == SERIAL_FIRST)
         return;
     ti = add_generated_uint(at, hf_expected_serial, tvb, fd->expected_serial);
-    if (fd->serial_status == SERIAL_LOST) {
-        lost = (guint16)(info->serial - fd->expected_serial);
+    lost = serial_lost(fd, info->serial);
+    if (lost) {
         ti = add_generated_uint(at, hf_lost, tvb, lost);
         expert_add_info_format(pinfo, ti, &ei_serial_gap,
             "%u packet%s lost from this sender: serial %u expected, %u received",
@@ -1279,6 +1545,21 @@ plural(guint n, const char *one, const char *many)
     return n == 1 ? one : many;
 }
 
+static const char *const type_names[] = { "VRPI", "VRPO", "VRCI", "VRCO", "VRAI", "VRAO" };
+
+/* Also on a packet that is not analysed (bad CRC or size): the clock is its own. */
+static void
+show_time_backwards(proto_tree *at, tvbuff_t *tvb, packet_info *pinfo, const eglink_finding_t *f)
+{
+    proto_item *ti = add_generated_uint(at, hf_time_backwards_after, tvb, f->frame);
+    const char *t = ns_str(pinfo->pool, f->ns);
+
+    expert_add_info_format(pinfo, ti, &ei_time_backwards,
+        "Time went backwards by %s (clock step): this packet is older than the EG-Link packet "
+        "before it; gap, age and deadline rules restart here", t);
+    col_append_fstr(pinfo->cinfo, COL_INFO, " [time backwards %s]", t);
+}
+
 static void
 show_findings(proto_tree *at, proto_item *aitem, tvbuff_t *tvb, packet_info *pinfo,
               const eglink_info_t *info, const eglink_frame_t *fd)
@@ -1360,8 +1641,9 @@ show_findings(proto_tree *at, proto_item *aitem, tvbuff_t *tvb, packet_info *pin
         case FND_BURST_INCOMPLETE:
             ti = add_generated_uint(at, hf_incomplete_burst, tvb, f->frame);
             expert_add_info_format(pinfo, ti, &ei_burst_incomplete,
-                "VRPO burst is incomplete (packet %u missing): its periodic data cannot be "
-                "reassembled", f->value);
+                "VRPO burst is incomplete (packet %u %s): its periodic data cannot be "
+                "reassembled", f->value & 0xFFFF,
+                (f->value & EGLINK_BURST_CUT) ? "cut by the capture" : "missing");
             break;
         case FND_BURST_SIZE:
             expert_add_info_format(pinfo, aitem, &ei_burst_size,
@@ -1377,6 +1659,23 @@ show_findings(proto_tree *at, proto_item *aitem, tvbuff_t *tvb, packet_info *pin
                 f->ns == 0 ? "" : wmem_strdup_printf(pinfo->pool, " and %u %s", (guint)f->ns,
                                                      plural((guint)f->ns, "controller", "controllers")));
             col_append_str(pinfo->cinfo, COL_INFO, " [shared group]");
+            break;
+        case FND_CORRUPTED:
+            ti = add_generated_uint(at, hf_corrupted_in, tvb, f->frame);
+            expert_add_info_format(pinfo, ti, &ei_serial_corrupted,
+                "Serial %u arrived with a %s, frame %u: not counted as lost",
+                f->value & 0xFFFF, (f->value & EGLINK_CORRUPTED_CRC) ? "bad CRC" : "wrong size", f->frame);
+            break;
+        case FND_WRONG_PORT:
+            ti = add_generated_uint(at, hf_expected_port, tvb, f->value);
+            expert_add_info_format(pinfo, ti, &ei_wrong_port,
+                "%s sent to UDP port %u: the machine controller sends VRPO, VRCO and VRAO to the "
+                "BU's input port + 2 (%u here, TS-0006); analysed with this controller's packets",
+                type_names[info->type], pinfo->destport, f->value);
+            col_append_str(pinfo->cinfo, COL_INFO, " [wrong port]");
+            break;
+        case FND_TIME_BACKWARDS:
+            show_time_backwards(at, tvb, pinfo, f);
             break;
         case FND_LATE_ACK:      /* shown with the command link */
         case FND_BURST_DONE:    /* shown with the reassembly */
@@ -1461,8 +1760,7 @@ queue_tap(packet_info *pinfo, const eglink_info_t *info, const eglink_frame_t *f
     t->type = info->type;
     t->invalid = (fd->flags & FF_INVALID) != 0;
     t->repeated = fd->serial_status == SERIAL_REPEAT;
-    if (fd->serial_status == SERIAL_LOST)
-        t->lost = (guint16)(info->serial - fd->expected_serial);
+    t->lost = serial_lost(fd, info->serial);
     if ((fd->flags & FF_DELTA) && (info->type == EGLINK_TYPE_VRPI || info->type == EGLINK_TYPE_VRPO)) {
         t->has_interval = TRUE;
         t->interval_ns = fd->delta_ns;
@@ -1488,7 +1786,7 @@ queue_tap(packet_info *pinfo, const eglink_info_t *info, const eglink_frame_t *f
             t->failed[fd->cmd->dir]++;
         else if (f->kind == FND_BURST_DONE)
             t->burst_complete = TRUE;
-        else if (f->kind == FND_BU_STATE) {
+        else if (f->kind == FND_BU_STATE && f->ns >= 0) {
             t->has_state_period = TRUE;
             t->prev_state = (guint8)f->value;
             t->state_ns = f->ns;
@@ -1533,7 +1831,11 @@ eglink_analysis_dissect(tvbuff_t *tvb, packet_info *pinfo, proto_tree *eglink_tr
     show_device(at, aitem, tvb, pinfo, fd);
 
     if (fd->flags & FF_INVALID) {
+        const eglink_finding_t *f = find_finding(fd, FND_TIME_BACKWARDS);
+
         proto_item_append_text(aitem, " (not analysed: CRC or size check failed)");
+        if (f)
+            show_time_backwards(at, tvb, pinfo, f);
     } else {
         show_serial(at, tvb, pinfo, info, fd);
         if ((fd->flags & FF_DELTA) && info->type == EGLINK_TYPE_VRPI)
@@ -1624,6 +1926,20 @@ eglink_analysis_register(int proto, module_t *prefs)
           { "Last VRPO before the gap", "eglink.analysis.last_vrpo", FT_FRAMENUM, BASE_NONE,
             FRAMENUM_TYPE(FT_FRAMENUM_NONE), 0x0,
             "The controller's VRPO before a VRPO gap (eglink.analysis.vrpo_gap, vrpo_missing)", HFILL } },
+
+        { &hf_corrupted_in,
+          { "Serial arrived corrupted in frame", "eglink.analysis.corrupted_in", FT_FRAMENUM, BASE_NONE,
+            FRAMENUM_TYPE(FT_FRAMENUM_NONE), 0x0,
+            "A packet of this sender's serial gap that arrived with a bad CRC or size: not lost",
+            HFILL } },
+        { &hf_expected_port,
+          { "Expected UDP port", "eglink.analysis.expected_port", FT_UINT16, BASE_DEC, NULL, 0x0,
+            "The port a controller packet sent to another port belongs on: the BU's input port + 2",
+            HFILL } },
+        { &hf_time_backwards_after,
+          { "Time went backwards after frame", "eglink.analysis.time_backwards_after", FT_FRAMENUM,
+            BASE_NONE, FRAMENUM_TYPE(FT_FRAMENUM_NONE), 0x0,
+            "The EG-Link packet before a clock step back, newer than this one", HFILL } },
 
         { &hf_fragments,
           { "VRPO fragments", "eglink.fragments", FT_NONE, BASE_NONE, NULL, 0x0,
@@ -1732,6 +2048,15 @@ eglink_analysis_register(int proto, module_t *prefs)
         { &ei_ack,
           { "eglink.analysis.ack", PI_SEQUENCE, PI_CHAT,
             "Command acknowledged in time", EXPFILL } },
+        { &ei_serial_corrupted,
+          { "eglink.analysis.serial_corrupted", PI_SEQUENCE, PI_NOTE,
+            "A serial of the gap arrived with a bad CRC or size: not lost", EXPFILL } },
+        { &ei_wrong_port,
+          { "eglink.analysis.wrong_port", PI_PROTOCOL, PI_WARN,
+            "Controller packet on another UDP port than the BU's input port + 2", EXPFILL } },
+        { &ei_time_backwards,
+          { "eglink.analysis.time_backwards", PI_SEQUENCE, PI_WARN,
+            "Time went backwards (clock step): rules restart here", EXPFILL } },
     };
     expert_module_t *expert;
 
@@ -1765,6 +2090,8 @@ eglink_analysis_register(int proto, module_t *prefs)
 
     eglink_chans = wmem_map_new_autoreset(wmem_epan_scope(), wmem_file_scope(),
                                           eglink_chan_hash, eglink_chan_equal);
+    eglink_groups = wmem_map_new_autoreset(wmem_epan_scope(), wmem_file_scope(),
+                                           eglink_chan_hash, eglink_chan_equal);
     register_init_routine(eglink_analysis_init);
     reassembly_table_register(&eglink_reassembly_table, &addresses_ports_reassembly_table_functions);
     eglink_tap = register_tap("eglink");

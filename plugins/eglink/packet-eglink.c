@@ -117,6 +117,7 @@ static expert_field ei_eglink_flag_invalid = EI_INIT;
 static expert_field ei_eglink_ru_disabled_unknown = EI_INIT;
 static expert_field ei_eglink_joystick_range = EI_INIT;
 static expert_field ei_eglink_unarmed_data = EI_INIT;
+static expert_field ei_eglink_cut = EI_INIT;
 
 /* Preferences */
 typedef enum {
@@ -314,6 +315,7 @@ typedef struct {
     proto_tree *tree;
     int base;           /* payload offset in tvb */
     int len;            /* payload bytes actually present (UDP length - 20) */
+    int cap;            /* ... of which the capture holds these (less when cut by the snap length) */
     gboolean undefined; /* an undefined or out-of-range value was found */
 } eglink_payload_t;
 
@@ -326,7 +328,7 @@ eglink_add_uint(eglink_payload_t *p, int hf, int off, int len, guint32 *value, p
     *value = 0;
     if (item)
         *item = NULL;
-    if (off + len > p->len)
+    if (off + len > p->cap)
         return FALSE;
     ti = proto_tree_add_item_ret_uint(p->tree, hf, p->tvb, p->base + off, len, ENC_LITTLE_ENDIAN, value);
     if (item)
@@ -339,22 +341,22 @@ eglink_add_int(eglink_payload_t *p, int hf, int off, int len, gint32 *value, pro
 {
     *value = 0;
     *item = NULL;
-    if (off + len > p->len)
+    if (off + len > p->cap)
         return FALSE;
     *item = proto_tree_add_item_ret_int(p->tree, hf, p->tvb, p->base + off, len, ENC_LITTLE_ENDIAN, value);
     return TRUE;
 }
 
-/* Adds a byte block (spare, data) with whatever of it is present. */
+/* Adds a byte block (spare, data) with whatever of it is present and captured. */
 static int
 eglink_add_bytes(eglink_payload_t *p, int hf, int off, int len, proto_item **item)
 {
     if (item)
         *item = NULL;
-    if (off >= p->len)
+    if (off >= p->cap)
         return 0;
-    if (off + len > p->len)
-        len = p->len - off;
+    if (off + len > p->cap)
+        len = p->cap - off;
     if (len <= 0)
         return 0;
     if (item)
@@ -466,7 +468,7 @@ eglink_check_unarmed(eglink_payload_t *p, proto_item *armed_ti)
     guint i;
 
     for (i = 0; i < array_length(ru_fields); i++) {
-        if (ru_fields[i].offset + ru_fields[i].len > p->len)
+        if (ru_fields[i].offset + ru_fields[i].len > p->cap)
             break;
         if ((ru_fields[i].len == 1 ? tvb_get_uint8(p->tvb, p->base + ru_fields[i].offset)
                                    : tvb_get_letohs(p->tvb, p->base + ru_fields[i].offset)) != 0)
@@ -483,7 +485,7 @@ eglink_check_unarmed(eglink_payload_t *p, proto_item *armed_ti)
 static int
 eglink_payload_captured(const eglink_payload_t *p)
 {
-    return MAX(0, MIN(p->len, tvb_captured_length_remaining(p->tvb, p->base)));
+    return p->cap;
 }
 
 /* Whether the ES-Link relays are open: below Disarmed, or with the armed RU
@@ -668,7 +670,10 @@ dissect_eglink_vrpo(eglink_payload_t *p, eglink_info_t *info)
         col_append_str(p->pinfo->cinfo, COL_INFO, " (truncated)");
         return;
     }
-    data_len = eglink_add_bytes(p, hf_eglink_periodic_data, 2, p->len - 2, NULL);
+    /* Of a cut packet, the data the capture holds; the burst is tracked by
+     * the length in the packet. */
+    eglink_add_bytes(p, hf_eglink_periodic_data, 2, p->len - 2, NULL);
+    data_len = MAX(0, p->len - 2);
     info->has_packet_number = TRUE;
     info->packet_number = (guint16)pkt;
     info->periodic_offset = p->base + 2;
@@ -770,17 +775,28 @@ dissect_eglink_crc(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, int crc_
     return FALSE;
 }
 
-/* Adds a header field if the packet is long enough for it. */
+/* Adds a header field if the packet, and the capture, are long enough for it
+ * (have: the smaller of the two lengths). */
 static gboolean
-eglink_add_header_uint(proto_tree *tree, tvbuff_t *tvb, int hf, int off, int len, int reported,
+eglink_add_header_uint(proto_tree *tree, tvbuff_t *tvb, int hf, int off, int len, int have,
                        guint32 *value, proto_item **item)
 {
     *value = 0;
     *item = NULL;
-    if (off + len > reported)
+    if (off + len > have)
         return FALSE;
     *item = proto_tree_add_item_ret_uint(tree, hf, tvb, off, len, ENC_LITTLE_ENDIAN, value);
     return TRUE;
+}
+
+/* A packet cut by the capture ends as every such packet does in Wireshark,
+ * "[Packet size limited during capture]", once it is decoded and analysed
+ * from the bytes the capture holds. */
+static void
+eglink_end_of_capture(tvbuff_t *tvb, int captured, int reported)
+{
+    if (captured < reported)
+        tvb_ensure_bytes_exist(tvb, 0, reported);
 }
 
 static int
@@ -792,6 +808,8 @@ dissect_eglink(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data _
     eglink_payload_t p;
     guint32 value;
     int reported = (int)tvb_reported_length(tvb);
+    int captured = (int)tvb_captured_length(tvb);
+    int have = MIN(reported, captured);     /* bytes in the packet and in the capture */
     int min_len, max_len;
     const char *id;
 
@@ -807,15 +825,15 @@ dissect_eglink(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data _
     eglink_item = proto_tree_add_item(tree, proto_eglink, tvb, 0, -1, ENC_NA);
     eglink_tree = proto_item_add_subtree(eglink_item, ett_eglink);
 
-    id = tvb_format_text(pinfo->pool, tvb, 0, MIN(MIN(reported, 4), (int)tvb_captured_length(tvb)));
+    id = tvb_format_text(pinfo->pool, tvb, 0, MIN(have, 4));
     col_add_str(pinfo->cinfo, COL_INFO, id);
     proto_item_append_text(eglink_item, ", %s", id);
-    if (reported >= 4) {
+    if (have >= 4) {
         info.type = eglink_type_from_id(tvb_get_uint8(tvb, 2), tvb_get_uint8(tvb, 3));
         ti = proto_tree_add_item(eglink_tree, hf_eglink_type, tvb, 0, 4, ENC_ASCII);
         proto_item_append_text(ti, " (%s)", val_to_str_const(info.type, eglink_type_descr, ""));
     }
-    if (info.type == EGLINK_TYPE_UNKNOWN) {
+    if (info.type == EGLINK_TYPE_UNKNOWN && (have >= 4 || reported < 4)) {
         col_append_str(pinfo->cinfo, COL_INFO, " (unknown type)");
         expert_add_info_format(pinfo, eglink_item, &ei_eglink_type_unknown,
             "Unknown packet type %s: TS-0006 defines VRPI, VRPO, VRCI, VRCO, VRAI and VRAO; "
@@ -823,14 +841,14 @@ dissect_eglink(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data _
     }
 
     /* Header */
-    if (eglink_add_header_uint(eglink_tree, tvb, hf_eglink_revision, 4, 2, reported, &value, &ti)) {
+    if (eglink_add_header_uint(eglink_tree, tvb, hf_eglink_revision, 4, 2, have, &value, &ti)) {
         info.revision = (guint16)value;
         if (value != 0)
             expert_add_info_format(pinfo, ti, &ei_eglink_revision_unknown,
                 "Revision %u: only revision 0 (the TS-0006 layout) is known, the payload may differ",
                 value);
     }
-    if (eglink_add_header_uint(eglink_tree, tvb, hf_eglink_origin, 6, 2, reported, &value, &ti)) {
+    if (eglink_add_header_uint(eglink_tree, tvb, hf_eglink_origin, 6, 2, have, &value, &ti)) {
         info.origin = (guint16)value;
         if (info.type != EGLINK_TYPE_UNKNOWN && !eglink_is_input(info.type) && value != 0)
             expert_add_info_format(pinfo, ti, &ei_eglink_origin_nonzero,
@@ -839,22 +857,40 @@ dissect_eglink(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data _
             expert_add_info_format(pinfo, ti, &ei_eglink_origin_zero,
                 "Origin is 0 in a %s from the BU: the BU should send its unique ID", id);
     }
-    if (eglink_add_header_uint(eglink_tree, tvb, hf_eglink_serial, 8, 2, reported, &value, &ti)) {
+    if (eglink_add_header_uint(eglink_tree, tvb, hf_eglink_serial, 8, 2, have, &value, &ti)) {
         info.serial = (guint16)value;
+        info.has_serial = TRUE;
         proto_item_append_text(eglink_item, ", Serial %u", value);
     }
-    if (eglink_add_header_uint(eglink_tree, tvb, hf_eglink_size, 10, 2, reported, &value, &size_ti))
+    if (eglink_add_header_uint(eglink_tree, tvb, hf_eglink_size, 10, 2, have, &value, &size_ti))
         info.size = (guint16)value;
-    if (eglink_add_header_uint(eglink_tree, tvb, hf_eglink_spare, 12, 4, reported, &value, &ti) && value != 0)
+    if (eglink_add_header_uint(eglink_tree, tvb, hf_eglink_spare, 12, 4, have, &value, &ti) && value != 0)
         expert_add_info_format(pinfo, ti, &ei_eglink_spare_nonzero,
             "Header spare is 0x%08x, not 0: reserved for future use, the sender may use a "
             "newer layout than TS-0006", value);
+
+    /* Cut by the capture (snap length): said once, then decoded and analysed
+     * from what it holds, never from bytes it does not hold. */
+    info.cut = captured < reported;
+    if (info.cut) {
+        expert_add_info_format(pinfo, eglink_item, &ei_eglink_cut,
+            "Packet cut by the capture (snaplen): %d of %d bytes captured; decoded as far as "
+            "captured, CRC not checked, counted as received", captured, reported);
+        if (reported < EGLINK_MIN_LEN || info.type == EGLINK_TYPE_UNKNOWN || !info.has_serial)
+            info.cut = FALSE;   /* too little of it to analyse: as before */
+    }
+    if (have < 4 && reported >= 4) {
+        /* not even the packet ID in the capture: nothing to decode */
+        eglink_end_of_capture(tvb, captured, reported);
+        return reported;
+    }
 
     if (reported < EGLINK_MIN_LEN) {
         expert_add_info_format(pinfo, eglink_item, &ei_eglink_too_short,
             "Packet is %d bytes, too short for packet ID, header and CRC (20 bytes)", reported);
         col_append_str(pinfo->cinfo, COL_INFO, " (too short)");
         eglink_analysis_dissect(tvb, pinfo, eglink_tree, eglink_item, &info);
+        eglink_end_of_capture(tvb, captured, reported);
         return reported;
     }
 
@@ -863,6 +899,7 @@ dissect_eglink(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data _
     p.pinfo = pinfo;
     p.base = EGLINK_HEADER_LEN;
     p.len = reported - EGLINK_MIN_LEN;
+    p.cap = MAX(0, MIN(p.len, captured - EGLINK_HEADER_LEN));
     p.undefined = FALSE;
     info.size_ok = TRUE;
     if (info.size != p.len) {
@@ -884,9 +921,14 @@ dissect_eglink(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data _
                 "this one has %d: decoded as far as it goes", id, min_len, max_len, p.len);
     }
 
-    ti = proto_tree_add_item(eglink_tree, hf_eglink_payload, tvb, p.base, p.len, ENC_NA);
-    proto_item_append_text(ti, " (%d byte%s)", p.len, p.len == 1 ? "" : "s");
-    p.tree = proto_item_add_subtree(ti, ett_eglink_payload);
+    /* (of a cut packet, the item covers what the capture holds) */
+    if (captured >= p.base) {
+        ti = proto_tree_add_item(eglink_tree, hf_eglink_payload, tvb, p.base, MIN(p.len, p.cap), ENC_NA);
+        proto_item_append_text(ti, " (%d byte%s)", p.len, p.len == 1 ? "" : "s");
+        p.tree = proto_item_add_subtree(ti, ett_eglink_payload);
+    } else {
+        p.tree = eglink_tree;
+    }
     switch (info.type) {
     case EGLINK_TYPE_VRPI:
         dissect_eglink_vrpi(&p, &info);
@@ -911,9 +953,13 @@ dissect_eglink(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data _
     if (info.type != EGLINK_TYPE_UNKNOWN && p.len > max_len)
         eglink_add_bytes(&p, hf_eglink_extra_payload, max_len, p.len - max_len, NULL);
 
-    info.crc_ok = dissect_eglink_crc(tvb, pinfo, eglink_tree, reported - EGLINK_CRC_LEN);
+    if (captured >= reported)
+        info.crc_ok = dissect_eglink_crc(tvb, pinfo, eglink_tree, reported - EGLINK_CRC_LEN);
+    else
+        info.crc_ok = info.cut;     /* not checked: counted as received when analysable */
 
     eglink_analysis_dissect(tvb, pinfo, eglink_tree, eglink_item, &info);
+    eglink_end_of_capture(tvb, captured, reported);
     return reported;
 }
 
@@ -1160,6 +1206,9 @@ proto_register_eglink(void)
         { &ei_eglink_unarmed_data,
           { "eglink.armed_ru.unarmed_data", PI_PROTOCOL, PI_ERROR,
             "No RU is armed but RU fields are not 0", EXPFILL } },
+        { &ei_eglink_cut,
+          { "eglink.cut", PI_UNDECODED, PI_NOTE,
+            "Packet cut by the capture (snaplen)", EXPFILL } },
     };
 
     module_t *eglink_module;
@@ -1194,6 +1243,12 @@ proto_register_eglink(void)
         &eglink_heuristic);
 
     eglink_analysis_register(proto_eglink, eglink_module);
+}
+
+gboolean
+eglink_is_input_port(guint32 port)
+{
+    return eglink_input_ports && value_is_in_range(eglink_input_ports, port);
 }
 
 /* Registers the input ports and the output ports (input + 2) on udp.port. */

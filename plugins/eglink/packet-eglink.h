@@ -32,9 +32,12 @@ typedef struct {
     guint16 revision;
     guint16 origin;
     guint16 serial;
+    gboolean has_serial;        /* the header up to the serial is in the packet and the capture */
     guint16 size;               /* header Size field */
     gboolean size_ok;           /* Size matches the UDP payload and the type */
-    gboolean crc_ok;            /* CRC matched (the configured variant) */
+    gboolean crc_ok;            /* CRC matched (the configured variant); TRUE when cut */
+    gboolean cut;               /* cut by the capture (snap length): the CRC and some of the
+                                 * payload are not in it; analysed as received, from what it holds */
 
     /* VRPI */
     gboolean has_bu_state;
@@ -48,8 +51,12 @@ typedef struct {
     gboolean has_packet_number;
     guint16 packet_number;
     int periodic_offset;
-    int periodic_len;
+    int periodic_len;           /* in the packet: on a cut packet, more than the capture holds */
 } eglink_info_t;
+
+/* Whether a UDP port is one of the input ports of the preference (the BU
+ * sends to it; the controller sends to it + 2). */
+gboolean eglink_is_input_port(guint32 port);
 
 /* BU state names (TS-0006 4.1.1), defined in packet-eglink.c. */
 extern const value_string eglink_bu_state_vals[];

@@ -5,11 +5,13 @@ One finding per capture, on the link of tools/capgen/eglink.py (BU origin
 in VRPI and VRPO, lost and repeated packets, command retransmissions,
 acknowledgements and timeouts in both directions, split VRPO bursts
 (reassembled, incomplete, with and without the periodic data size), two BUs
-side by side, two BUs and their controllers on one group, a BU replaced at
-its address, and a session with BU state changes for the statistics.
+side by side, two BUs and their controllers on one group (joined by their
+commands, and not: unpaired), a BU replaced at its address, a session with
+BU state changes for the statistics, packets that arrive corrupted, a
+controller packet on the wrong port and a clock stepping back.
 """
-from .eglink import (EXT_LINK_ERROR, INITIAL, RU_STOPPED, STOPPED, Link, ack, armed, command,
-                     disarmed, machine_data, vrpi, vrpo)
+from .eglink import (CTRL_MAC, EXT_LINK_ERROR, INITIAL, INPUT_PORT, RU_STOPPED, STOPPED, Link, ack,
+                     armed, command, disarmed, machine_data, packet, vrpi, vrpo)
 from .frames import udp_frame
 from .registry import capture
 
@@ -295,22 +297,29 @@ class SharedLink(Link):
         return self._send(t, self.ctrl_ip, self.ctrl_mac, self.input_port + 2, pkt, snap)
 
 
+def shared_pair(vrpis, vrpos):
+    """Two BUs and their controllers on the default group (SharedLink): the
+    links and the plan of their first vrpis VRPI and vrpos VRPO each."""
+    a = SharedLink("10.0.0.1", "10.0.0.11", "00:30:11:20:01:01", "00:1b:1b:20:01:11")
+    b = SharedLink("10.0.0.2", "10.0.0.12", "00:30:11:20:02:02", "00:1b:1b:20:02:12",
+                   cap=a.cap, origin=0x2002)
+    plan = []
+    for k in range(vrpis):
+        t = 0.125 * k
+        plan.append((t, lambda t: a.bu(t, "VRPI", armed())))
+        plan.append((t + 0.005, lambda t: b.bu(t, "VRPI", armed(armed_ru=0xCAFE))))
+    for k in range(vrpos):
+        plan.append((0.04 + 0.1 * k, lambda t, k=k: a.ctrl(t, "VRPO", vrpo(0, machine_data(k)))))
+        plan.append((0.045 + 0.1 * k, lambda t, k=k: b.ctrl(t, "VRPO", vrpo(0, machine_data(50 + k)))))
+    return a, b, plan
+
+
 @capture("eglink_analysis_shared_group.pcap", "two armed BUs (10.0.0.1 origin 0x1001, 10.0.0.2 "
          "origin 0x2002) and their controllers (10.0.0.11, 10.0.0.12) on the default group "
          "239.255.42.20:5825/5827, nothing lost; commands both ways, the same Command IDs on "
          "both BUs once the controllers are joined")
 def shared_group():
-    a = SharedLink("10.0.0.1", "10.0.0.11", "00:30:11:20:01:01", "00:1b:1b:20:01:11")
-    b = SharedLink("10.0.0.2", "10.0.0.12", "00:30:11:20:02:02", "00:1b:1b:20:02:12",
-                   cap=a.cap, origin=0x2002)
-    plan = []
-    for k in range(12):
-        t = 0.125 * k
-        plan.append((t, lambda t: a.bu(t, "VRPI", armed())))
-        plan.append((t + 0.005, lambda t: b.bu(t, "VRPI", armed(armed_ru=0xCAFE))))
-    for k in range(15):
-        plan.append((0.04 + 0.1 * k, lambda t, k=k: a.ctrl(t, "VRPO", vrpo(0, machine_data(k)))))
-        plan.append((0.045 + 0.1 * k, lambda t, k=k: b.ctrl(t, "VRPO", vrpo(0, machine_data(50 + k)))))
+    a, b, plan = shared_pair(12, 15)
     plan += [
         # Each controller is joined to its BU by the first command it acknowledges ...
         (0.30, lambda t: a.bu(t, "VRCI", command(5, b"\x01\x00HORN"))),
@@ -348,3 +357,69 @@ def origin_changed():
     for k in range(3):
         other.bu(1.225 + 0.125 * k, "VRPI", armed())
     return link.cap
+
+
+@capture("eglink_analysis_corrupted.pcap", "VRPI every 125 ms from serial 100; the one with "
+         "serial 103 (frame 8) arrives with a bad CRC, a VRPO (serial 6, frame 13) with a "
+         "wrong Size: both are in the capture, so the next packet of each sender counts no loss")
+def corrupted():
+    link = Link()
+    link.bu_serial = 100
+
+    def vrpi_at(t):
+        if t == 0.375:
+            link.bu(t, "VRPI", armed(), crc_value=0)
+            return False
+        return True
+
+    def vrpo_at(t):
+        if t == 0.64:
+            link.ctrl(t, "VRPO", vrpo(0, machine_data(6)), size=1)
+            return False
+        return True
+    timeline(link, 0.0, 1.0, vrpi_at=vrpi_at, vrpo_at=vrpo_at)
+    return link.cap
+
+
+@capture("eglink_analysis_wrong_port.pcap", "a BU and its controller on 5825/5827; the BU's "
+         "VRCI 5 is acknowledged by a VRAO the controller sends to port 6001 (frame 8), its VRCO "
+         "7 sent to the input port 5825 (frame 14) is acknowledged: both belong to its "
+         "conversation, on the wrong port")
+def wrong_port():
+    link = Link()
+
+    def ctrl_to(port, ptype, payload):
+        def send(t):
+            pkt = packet(ptype, payload, serial=link.ctrl_serial)
+            link.ctrl_serial += 1
+            link._send(t, link.ctrl_ip, CTRL_MAC, port, pkt)
+        return send
+    events = (
+        (0.30, lambda t: link.bu(t, "VRCI", command(5, b"\x01\x00HORN"))),
+        (0.32, ctrl_to(6001, "VRAO", ack(5))),
+        (0.60, ctrl_to(INPUT_PORT, "VRCO", command(7, b"\x10\x00LOAD"))),
+        (0.62, lambda t: link.bu(t, "VRAI", ack(7))),
+    )
+    timeline(link, 0.0, 1.0, events=events)
+    return link.cap
+
+
+@capture("eglink_analysis_clock_step.pcap", "VRCO 4 at 0.2 s is never acknowledged; at 1.0 s "
+         "the capture's clock is set back 2 s (frame 20 reads -1.000 s): the step is a finding, "
+         "no interval or age is below 0, and the command's deadline counts from the step "
+         "(frame 57)")
+def clock_step():
+    link = Link()
+    timeline(link, 0.0, 1.0, events=((0.20, lambda t: link.ctrl(t, "VRCO", command(4, b"\x10\x00LOAD"))),))
+    timeline(link, -1.0, 1.5)   # 1.0 s to 3.5 s on a clock 2 s behind
+    return link.cap
+
+
+@capture("eglink_analysis_unpaired.pcap", "two armed BUs (10.0.0.1 origin 0x1001, 10.0.0.2 "
+         "origin 0x2002) on the default group, each with its own controller (10.0.0.11, "
+         "10.0.0.12), no commands: 40 VRPI per BU, 40 VRPO per controller; the capture does not "
+         "tell which controller serves which BU")
+def unpaired():
+    a, _, plan = shared_pair(40, 40)
+    play(plan)
+    return a.cap

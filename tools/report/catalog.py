@@ -83,6 +83,12 @@ EXPERTS = {
     "eglink.analysis.shared_group": (WARNING, "finding", "several BUs or controllers on one group and port"),
     "eglink.analysis.burst_incomplete": (WARNING, "finding", "split VRPO burst incomplete"),
     "eglink.analysis.burst_size": (WARNING, "finding", "VRPO burst size differs from the preference"),
+    "eglink.analysis.serial_corrupted": (NOTE, "finding",
+                                         "a serial of the gap arrived with a bad CRC or size: not lost"),
+    "eglink.analysis.wrong_port": (WARNING, "finding", "controller packet sent to the wrong UDP port"),
+    "eglink.analysis.time_backwards": (WARNING, "finding",
+                                       "time went backwards (clock step): gap and deadline rules restart"),
+    "eglink.cut": (NOTE, "finding", "packet cut by the capture (snaplen): decoded as far as captured"),
     # MC-MB2-PN
     "mcmb2.status.undefined": (ERROR, "finding", "undefined status"),
     "mcmb2.slot.status.undefined": (ERROR, "finding", "undefined slot status"),

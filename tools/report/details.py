@@ -139,6 +139,7 @@ DETAILS = {
     "eglink.analysis.retransmission": lambda c: raw(c, "eglink.analysis.retransmission_of",
                                                     ": first sent in frame %s"),
     "eglink.analysis.origin_changed": lambda c: raw(c, "eglink.origin", ": %s"),
+    "eglink.analysis.wrong_port": lambda c: raw(c, "udp.dstport", ": port %s"),
     "mcmb2.status.undefined": lambda c: hexed(c, "mcmb2.status"),
     "mcmb2.slot.status.undefined": slot_status,
     "mcmb2.terminal.not_zero": lambda c: raw(c, "mcmb2.terminal", ": terminal %s"),

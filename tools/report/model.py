@@ -331,6 +331,7 @@ class Capture:
         self.entries = []
         self._ids = 0
         self._eglink_channels = {}  # EG-Link channel: its first BU (see _eglink_device)
+        self._eglink_apart = {}     # EG-Link controller not joined to a BU: [device, BU it joined later]
         self._failed = {}           # (device, command field, command frame): its entry
         self.candidates = {}        # connection or PROFINET run: what its candidate notes say
         self._pnio_decoded = {}     # PROFINET run (pair of MAC addresses): last frame decoded
@@ -383,6 +384,10 @@ class Capture:
         dev = self.devices.get(stream) if stream else None
         if dev is None:
             dev = self._eglink_device(c, typ, stream, frame, t)
+        if self._eglink_apart and stream and typ.endswith("O"):
+            apart = self._eglink_apart.get(self._eglink_controller_key(c, typ))
+            if apart is not None and apart[1] is None:
+                apart[1] = dev  # joined now: its packets before are this BU's
         dev.ports.add(c[EG_DPORT])
         dev.frames += 1
         dev.last_frame, dev.last_time = frame, t
@@ -416,12 +421,25 @@ class Capture:
         before the analysis joined it to its BU (in one pass every packet
         before the BU's first VRPI), goes to the first BU of its channel
         (multicast group, or the address pair, and input port); the first
-        stream seen on a channel takes over the packets that came before it."""
+        stream seen on a channel takes over the packets that came before it.
+        A controller the analysis does not join to a BU while its channel
+        has one (several BUs or controllers share it, and no command was
+        acknowledged between them) is a device of its own: the capture does
+        not tell which BU it serves, and the report does not guess. Joined
+        later (an acknowledgement), its packets go to that BU after all
+        (_eglink_join_apart)."""
         port = int(c[EG_DPORT] or 0)
         dst, src = c[C["ip_dst"]], c[C["ip_src"]]
-        channel = (dst if is_multicast(dst) else frozenset((src, dst)),
-                   port if typ.endswith("I") else port - 2)
+        channel = self._eglink_channel(c, typ)
         dev = self._eglink_channels.get(channel)
+        if not stream and typ.endswith("O") and dev is not None and dev.stream is not None:
+            key = self._eglink_controller_key(c, typ)
+            ctrl = self.devices.get(key)
+            if ctrl is None:
+                ctrl = self._new_device(key, "eglink", frame, t)
+                ctrl.address = {"group": dst, "port": port, "controller": src, "bu": None}
+                self._eglink_apart[key] = [ctrl, None]
+            return ctrl
         if dev is None or (stream and dev.stream is not None):
             dev = self._new_device(stream or ("eglink", channel), "eglink", frame, t)
             dev.address = {"group": dst, "port": port}
@@ -430,6 +448,46 @@ class Capture:
             dev.stream = stream
             self.devices[stream] = dev
         return dev
+
+    @staticmethod
+    def _eglink_channel(c, typ):
+        """(multicast group or address pair, input port) of an EG-Link row."""
+        port = int(c[EG_DPORT] or 0)
+        dst, src = c[C["ip_dst"]], c[C["ip_src"]]
+        return (dst if is_multicast(dst) else frozenset((src, dst)),
+                port if typ.endswith("I") else port - 2)
+
+    def _eglink_controller_key(self, c, typ):
+        return ("eglink controller", self._eglink_channel(c, typ), c[C["ip_src"]])
+
+    def _eglink_join_apart(self):
+        """A controller listed apart that the analysis joined to a BU later
+        (a command acknowledged between them): its packets before are that
+        BU's too."""
+        for key, (ctrl, bu) in self._eglink_apart.items():
+            if bu is None:
+                continue
+            bu.frames += ctrl.frames
+            if (ctrl.first_frame, ctrl.first_time) < (bu.first_frame, bu.first_time):
+                bu.first_frame, bu.first_time = ctrl.first_frame, ctrl.first_time
+            bu.ports |= ctrl.ports
+            bu.address.setdefault("controller", ctrl.address["controller"])
+            for entry in self.entries:
+                if entry.device is ctrl:
+                    entry.device = bu
+            for name, series in ctrl.series.items():
+                mine = bu.series.get(name)
+                if mine is None:
+                    bu.series[name] = series
+                    continue
+                series.flush()
+                mine.flush()
+                joined = Series(mine.group, mine.limit, mine.labels)
+                for ts, vs in (series.points(), mine.points()):
+                    for point in zip(ts, vs):
+                        joined.add(*point)
+                bu.series[name] = joined
+            del self.devices[key]
 
     def _eglink_layout(self, dev):
         """Which ports it was seen on, and how: on the input ports of the
@@ -783,8 +841,10 @@ class Capture:
     def finish(self, error=None):
         """Close what is still open at the end; the report as a plain dict."""
         self._candidates()
+        self._eglink_join_apart()
         devices = sorted({id(d): d for d in self.devices.values()}.values(), key=lambda d: d.id)
-        for dev in devices:
+        for number, dev in enumerate(devices, 1):
+            dev.id = number  # (numbers stay consecutive when a device was joined to another)
             for entry in dev.open.values():
                 entry.duration = self.last_time - entry.since
                 entry.end_time, entry.at_least = self.last_time, True
@@ -794,8 +854,13 @@ class Capture:
             if dev.kind == "eglink":
                 a = dev.address
                 sender = a.get("bu") or "controller %s" % a.get("controller", "?")
-                dev.name = "EG-Link BU %s (%s to %s:%d)" % (
-                    a["origin"] if "origin" in a else "of unknown origin", sender, a["group"], a["port"])
+                if "bu" in a and a["bu"] is None:   # a controller whose BU the capture does not tell
+                    dev.name = ("EG-Link controller %s to %s:%d, BU not known (no command acknowledged "
+                                "between it and a BU of the group: pairing unknown)"
+                                % (a["controller"], a["group"], a["port"]))
+                else:
+                    dev.name = "EG-Link BU %s (%s to %s:%d)" % (
+                        a["origin"] if "origin" in a else "of unknown origin", sender, a["group"], a["port"])
                 dev.layout = self._eglink_layout(dev)
         entries = sorted(self.entries, key=lambda e: (e.frame, e.time))
         start = (datetime.datetime.fromtimestamp(self.first_epoch, datetime.timezone.utc)
