@@ -828,5 +828,6 @@ end
 
 systems.register({ "duplex", "polled" }, { proto = mcmb2, short = ef.short, inferred = ef.inferred,
                                           pn_malformed = ef.pn_malformed,
+                                          per_frame = { up = "wd_age", down = "wd_age" },
                                           analyse = analyse, show = show, sparse = sparse,
                                           show_connect = show_connect, show_candidate = show_candidate })
