@@ -960,6 +960,7 @@ end
 
 systems.register({ "duplex", "polled" }, { proto = mcmb2, short = ef.short, cut = ef.cut, inferred = ef.inferred,
                                           pn_malformed = ef.pn_malformed,
+                                          per_frame = { up = "wd_age", down = "wd_age" },
                                           analyse = analyse, show = show, sparse = sparse,
                                           show_connect = show_connect, show_candidate = show_candidate,
                                           show_cut_connect = show_cut_connect })

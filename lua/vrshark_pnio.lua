@@ -591,13 +591,14 @@ end
 -- A record alike field by field to one of the plan's latest distinct
 -- records is replaced by it (records are not changed after the first pass,
 -- and a finding makes a table of its own). A healthy base analyses alike
--- frame after frame (the watchdog's age takes a few values, nothing to
--- report), and one table per frame was most of the plugins' memory on a
--- long capture and a good part of their time, in the garbage collector
--- (docs/quality.md). The values that differ from frame to frame even on a
--- healthy device (the decoder's per_frame keys: EC-Link's ages of PCI and
--- PCO) are moved out of the record first, into flat arrays by frame
--- number, and put back into it before it is shown.
+-- frame after frame (nothing to report), and one table per frame was most
+-- of the plugins' memory on a long capture and a good part of their time,
+-- in the garbage collector (docs/quality.md). The values that differ from
+-- frame to frame even on a healthy device (the decoder's per_frame keys:
+-- EC-Link's ages of PCI and PCO, MC-MB2-PN's watchdog age, which takes as
+-- many values as cycles pass between two watchdog steps) are moved out of
+-- the record first, into a packed map by frame number, and put back into
+-- it before it is shown.
 local RECENT = 8
 
 -- Moves the decoder's per_frame key of rec (frame `n`; the key of the
@@ -620,11 +621,10 @@ local function load_per_frame(keys, rec, n)
     if k then rec[k] = fget(per_frame, n) or nil end
 end
 
--- nb: the number of keys of b (counted once, when b was kept). The
--- watchdog's age, the field that differs most often between records of an
--- MC-MB2-PN plan, first: most of the latest records are passed over at once.
+-- nb: the number of keys of b (counted once, when b was kept). (b may hold
+-- a per_frame key put back for a frame that showed it: a's keys are
+-- compared, a holds none of those.)
 local function alike(a, b, nb)
-    if a.wd_age ~= b.wd_age then return false end
     local n = 0
     for k, v in pairs(a) do
         if b[k] ~= v then return false end
