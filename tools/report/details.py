@@ -139,6 +139,8 @@ DETAILS = {
     "eglink.analysis.retransmission": lambda c: raw(c, "eglink.analysis.retransmission_of",
                                                     ": first sent in frame %s"),
     "eglink.analysis.origin_changed": lambda c: raw(c, "eglink.origin", ": %s"),
+    "eglink.analysis.serial_corrupted": lambda c: raw(c, "eglink.analysis.corrupted_in",
+                                                      ": arrived in frame %s"),
     "eglink.analysis.wrong_port": lambda c: raw(c, "udp.dstport", ": port %s"),
     "mcmb2.status.undefined": lambda c: hexed(c, "mcmb2.status"),
     "mcmb2.slot.status.undefined": slot_status,

@@ -54,7 +54,7 @@ FIELDS = [
     "eglink.ru_battery", "eglink.ru_rssi", "eglink.ru_cable", "eglink.ru_docked",
     "eglink.encoder_switch", "eglink.ru_disabled",
     "mcmb2.iops", "mcmb2.iocs", "mcmb2.reserved", "mcmb2.uplink_size", "mcmb2.downlink_size",
-    "eglink.analysis.retransmission_of",
+    "eglink.analysis.retransmission_of", "eglink.analysis.corrupted_in",
     "eclink.vlaps", "eclink.eg_link_status", "eclink.ec_link_status", "eclink.c_link_status",
     "eclink.ru_battery", "eclink.ru_rssi", "eclink.ru_cable", "eclink.ru_docked",
     "eclink.encoder_switch", "eclink.ru_disabled", "eclink.spare", "eclink.periodic_size",
