@@ -7,11 +7,13 @@ The cut captures are the project's own with frames cut short, their length
 on the wire kept (tools/capgen/snaplen.py, editcap -s), so what they hold is
 known: every value shown must be the original's, every fault of the original
 still found on its frame."""
+import json
+import os
 import subprocess
 
 import pytest
 
-from conftest import CAPTURES, expert_infos
+from conftest import CAPTURES, ROOT, expert_infos
 
 PASSES = pytest.mark.parametrize("two_pass", [False, True], ids=["one-pass", "two-pass"])
 # cut capture: (original, the cut frames, the protocol, the C-SDU bytes captured, of)
@@ -134,3 +136,14 @@ def test_cut_frame_of_another_sender_left_to_pn_rt(tshark, work_dir):
         got = tshark.frames(path, ["_ws.col.Protocol", "mcmb2.cut", "mcmb2.uplink_watchdog"], two_pass=two_pass)
         assert got[11] == {"_ws.col.Protocol": "PN-RT", "mcmb2.cut": "", "mcmb2.uplink_watchdog": ""}
         assert got[13]["mcmb2.cut"] and got[13]["mcmb2.uplink_watchdog"] == "5"
+
+
+def test_report_names_the_cut_connect(conf_dir):
+    """vrshark-report: the layout inferred because the capture cut the
+    Connect says so (and where), not "no Connect"."""
+    env = dict(os.environ, TZ="UTC", LC_ALL="C.UTF-8", WIRESHARK_CONFIG_DIR=str(conf_dir))
+    proc = subprocess.run([str(ROOT / "tools" / "vrshark-report"), "--json", "captures/snaplen_connect.pcap"],
+                          env=env, cwd=str(ROOT), capture_output=True, text=True, timeout=600)
+    timeline = json.loads(proc.stdout)["captures"][0]["timeline"]
+    inferred = [e["text"] for e in timeline if e["field"] == "mcmb2.layout.inferred"]
+    assert inferred == ["layout inferred from the cyclic frames (the capture cut the Connect in frame 1: snaplen)"]

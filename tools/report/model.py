@@ -46,6 +46,8 @@ EG_INTERVALS = [("VRPI", C["eglink_analysis_time_since_prev_vrpi"], "eglink.vrpi
 EG_DPORT = C["udp_dstport"]
 TCP_SPORT = C["tcp_srcport"]
 MODBUS_CANDIDATE, PNIO_CANDIDATE = C["eclink_modbus_candidate_setting"], C["mcmb2_candidate_setting"]
+CONNECT_CUT = C["mcmb2_connect_cut"]  # (an expert field: a Connect the capture cut)
+LAYOUT_INFERRED = ("mcmb2.layout.inferred", "eclink_pnio.layout.inferred")
 # A failed command (its warning, or the note that its deadline passed): the
 # field that links to the command's frame.
 FAILED_LINKS = {
@@ -335,6 +337,7 @@ class Capture:
         self._failed = {}           # (device, command field, command frame): its entry
         self.candidates = {}        # connection or PROFINET run: what its candidate notes say
         self._pnio_decoded = {}     # PROFINET run (pair of MAC addresses): last frame decoded
+        self._connect_cut = None    # the first Connect the capture cut (snaplen): its frame
 
     # --- rows ---------------------------------------------------------------
 
@@ -364,6 +367,8 @@ class Capture:
             self._eclink_modbus(c, frame, t)
         if c[MODBUS_CANDIDATE] or c[PNIO_CANDIDATE]:
             self._candidate(c, frame, t)
+        if len(c) > CONNECT_CUT and c[CONNECT_CUT] and self._connect_cut is None:
+            self._connect_cut = frame
 
     def _new_device(self, key, kind, frame, t):
         self._ids += 1
@@ -727,6 +732,9 @@ class Capture:
         else:
             if field.endswith("late_ack"):
                 what = self._late_ack(c, field, what)
+            elif field in LAYOUT_INFERRED and self._connect_cut is not None:
+                what = ("layout inferred from the cyclic frames (the capture cut the Connect in frame %d: "
+                        "snaplen)" % self._connect_cut)
             entry = dev.bursts[field] = Entry(dev, frame, t, severity, "finding", what, field)
             self.entries.append(entry)
         if field.endswith("serial_gap"):
