@@ -111,8 +111,8 @@ def test_corrupted_serial_in_the_report():
     assert not [ln for ln in lines if "lost" in ln[2] and "not lost" not in ln[2]]
     assert lines == [
         (8, "error", "bad CRC"),
-        (10, "note", "a serial of the gap arrived with a bad CRC or size: not lost "
-                     "(2x, frames 10-14 over 0.240 s)"),
+        (10, "note", "a serial of the gap arrived with a bad CRC or size: not lost: arrived in frame 8 "
+                     "and 1 other value (2x, frames 10-14 over 0.240 s)"),
         (13, "error", "header Size disagrees with the UDP length: Size 1, UDP payload 86 bytes")]
 
 

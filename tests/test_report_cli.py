@@ -725,3 +725,28 @@ def test_plant_excerpt_first_suggestion_decodes(cmd, plant_excerpt):
     proc = run(cmd, "--json", "--expect", "eclink", "-o", first, excerpt)
     assert (proc.returncode, proc.stderr) == (0, "")
     assert "EC-Link BU, Modbus/TCP server 127.0.0.1:%d" % port in [d["name"] for d in captures(proc)[0]["devices"]]
+
+
+@pytest.mark.parametrize("capture, devices, lost", [
+    # a serial that arrived with a bad CRC is not lost (issue: "serial 103 expected")
+    ("eglink_analysis_corrupted.pcap", [("EG-Link BU 0x1001 (192.168.32.10 to 239.255.42.20:5825)", 18)], False),
+    # a controller's packets on a wrong port are its conversation's, not a device of their own
+    ("eglink_analysis_wrong_port.pcap", [("EG-Link BU 0x1001 (192.168.32.10 to 239.255.42.20:5825)", 22)], False),
+    # two BUs, two controllers that acknowledge nothing: pairing unknown, listed apart
+    ("eglink_analysis_unpaired.pcap", [
+        ("EG-Link BU 0x1001 (10.0.0.1 to 239.255.42.20:5825)", 40),
+        ("EG-Link BU 0x2002 (10.0.0.2 to 239.255.42.20:5825)", 40),
+        ("EG-Link controller 10.0.0.11 to 239.255.42.20:5827, BU not known (no command acknowledged "
+         "between it and a BU of the group: pairing unknown)", 40),
+        ("EG-Link controller 10.0.0.12 to 239.255.42.20:5827, BU not known (no command acknowledged "
+         "between it and a BU of the group: pairing unknown)", 40)], False),
+])
+def test_eglink_devices_and_frame_counts(cmd, capture, devices, lost):
+    """The EG-Link device model as the checkout's and the installed command
+    give it: which device each packet is, and no loss counted for packets
+    that are in the capture."""
+    proc = run(cmd, "--json", str(CAPTURES / capture))
+    assert proc.returncode == 0, proc.stderr
+    cap = captures(proc)[0]
+    assert [(d["name"], d["frames"]) for d in cap["devices"]] == devices
+    assert any("packets lost" in e["text"] or "packet lost" in e["text"] for e in cap["timeline"]) == lost
