@@ -140,6 +140,22 @@ local ef = {
     downlink_stalled = expert_new("mcmb2.downlink_watchdog.stalled",
         "Downlink watchdog unchanged for over 2000 ms: the base shows E010", expert.group.SEQUENCE,
         expert.severity.ERROR),
+    -- SP-14-023 sections 2.4 and 3.1.2: each side increments its watchdog
+    -- at least every 500 ms (the stalls above are the other side's timeouts)
+    uplink_slow = expert_new("mcmb2.uplink_watchdog.slow",
+        "Uplink watchdog not incremented within 500 ms", expert.group.SEQUENCE, expert.severity.WARN),
+    downlink_slow = expert_new("mcmb2.downlink_watchdog.slow",
+        "Downlink watchdog not incremented within 500 ms", expert.group.SEQUENCE, expert.severity.WARN),
+    uplink_back = expert_new("mcmb2.uplink_watchdog.backwards",
+        "Uplink watchdog went backwards (a watchdog is only incremented)", expert.group.SEQUENCE,
+        expert.severity.WARN),
+    downlink_back = expert_new("mcmb2.downlink_watchdog.backwards",
+        "Downlink watchdog went backwards (a watchdog is only incremented)", expert.group.SEQUENCE,
+        expert.severity.WARN),
+    uplink_jump = expert_new("mcmb2.uplink_watchdog.jump",
+        "Uplink watchdog moved by more than one", expert.group.SEQUENCE, expert.severity.NOTE),
+    downlink_jump = expert_new("mcmb2.downlink_watchdog.jump",
+        "Downlink watchdog moved by more than one", expert.group.SEQUENCE, expert.severity.NOTE),
     terminal_changed = expert_new("mcmb2.slot.terminal_changed",
         "Slot changed terminal (dynamic polling)", expert.group.SEQUENCE, expert.severity.NOTE),
     layout_mismatch = expert_new("mcmb2.layout_mismatch",
@@ -170,7 +186,8 @@ local ef = {
 mcmb2.experts = { ef.status_undefined, ef.slot_status_undefined, ef.terminal_not_zero, ef.not_valid, ef.e010,
                   ef.data_not_zero, ef.uplink_stalled, ef.downlink_stalled, ef.terminal_changed,
                   ef.layout_mismatch, ef.iops_bad, ef.iocs_bad, ef.reserved_not_zero, ef.short, ef.learned,
-                  ef.inferred, ef.ambiguous, ef.pn_malformed, ef.candidate }
+                  ef.inferred, ef.ambiguous, ef.pn_malformed, ef.candidate, ef.uplink_slow, ef.downlink_slow,
+                  ef.uplink_back, ef.downlink_back, ef.uplink_jump, ef.downlink_jump }
 
 ------------------------------------------------------------------------
 -- Preferences
@@ -204,7 +221,7 @@ end)
 local function dev_state(key)
     local d = devs[key]
     if not d then
-        d = { up_wd = {}, down_wd = {}, slot_term = {} }
+        d = { up_wd = {}, down_wd = {}, up_pace = {}, down_pace = {}, slot_term = {} }
         devs[key] = d
     end
     return d
@@ -292,6 +309,35 @@ local function watchdog(rec, st, value, t, frame, limit, ex, what)
     end
 end
 
+-- The pace of a watchdog (SP-14-023 sections 2.4, 3.1.2): incremented by
+-- one, at least every 500 ms, by the side that sends it. The frames between
+-- two increments repeat the value; a counter that moves faster than the
+-- cyclic rate shows steps of more than one (a note: so do lost frames).
+local PACE = 0.5
+local PACE_TEXT = {
+    Uplink = { slow = ef.uplink_slow, back = ef.uplink_back, jump = ef.uplink_jump,
+               who = "the base increments it at least every 500 ms" },
+    Downlink = { slow = ef.downlink_slow, back = ef.downlink_back, jump = ef.downlink_jump,
+                 who = "the IO controller must increment it at least every 500 ms" },
+}
+local function watchdog_pace(rec, st, value, t, frame, what)
+    local r = handshake.pace(st, value, t, frame, PACE, 256)
+    if not r then return end
+    local p = PACE_TEXT[what]
+    if r.kind == "slow" then
+        add_finding(rec, "wd", p.slow, string.format("%s watchdog not incremented for %.3f s (value %d): %s",
+            what, ms(r.age), r.value, p.who))
+    elseif r.kind == "back" then
+        add_finding(rec, "wd", p.back, string.format(
+            "%s watchdog went back from %d to %d: a watchdog is only incremented (a restart of its sender?)",
+            what, r.from, r.to))
+    else
+        add_finding(rec, "wd", p.jump, string.format(
+            "%s watchdog moved from %d to %d (+%d), not by one: incremented faster than the cyclic rate, "
+            .. "or frames lost", what, r.from, r.to, r.by))
+    end
+end
+
 local function analyse_duplex(rec, d, ba, t, frame)
     local plan = rec.plan
     local h = plan.header.off
@@ -320,9 +366,11 @@ local function analyse_duplex(rec, d, ba, t, frame)
         end
         watchdog(rec, d.up_wd, byte(ba, h + 2), t, frame, up_limit,
             ef.uplink_stalled, "Uplink")
+        watchdog_pace(rec, d.up_pace, byte(ba, h + 2), t, frame, "Uplink")
     else
         watchdog(rec, d.down_wd, byte(ba, h + 2), t, frame, down_limit,
             ef.downlink_stalled, "Downlink")
+        watchdog_pace(rec, d.down_pace, byte(ba, h + 2), t, frame, "Downlink")
     end
     plan.one_group = plan.one_group or { plan.modules }
     rec.groups = plan.one_group
@@ -351,6 +399,7 @@ local function analyse_polled_up(rec, d, ba, t, frame)
     end
     watchdog(rec, d.up_wd, byte(ba, h + 2), t, frame, up_limit,
         ef.uplink_stalled, "Uplink")
+    watchdog_pace(rec, d.up_pace, byte(ba, h + 2), t, frame, "Uplink")
     local y, z = byte(ba, h + 3), byte(ba, h + 4)
     local mask = 0
     for k = 1, 4 do
@@ -412,6 +461,7 @@ local function analyse_polled_down(rec, d, ba, t, frame)
     end
     watchdog(rec, d.down_wd, byte(ba, h + 2), t, frame, down_limit,
         ef.downlink_stalled, "Downlink")
+    watchdog_pace(rec, d.down_pace, byte(ba, h + 2), t, frame, "Downlink")
     local z = d.z or cfg.z
     local groups = plan_groups(plan, z) or plan_groups(plan, cfg.z) or {}
     local slots = d.used

@@ -203,6 +203,8 @@ TIMELINES = {
         (18, 'warning', 1, 'reserved byte not 0: 0x05'),
     ],
     "mcmb2_duplex_watchdog.pcap": [
+        (17, 'warning', 1, 'uplink watchdog not incremented within 500 ms'),
+        (18, 'warning', 1, 'downlink watchdog not incremented within 500 ms'),
         (23, 'error', 1, 'uplink watchdog stalled at 5 for 1.600 s (unchanged since frame 11, limit 1000 ms), moving again in frame 27'),
         (34, 'error', 1, 'downlink watchdog stalled at 5 for 2.600 s (unchanged since frame 12, limit 2000 ms: the base shows E010), moving again in frame 38'),
     ],
@@ -509,6 +511,8 @@ def test_junit(report, tmp_path, bad_files):
 
 @pytest.mark.parametrize("name, frames, want", [
     ("mcmb2_duplex_watchdog.pcap", "1-25", [
+        (17, "warning", 1, "uplink watchdog not incremented within 500 ms"),
+        (18, "warning", 1, "downlink watchdog not incremented within 500 ms"),
         (23, "error", 1, "uplink watchdog stalled at 5 for 1.400 s or more (unchanged since frame 11, "
          "limit 1000 ms), until the end of the capture")]),
     ("eglink_analysis_vrpo_gap.pcap", "1-38", [
