@@ -87,6 +87,11 @@ FAULTS = {
     "eclink.vlaps.range": ("eclink_modbus_faults.pcap", [37]),
     "eclink.unarmed_not_zero": ("eclink_modbus_faults.pcap", [39]),
     "eclink.periodic_size.range": ("eclink_modbus_faults.pcap", [40]),
+    # eclink_modbus_link_states: C-Link Passive with RU 0x1234 armed (17),
+    # EG-Link Passive (25); RU state 1 (21); the disarmed BU's C-Link
+    # Passive (29) is allowed
+    "eclink.link_status.passive": ("eclink_modbus_link_states.pcap", [17, 25]),
+    "eclink.ru_state.disarmed": ("eclink_modbus_link_states.pcap", [21]),
     # mcmb2_polled_connect: the uplink of frame 15 says Y=20, the Connect 24
     "mcmb2.layout_mismatch": ("mcmb2_polled_connect.pcap", [15]),
     # --- checksum and size (eglink.py)

@@ -116,6 +116,8 @@ EXPERTS = {
     "eclink.vlaps.range": (ERROR, "finding", "VLAPs out of range"),
     "eclink.link_status.range": (ERROR, "finding", "undefined link status"),
     "eclink.ru_state.range": (ERROR, "finding", "undefined RU state"),
+    "eclink.link_status.passive": (WARNING, "finding", "link status Passive where it is not allowed"),
+    "eclink.ru_state.disarmed": (NOTE, "finding", "RU state Disarmed (used inside the BU only) on the wire"),
     "eclink.percent.range": (ERROR, "finding", "percentage over 100"),
     "eclink.bool.range": (ERROR, "finding", "flag not 0 or 1"),
     "eclink.ru_disabled.range": (ERROR, "finding", "undefined RU disabled reason"),
