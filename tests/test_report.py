@@ -473,11 +473,12 @@ def test_json_schema(report):
     cap = doc["captures"][0]
     assert set(cap) == {"capture", "error", "frames", "start", "start_epoch", "duration",
                         "devices", "timeline", "counts", "missing"}
-    assert cap["counts"] == {"note": 0, "warning": 0, "error": 2}
+    # the two watchdog pace warnings (frames 17, 18), the two stalls
+    assert cap["counts"] == {"note": 0, "warning": 2, "error": 2}
     assert set(cap["devices"][0]) == {"id", "kind", "name", "address", "layout", "frames",
                                       "first_frame", "last_frame", "start", "end", "initial",
                                       "final", "terminals"}
-    stall = cap["timeline"][1]
+    stall = cap["timeline"][3]
     assert stall == {"time": 3.201, "frame": 34, "device": 1, "severity": "error", "kind": "stall",
                      "field": "mcmb2.downlink_watchdog.stalled", "text": stall["text"], "count": 1,
                      "last_frame": 34, "duration": 2.6, "end_frame": 38, "end_time": 3.601}
