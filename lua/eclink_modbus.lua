@@ -63,6 +63,7 @@ local dir = debug.getinfo(1, "S").source:match("^@(.*)[/\\]")
 package.path = dir .. "/?.luam;" .. package.path
 set_plugin_info(require("vrshark.version").info("EC-Link images in Modbus/TCP (VisionRemote VM-110/VX-100 base units)"))
 local image = require("vrshark.eclink_image")
+local periodic = require("vrshark.eclink_periodic")
 local handshake = require("vrshark.eclink_handshake")
 local wrap = require("vrshark.wrap")
 local fe = require("vrshark.frontends")
@@ -853,42 +854,22 @@ local function analyse(c, rec, t, frame, touched_in, touched_out)
     rec[R_PCI_AGE], rec[R_PCO_AGE] = r.pci_age and to_us(r.pci_age) or false, r.pco_age and to_us(r.pco_age) or false
     -- (a nil stored under a new key would make the record a hash part)
     if r.bu_state_prev ~= nil then rec.bu_state_prev = r.bu_state_prev end
-    -- periodic output multiplexing
+    -- periodic output multiplexing (vrshark/eclink_periodic.luam)
     if touched_out and known(out, 0, 1) and known(out, 20, 3) then
         local s1, s2, block = sbyte(out.data, 21, 23)
         local size = s1 * 256 + s2
-        local pco = sbyte(out.data, 1)
-        if size > image.PERIODIC_BLOCK_LEN and size <= image.PERIODIC_MAX then
-            local nblocks = math.ceil(size / image.PERIODIC_BLOCK_LEN)
-            local blen = math.min(image.PERIODIC_BLOCK_LEN, size - block * image.PERIODIC_BLOCK_LEN)
-            if block < nblocks and known(out, 24, blen)
-                and not (c.last_block == block and c.last_block_pco == pco) then
-                c.last_block, c.last_block_pco = block, pco
-                local pb = c.periodic
-                if not pb or pb.size ~= size then
-                    pb = { size = size, n = nblocks, blocks = {}, count = 0 }
-                    c.periodic = pb
-                end
-                if not pb.blocks[block] then pb.count = pb.count + 1 end
-                pb.blocks[block] = { data = out.data:sub(25, 24 + blen), frame = frame, rec = rec }
-                rec.held = true  -- gets a link later: kept as a table
-                if pb.count == pb.n then
-                    local parts, frames = {}, {}
-                    for b = 0, pb.n - 1 do
-                        parts[#parts + 1] = pb.blocks[b].data
-                        frames[#frames + 1] = pb.blocks[b].frame
-                        if pb.blocks[b].frame ~= frame then
-                            set_link(pb.blocks[b].rec, "periodic_reassembled_in", frame)
-                        end
-                    end
-                    rec.periodic = { data = table.concat(parts), frames = frames }
-                    add_finding(rec, { ef.periodic_reassembled, string.format(
-                        "Periodic data reassembled: %d bytes from %d blocks", size, pb.n) })
-                    c.periodic = nil
-                end
+        local blen = periodic.block_len(size, block)
+        local data = blen and known(out, 24, blen) and out.data:sub(25, 24 + blen) or nil
+        c.periodic = c.periodic or {}
+        local got = periodic.add(c.periodic, size, block, sbyte(out.data, 1), data, frame, rec)
+        if got then rec.held = true end  -- gets a link later: kept as a table
+        if type(got) == "table" then
+            for i, brec in ipairs(got.recs) do
+                if got.frames[i] ~= frame then set_link(brec, "periodic_reassembled_in", frame) end
             end
-        else
-            c.last_block = nil
+            rec.periodic = { data = got.data, frames = got.frames }
+            add_finding(rec, { ef.periodic_reassembled, string.format(
+                "Periodic data reassembled: %d bytes from %d blocks", got.size, got.n) })
         end
     end
 end

@@ -22,6 +22,7 @@ package.path = dir .. "/?.luam;" .. package.path
 set_plugin_info(require("vrshark.version").info("EC-Link images (TS-0007) in PROFINET IO cyclic data"))
 local eclink_handshake = require("vrshark.eclink_handshake")
 local image = require("vrshark.eclink_image")
+local periodic = require("vrshark.eclink_periodic")
 local record = require("vrshark.pnio_record")
 local systems = require("vrshark.pnio_systems")
 local iodata = require("vrshark.iodata") -- vrshark_io hook
@@ -53,6 +54,12 @@ local epf = {
     layout_entry = ProtoField.string("eclink_pnio.layout_entry", "Layout table entry (to pin it: mcmb2.layouts)"),
     iops = ProtoField.uint8("eclink_pnio.iops", "IOPS", base.HEX, record.IOXS),
     iocs = ProtoField.uint8("eclink_pnio.iocs", "IOCS", base.HEX, record.IOXS),
+    -- periodic output blocks (TS-0007 section 8.4), as over Modbus/TCP
+    periodic_reassembled_in = ProtoField.framenum("eclink_pnio.periodic.reassembled_in",
+        "Periodic data reassembled in"),
+    periodic_block_in = ProtoField.framenum("eclink_pnio.periodic.block_in", "Periodic data block in"),
+    periodic_length = ProtoField.uint32("eclink_pnio.periodic.length", "Reassembled periodic data length"),
+    periodic_data = ProtoField.bytes("eclink_pnio.periodic.data", "Reassembled periodic data"),
 }
 -- frame links of the handshake findings and acknowledgements
 local hs_fields, hs_field_list = eclink_handshake.fields("eclink_pnio")
@@ -73,7 +80,9 @@ eef.inferred = ProtoExpert.new("eclink_pnio.layout.inferred", "Cyclic data layou
 eef.pn_malformed = ProtoExpert.new("eclink_pnio.pn_malformed",
     "Malformed to Wireshark's PROFINET dissector, but the layout fits the frame: decoded",
     expert.group.PROTOCOL, expert.severity.NOTE)
-for _, k in ipairs({ "iops_bad", "short", "learned", "inferred", "pn_malformed", "cut" }) do
+eef.periodic_reassembled = ProtoExpert.new("eclink_pnio.periodic.reassembled", "Periodic data reassembled",
+    expert.group.REASSEMBLE, expert.severity.CHAT)
+for _, k in ipairs({ "iops_bad", "short", "learned", "inferred", "pn_malformed", "cut", "periodic_reassembled" }) do
     eclp_experts[#eclp_experts + 1] = eef[k]
 end
 eclp.experts = eclp_experts
@@ -82,9 +91,14 @@ eclp.experts = eclp_experts
 -- Per-capture state
 ------------------------------------------------------------------------
 local devs -- device key (plan.dev) -> handshake state
+local periodics -- device key -> periodic output blocks (vrshark/eclink_periodic.luam)
+-- frame of a block -> frame that completed its periodic data. By frame
+-- number, not on the block's record: the carrier shares and reuses records
+-- that have no finding.
+local periodic_in
 
 function eclp.init()
-    devs = {}
+    devs, periodics, periodic_in = {}, {}, {}
 end
 
 -- The handshake's links to a command's frame, kept on the record.
@@ -96,6 +110,28 @@ local CMD_LINKS = { "cmd_from_ru_in", "cmd_to_ru_in" }
 -- The image values handed to the handshake, one table each direction
 -- filled anew for every frame (the handshake reads them at once).
 local in_values, out_values = {}, {}
+
+-- The periodic output blocks of a standard output image (224 bytes):
+-- every cycle repeats the image, a block counts once per PCO. The frame
+-- that completes the data keeps it (with a finding: its record is kept).
+local function periodic_blocks(dev, rec, ba, o, pco, frame)
+    local s1, s2, block = byte(ba, o + 21, o + 23)
+    local size = s1 * 256 + s2
+    local blen = periodic.block_len(size, block)
+    local st = periodics[dev]
+    if not st then
+        st = {}
+        periodics[dev] = st
+    end
+    local got = periodic.add(st, size, block, pco, blen and ba:sub(o + 25, o + 24 + blen), frame, rec)
+    if type(got) ~= "table" then return end
+    for _, f in ipairs(got.frames) do
+        if f ~= frame then periodic_in[f] = frame end
+    end
+    rec.periodic = { data = got.data, frames = got.frames }
+    add_finding(rec, "image", eef.periodic_reassembled, string.format(
+        "Periodic data reassembled: %d bytes from %d blocks", got.size, got.n))
+end
 
 -- ba: the C-SDU as a Lua string (byte i at byte(ba, i + 1)).
 local function analyse(rec, ba, t, frame)
@@ -160,11 +196,27 @@ local function analyse(rec, ba, t, frame)
     end
     rec.pci_age = r.pci_age and eclink_handshake.ms(r.pci_age)
     rec.pco_age = r.pco_age and eclink_handshake.ms(r.pco_age)
+    if out and not partial and plan.image.len > 24 then periodic_blocks(plan.dev, rec, ba, o, out.pco, frame) end
 end
 
 ------------------------------------------------------------------------
 -- Display
 ------------------------------------------------------------------------
+-- The reassembled periodic data (on the frame of the last block) or the
+-- link to it (on the other blocks' frames), as over Modbus/TCP.
+local function show_periodic(rec, root, pinfo, fid)
+    local done = periodic_in[pinfo.number]
+    if done then set_generated(add(root, epf.periodic_reassembled_in, done)) end
+    local p = rec.periodic
+    if not p then return end
+    local rtvb = ByteArray.new(p.data, true):tvb("Reassembled periodic data")
+    local pt = add(root, epf.periodic_data, rtvb())
+    iodata.decode("periodic.to_ru", { frame_id = fid }, rtvb(), pt, pinfo) -- vrshark_io hook
+    set_generated(pt)
+    set_generated(add(pt, epf.periodic_length, #p.data))
+    for _, fr in ipairs(p.frames) do set_generated(add(pt, epf.periodic_block_in, fr)) end
+end
+
 local function show(rec, tvb, pinfo, tree)
     local plan, base = rec.plan, rec.base
     local up = plan.dir == "up"
@@ -195,6 +247,7 @@ local function show(rec, tvb, pinfo, tree)
         record.add_time(root, epf.pco_age, "Time since PCO changed", rec.pco_age, nil, epf.pco_age_ms)
     end
     for _, l in ipairs(rec.links or {}) do root:add(hs_fields[l[1]], l[2]):set_generated() end
+    show_periodic(rec, root, pinfo, tvb(0, 2):uint())
     attach(rec, "image", info and info.item or root)
     -- a command's deadline: in one pass the command's warning, else a note
     local unacked = rec.unacked
@@ -240,7 +293,7 @@ local SPARSE = { adders = ADDERS, experts = {}, prefixes = { "eclink_pnio", "ecl
 -- image's options, refilled per frame (nobody keeps them).
 local ctx, image_opts = {}, {}
 local function sparse(rec, tvb, pinfo, tree, view)
-    if view.experts then return false end
+    if view.experts or rec.periodic or periodic_in[pinfo.number] then return false end
     local plan = rec.plan
     local p = fe.plan(view, SPARSE)
     -- machine data can add findings and Info tags of its own

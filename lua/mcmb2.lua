@@ -144,6 +144,22 @@ local ef = {
     downlink_unmonitored = expert_new("mcmb2.downlink_watchdog.unwritten",
         "Simplex downlink watchdog not written, the base reports no E010: it may not monitor it (SP-14-023 3.2.2)",
         expert.group.SEQUENCE, expert.severity.NOTE),
+    -- SP-14-023 sections 2.4 and 3.1.2: each side increments its watchdog
+    -- at least every 500 ms (the stalls above are the other side's timeouts)
+    uplink_slow = expert_new("mcmb2.uplink_watchdog.slow",
+        "Uplink watchdog not incremented within 500 ms", expert.group.SEQUENCE, expert.severity.WARN),
+    downlink_slow = expert_new("mcmb2.downlink_watchdog.slow",
+        "Downlink watchdog not incremented within 500 ms", expert.group.SEQUENCE, expert.severity.WARN),
+    uplink_back = expert_new("mcmb2.uplink_watchdog.backwards",
+        "Uplink watchdog went backwards (a watchdog is only incremented)", expert.group.SEQUENCE,
+        expert.severity.WARN),
+    downlink_back = expert_new("mcmb2.downlink_watchdog.backwards",
+        "Downlink watchdog went backwards (a watchdog is only incremented)", expert.group.SEQUENCE,
+        expert.severity.WARN),
+    uplink_jump = expert_new("mcmb2.uplink_watchdog.jump",
+        "Uplink watchdog moved by more than one", expert.group.SEQUENCE, expert.severity.NOTE),
+    downlink_jump = expert_new("mcmb2.downlink_watchdog.jump",
+        "Downlink watchdog moved by more than one", expert.group.SEQUENCE, expert.severity.NOTE),
     terminal_changed = expert_new("mcmb2.slot.terminal_changed",
         "Slot changed terminal (dynamic polling)", expert.group.SEQUENCE, expert.severity.NOTE),
     layout_mismatch = expert_new("mcmb2.layout_mismatch",
@@ -184,7 +200,8 @@ mcmb2.experts = { ef.status_undefined, ef.slot_status_undefined, ef.terminal_not
                   ef.terminal_changed,
                   ef.layout_mismatch, ef.iops_bad, ef.iocs_bad, ef.reserved_not_zero, ef.short, ef.learned,
                   ef.inferred, ef.ambiguous, ef.pn_malformed, ef.candidate, ef.time_backwards, ef.cut,
-                  ef.connect_cut }
+                  ef.connect_cut, ef.uplink_slow, ef.downlink_slow, ef.uplink_back, ef.downlink_back,
+                  ef.uplink_jump, ef.downlink_jump }
 
 ------------------------------------------------------------------------
 -- Preferences
@@ -235,7 +252,7 @@ end)
 local function dev_state(key)
     local d = devs[key]
     if not d then
-        d = { up_wd = {}, down_wd = {}, slot_term = {} }
+        d = { up_wd = {}, down_wd = {}, up_pace = {}, down_pace = {}, slot_term = {} }
         devs[key] = d
     end
     return d
@@ -362,6 +379,47 @@ local function simplex_watchdog(rec, d, value, t, frame, mode)
     end
 end
 
+-- The pace of a watchdog (SP-14-023 sections 2.4, 3.1.2): incremented by
+-- one, at least every 500 ms, by the side that sends it. The frames between
+-- two increments repeat the value; a counter that moves faster than the
+-- cyclic rate shows steps of more than one (a note: so do lost frames).
+local PACE = 0.5
+local PACE_TEXT = {
+    Uplink = { slow = ef.uplink_slow, back = ef.uplink_back, jump = ef.uplink_jump,
+               who = "the base increments it at least every 500 ms" },
+    Downlink = { slow = ef.downlink_slow, back = ef.downlink_back, jump = ef.downlink_jump,
+                 who = "the IO controller must increment it at least every 500 ms" },
+}
+local function watchdog_pace(rec, st, value, t, frame, what)
+    local r = handshake.pace(st, value, t, frame, PACE, 256)
+    if not r then return end
+    local p = PACE_TEXT[what]
+    if r.kind == "slow" then
+        add_finding(rec, "wd", p.slow, string.format("%s watchdog not incremented for %.3f s (value %d): %s",
+            what, ms(r.age), r.value, p.who))
+    elseif r.kind == "back" then
+        add_finding(rec, "wd", p.back, string.format(
+            "%s watchdog went back from %d to %d: a watchdog is only incremented (a restart of its sender?)",
+            what, r.from, r.to))
+    else
+        add_finding(rec, "wd", p.jump, string.format(
+            "%s watchdog moved from %d to %d (+%d), not by one: incremented faster than the cyclic rate, "
+            .. "or frames lost", what, r.from, r.to, r.by))
+    end
+end
+
+-- The pace of a simplex downlink watchdog: its controller may not write it
+-- (SP-14-023 3.2.2), so its pace is only judged once it is known to be
+-- written (seen moving, or mcmb2.simplex_downlink says monitored); before
+-- that the counter is followed without findings.
+local function simplex_pace(rec, d, value, t, frame, mode)
+    if mode == SIMPLEX_MONITORED or (mode ~= SIMPLEX_UNMONITORED and d.down_moved) then
+        watchdog_pace(rec, d.down_pace, value, t, frame, "Downlink")
+    else
+        handshake.pace(d.down_pace, value, t, frame, PACE, 256)
+    end
+end
+
 local function analyse_duplex(rec, d, ba, t, frame)
     local plan = rec.plan
     local h = plan.header.off
@@ -390,13 +448,17 @@ local function analyse_duplex(rec, d, ba, t, frame)
         end
         watchdog(rec, d.up_wd, byte(ba, h + 2), t, frame, up_limit,
             ef.uplink_stalled, "Uplink")
+        watchdog_pace(rec, d.up_pace, byte(ba, h + 2), t, frame, "Uplink")
         d.up_status = st
     elseif #plan.modules == 0 then
         -- simplex: the downlink is its header only
-        simplex_watchdog(rec, d, byte(ba, h + 2), t, frame, simplex_by_fid[plan.fid] or simplex_mode)
+        local mode = simplex_by_fid[plan.fid] or simplex_mode
+        simplex_watchdog(rec, d, byte(ba, h + 2), t, frame, mode)
+        simplex_pace(rec, d, byte(ba, h + 2), t, frame, mode)
     else
         watchdog(rec, d.down_wd, byte(ba, h + 2), t, frame, down_limit,
             ef.downlink_stalled, "Downlink")
+        watchdog_pace(rec, d.down_pace, byte(ba, h + 2), t, frame, "Downlink")
     end
     plan.one_group = plan.one_group or { plan.modules }
     rec.groups = plan.one_group
@@ -425,6 +487,7 @@ local function analyse_polled_up(rec, d, ba, t, frame)
     end
     watchdog(rec, d.up_wd, byte(ba, h + 2), t, frame, up_limit,
         ef.uplink_stalled, "Uplink")
+    watchdog_pace(rec, d.up_pace, byte(ba, h + 2), t, frame, "Uplink")
     local y, z = byte(ba, h + 3), byte(ba, h + 4)
     local mask = 0
     for k = 1, 4 do
@@ -486,6 +549,7 @@ local function analyse_polled_down(rec, d, ba, t, frame)
     end
     watchdog(rec, d.down_wd, byte(ba, h + 2), t, frame, down_limit,
         ef.downlink_stalled, "Downlink")
+    watchdog_pace(rec, d.down_pace, byte(ba, h + 2), t, frame, "Downlink")
     local z = d.z or cfg.z
     local groups = plan_groups(plan, z) or plan_groups(plan, cfg.z) or {}
     local slots = d.used
@@ -504,10 +568,17 @@ local function analyse_cut(rec, d, ba, t, frame)
     local plan = rec.plan
     local h = plan.header.off
     if #ba < h + 2 then return end
+    local v = byte(ba, h + 2)
     if plan.dir == "up" then
-        watchdog(rec, d.up_wd, byte(ba, h + 2), t, frame, up_limit, ef.uplink_stalled, "Uplink")
+        watchdog(rec, d.up_wd, v, t, frame, up_limit, ef.uplink_stalled, "Uplink")
+        watchdog_pace(rec, d.up_pace, v, t, frame, "Uplink")
     else
-        watchdog(rec, d.down_wd, byte(ba, h + 2), t, frame, down_limit, ef.downlink_stalled, "Downlink")
+        watchdog(rec, d.down_wd, v, t, frame, down_limit, ef.downlink_stalled, "Downlink")
+        if plan.system == "duplex" and #plan.modules == 0 then
+            simplex_pace(rec, d, v, t, frame, simplex_by_fid[plan.fid] or simplex_mode)
+        else
+            watchdog_pace(rec, d.down_pace, v, t, frame, "Downlink")
+        end
     end
 end
 

@@ -36,6 +36,17 @@ FAULTS = {
     # --- stalls: first frame past the limit that carries the counter
     # ... the uplink watchdog keeps 5 from frame 11 (t 0.2 s): past 1 s at 1.2 s
     "mcmb2.uplink_watchdog.stalled": ("mcmb2_duplex_watchdog.pcap", [23]),
+    # --- watchdog pace (SP-14-023 2.4, 3.1.2): mcmb2_duplex_watchdog, both
+    # watchdogs keep 5 from t 1.0 s (frames 11, 12); 600 ms later, at t 1.6 s,
+    # are frames 17 and 18
+    "mcmb2.uplink_watchdog.slow": ("mcmb2_duplex_watchdog.pcap", [17]),
+    "mcmb2.downlink_watchdog.slow": ("mcmb2_duplex_watchdog.pcap", [18]),
+    # mcmb2_duplex_watchdog_steps: uplink 4 -> 7 (11), 9 -> 3 (17); downlink
+    # 1 -> 0 (12), 1 -> 5 (16)
+    "mcmb2.uplink_watchdog.jump": ("mcmb2_duplex_watchdog_steps.pcap", [11]),
+    "mcmb2.uplink_watchdog.backwards": ("mcmb2_duplex_watchdog_steps.pcap", [17]),
+    "mcmb2.downlink_watchdog.backwards": ("mcmb2_duplex_watchdog_steps.pcap", [12]),
+    "mcmb2.downlink_watchdog.jump": ("mcmb2_duplex_watchdog_steps.pcap", [16]),
     # eclink_modbus_faults: PCI 2 read at 17 and again 700 ms later at 21
     "eclink_modbus.pci_stalled": ("eclink_modbus_faults.pcap", [21]),
     # ... PCO 4 written at 26, again 2.05 s later at 30
@@ -84,6 +95,11 @@ FAULTS = {
     "eclink.vlaps.range": ("eclink_modbus_faults.pcap", [37]),
     "eclink.unarmed_not_zero": ("eclink_modbus_faults.pcap", [39]),
     "eclink.periodic_size.range": ("eclink_modbus_faults.pcap", [40]),
+    # eclink_modbus_link_states: C-Link Passive with RU 0x1234 armed (17),
+    # EG-Link Passive (25); RU state 1 (21); the disarmed BU's C-Link
+    # Passive (29) is allowed
+    "eclink.link_status.passive": ("eclink_modbus_link_states.pcap", [17, 25]),
+    "eclink.ru_state.disarmed": ("eclink_modbus_link_states.pcap", [21]),
     # mcmb2_polled_connect: the uplink of frame 15 says Y=20, the Connect 24
     "mcmb2.layout_mismatch": ("mcmb2_polled_connect.pcap", [15]),
     # --- checksum and size (eglink.py)

@@ -244,3 +244,26 @@ def test_relays_open_one_fact_in_eglink_and_eclink(tshark, raw_capture, work_dir
     # the display filters pick the same frames
     assert list(tshark.frames(eg_cap, [], display_filter="eglink.relays_open == 1")) == \
         list(tshark.frames(ec_cap, [], display_filter="eclink.es_relays_open == 1", extra=["-o", USER_DLT]))
+
+
+def test_passive_and_disarmed(tshark, raw_capture):
+    """TS-0007 6.1.2: link status 6, Passive, is reported only on the C-Link
+    and only when no remote is armed; 6.1.3: RU state 1, Disarmed, is used
+    only inside the BU. Passive elsewhere is a warning (Protocol), RU state 1
+    on the wire a note; a disarmed BU's C-Link Passive is neither."""
+    allowed = bytearray(64)
+    allowed[20:26] = bytes([0x10, 1, 2, 1, 1, 6])             # Disarmed, no RU armed, C-Link Passive
+    cap = raw_capture(input_image(b25=6), input_image(b23=6), bytes(allowed), input_image(b28=1))
+    exp = tshark.experts(cap, extra=["-o", USER_DLT])
+    assert exp[1] == ["C-Link status Passive while RU 0x1234 is armed: Passive only when no remote is armed"]
+    assert exp[2] == ["EG-Link status Passive: only the C-Link reports Passive"]
+    assert 3 not in exp
+    assert exp[4] == ["RU state 1 (Disarmed) on the wire: TS-0007 uses it only inside the BU"]
+    for name, frames, severity in (("eclink.link_status.passive", [1, 2], "6291456"),
+                                   ("eclink.ru_state.disarmed", [4], "4194304")):
+        got = tshark.frames(cap, ["_ws.expert.severity", "_ws.expert.group"], display_filter=name,
+                            extra=["-o", USER_DLT])
+        assert sorted(got) == frames, name
+        for f in frames:
+            assert got[f] == {"_ws.expert.severity": severity, "_ws.expert.group": "150994944"}, (name, f)
+    tshark.expect(cap, 4, {"eclink.ru_state": 1}, extra=["-o", USER_DLT])

@@ -210,3 +210,54 @@ def test_late_echo_first_past_the_deadline(tshark, work_dir):
     tshark.expect(path, echo, {"eclink_pnio.cmd_from_ru.late_ack": True, "eclink_pnio.cmd_from_ru.late": True})
     tshark.expect(path, echo, {"eclink_pnio.cmd_from_ru.late_ack": True, "eclink_pnio.cmd_from_ru.late": None},
                   two_pass=True)
+
+
+def periodic_image(pco, size, block, payload):
+    """A standard output image carrying one periodic block (TS-0007 section 8.4:
+    size at bytes 20-21, block number at 22, the block's bytes from 24)."""
+    img = bytearray(224)
+    img[0:4] = bytes([pco & 0xFF, 1, 0, 3])
+    img[20:22] = size.to_bytes(2, "big")
+    img[22] = block
+    chunk = payload[block * 200:(block + 1) * 200]
+    img[24:24 + len(chunk)] = chunk
+    return bytes(img)
+
+
+@pytest.mark.parametrize("two_pass", [False, True], ids=["one-pass", "two-pass"])
+def test_periodic_blocks_reassembled(tshark, work_dir, two_pass):
+    """TS-0007 section 8.4: periodic data over 200 bytes is multiplexed in
+    blocks (Periodic data block + size), each block with its own PCO. Over
+    PROFINET each block stands in the output image for several cycles (scapy
+    frames, with the Connect): each block counts once, the frame of the last
+    block carries the 450 bytes, with links to the frames of the blocks and
+    from them (the same fields and note as over Modbus/TCP)."""
+    from pnio_testlib import CaptureFile, Device, eclink_submodules, mac
+    from test_pnio_midsession import eclink_image_in
+    d = Device(eclink_submodules(4, 224), mac(23), 0x8034, 0x8035)
+    cap = CaptureFile()
+    for p in d.connect():
+        cap.add(p)
+    payload = bytes((i * 7 + 3) & 0xFF for i in range(450))
+    first = {}                       # block -> first frame that carries it
+    # blocks 0, 1, 2, each for 4 cycles of 32 ms, PCO moving with the block
+    for k, block in enumerate([0, 0, 0, 0, 1, 1, 1, 1, 2, 2, 2, 2]):
+        cap.add(d.cyclic("in", {1: eclink_image_in(k)}), 0.030)
+        n = cap.add(d.cyclic("out", {2: periodic_image(10 + block, 450, block, payload)}), 0.002)
+        first.setdefault(block, n)
+    path = cap.write(work_dir / "periodic.pcap")
+    names = ["eclink_pnio.periodic.length", "eclink_pnio.periodic.block_in", "eclink_pnio.periodic.data",
+             "eclink_pnio.periodic.reassembled_in", "eclink_pnio.periodic.reassembled", "eclink.periodic_block"]
+    got = tshark.frames(path, names, two_pass=two_pass)
+    done = first[2]
+    assert_fields(got[done], {"eclink_pnio.periodic.length": 450, "eclink.periodic_block": 2,
+                              "eclink_pnio.periodic.block_in": [first[0], first[1], first[2]],
+                              "eclink_pnio.periodic.data": payload.hex(),
+                              "eclink_pnio.periodic.reassembled": True}, "frame %d" % done)
+    assert sorted(n for n, r in got.items() if r["eclink_pnio.periodic.data"]) == [done]
+    linked = sorted(n for n, r in got.items() if r["eclink_pnio.periodic.reassembled_in"])
+    # the link is known once the data is whole: from the first block frames on the second pass
+    assert linked == ([first[0], first[1]] if two_pass else [])
+    for n in linked:
+        assert int(got[n]["eclink_pnio.periodic.reassembled_in"]) == done
+    assert "Periodic data reassembled: 450 bytes from 3 blocks" in tshark.experts(path)[done]

@@ -203,6 +203,8 @@ TIMELINES = {
         (18, 'warning', 1, 'reserved byte not 0: 0x05'),
     ],
     "mcmb2_duplex_watchdog.pcap": [
+        (17, 'warning', 1, 'uplink watchdog not incremented within 500 ms'),
+        (18, 'warning', 1, 'downlink watchdog not incremented within 500 ms'),
         (23, 'error', 1, 'uplink watchdog stalled at 5 for 1.600 s (unchanged since frame 11, limit 1000 ms), moving again in frame 27'),
         (34, 'error', 1, 'downlink watchdog stalled at 5 for 2.600 s (unchanged since frame 12, limit 2000 ms: the base shows E010), moving again in frame 38'),
     ],
@@ -472,11 +474,12 @@ def test_json_schema(report):
     assert set(cap) == {"capture", "error", "frames", "tcp_frames", "start", "start_epoch", "duration",
                         "devices", "timeline", "counts", "missing"}
     assert (cap["frames"], cap["tcp_frames"]) == (52, 0)
-    assert cap["counts"] == {"note": 0, "warning": 0, "error": 2}
+    # the two watchdog pace warnings (frames 17, 18), the two stalls
+    assert cap["counts"] == {"note": 0, "warning": 2, "error": 2}
     assert set(cap["devices"][0]) == {"id", "kind", "name", "address", "layout", "frames",
                                       "first_frame", "last_frame", "start", "end", "initial",
                                       "final", "terminals"}
-    stall = cap["timeline"][1]
+    stall = cap["timeline"][3]
     assert stall == {"time": 3.201, "frame": 34, "device": 1, "severity": "error", "kind": "stall",
                      "field": "mcmb2.downlink_watchdog.stalled", "text": stall["text"], "count": 1,
                      "last_frame": 34, "duration": 2.6, "end_frame": 38, "end_time": 3.601}
@@ -510,6 +513,8 @@ def test_junit(report, tmp_path, bad_files):
 
 @pytest.mark.parametrize("name, frames, want", [
     ("mcmb2_duplex_watchdog.pcap", "1-25", [
+        (17, "warning", 1, "uplink watchdog not incremented within 500 ms"),
+        (18, "warning", 1, "downlink watchdog not incremented within 500 ms"),
         (23, "error", 1, "uplink watchdog stalled at 5 for 1.400 s or more (unchanged since frame 11, "
          "limit 1000 ms), until the end of the capture")]),
     ("eglink_analysis_vrpo_gap.pcap", "1-38", [

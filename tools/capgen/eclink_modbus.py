@@ -281,6 +281,24 @@ def faults():
     return cap
 
 
+@capture("eclink_modbus_link_states.pcap",
+         "EC-Link over Modbus/TCP: values TS-0007 6.1.2/6.1.3 allow only in some states: C-Link Passive "
+         "with an armed RU, EG-Link Passive, RU state 1 (Disarmed, internal)")
+def link_states():
+    cap = Capture()
+    mb = ModbusClient(cap)
+    # 4-15: a healthy run the connection is recognized on
+    t = bu_run(mb, 0.1, 1, 1)
+    # 16-19: C-Link Passive while RU 0x1234 is armed (the response: 17)
+    cycle(mb, t, input_image(pci=4, cl=6), output_image(pco=4))
+    # 20-23: RU state 1, Disarmed (21)
+    cycle(mb, t + 0.125, input_image(pci=5, ru_state=1), output_image(pco=5))
+    # 24-27: EG-Link Passive (25); 28-31: a disarmed BU with C-Link Passive, as allowed
+    cycle(mb, t + 0.25, input_image(pci=6, eg=6), output_image(pco=6))
+    cycle(mb, t + 0.375, unarmed_image(pci=7), output_image(pco=7))
+    return cap
+
+
 @capture("eclink_modbus_noswap.pcap",
          "EC-Link over Modbus/TCP from a device that puts image byte 2n in the HIGH register byte")
 def noswap():

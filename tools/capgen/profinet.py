@@ -346,6 +346,22 @@ def simplex_unwritten():
     return cap
 
 
+@capture("mcmb2_duplex_watchdog_steps.pcap",
+         "MC-MB2-PN simplex with its Connect: watchdogs that are not incremented by one (SP-14-023 2.4): "
+         "uplink jumps 4 -> 7 and goes back 9 -> 3, downlink wraps 255 -> 0, goes back 1 -> 0 and jumps 1 -> 5")
+def duplex_watchdog_steps():
+    cap = Capture()
+    d = Mcmb2("duplex", 4, 0, in_fid=0x8005, out_fid=0x8006)
+    d.connect(cap, 0.0)                                     # frames 1, 2
+    up = [1, 2, 3, 4, 7, 8, 9, 3]                           # jump at 11, back at 17
+    down = [254, 255, 0, 1, 0, 1, 5, 6]                     # back at 12, jump at 16
+    for i, (u, w) in enumerate(zip(up, down)):              # uplink 3 + 2i, downlink 4 + 2i
+        t = 0.1 + i * 0.1
+        d.uplink(cap, t, [0x11, u], [bytes([1, 2, 3, i])])
+        d.downlink(cap, t + 0.001, [0, w], [])
+    return cap
+
+
 @capture("mcmb2_duplex_midsession.pcap",
          "The same simplex base without its Connect (captured mid-session): layout inferred from the cyclic frames")
 def duplex_midsession():
