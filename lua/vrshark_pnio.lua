@@ -691,11 +691,7 @@ local function analysed(plan, s, t, frame, cut)
     if not dec then return nil end
     local size = cut and cut.size or #s
     local rec = new_record(plan, 2, size)
-    if size < plan.need then
-        record.add_finding(rec, "top", dec.short, string.format(
-            "C-SDU has %d bytes, the layout needs %d", size, plan.need))
-        return rec
-    end
+    -- (a short frame the capture cut is shown from the bytes captured too)
     if cut then
         rec.cut = #s
         record.add_finding(rec, "top", dec.cut, string.format(
@@ -703,6 +699,11 @@ local function analysed(plan, s, t, frame, cut)
             .. "the counters from what survived", cut.cap, cut.wire, #s >= size
             and "the C-SDU is whole, the APDU status is not in the capture"
             or string.format("C-SDU bytes %d..%d of %d are not in the capture", #s, size - 1, size)))
+    end
+    if size < plan.need then
+        record.add_finding(rec, "top", dec.short, string.format(
+            "C-SDU has %d bytes, the layout needs %d", size, plan.need))
+        return rec
     end
     dec.analyse(rec, s, t, frame)
     return rec

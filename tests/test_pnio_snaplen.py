@@ -147,3 +147,27 @@ def test_report_names_the_cut_connect(conf_dir):
     timeline = json.loads(proc.stdout)["captures"][0]["timeline"]
     inferred = [e["text"] for e in timeline if e["field"] == "mcmb2.layout.inferred"]
     assert inferred == ["layout inferred from the cyclic frames (the capture cut the Connect in frame 1: snaplen)"]
+
+
+@pytest.mark.parametrize("system, layouts, frame, short", [
+    ("mcmb2", "0xC010=duplex:40", 1, "C-SDU has 40 bytes, the layout needs 50"),
+    ("eclink_pnio", "0xC020/0xC021=eclink:/224", 2, "C-SDU has 40 bytes, the layout needs 230"),
+], ids=["mcmb2", "eclink_pnio"])
+def test_cut_frame_too_short_for_its_layout(tshark, work_dir, system, layouts, frame, short):
+    """A frame the capture cut whose layout (here the table's) needs more
+    than the frame has on the wire: both notes, the rest of the capture
+    decoded, no Lua Error, in one pass and two."""
+    from tools.capgen import profinet
+    from tools.capgen.snaplen import snapped
+    gen = profinet.duplex_noconnect if system == "mcmb2" else profinet.eclink_noconnect
+    cap = snapped(gen(), 24, {1, 2})
+    path = work_dir / ("short-cut-%s.pcap" % system)
+    path.write_bytes(cap.to_bytes())
+    path.chmod(0o644)
+    for two_pass in (False, True):
+        got = tshark.frames(path, ["_ws.expert.message", "%s.cut" % system], prefs={"mcmb2.layouts": layouts},
+                            two_pass=two_pass)
+        msgs = got[frame]["_ws.expert.message"]
+        assert "Lua Error" not in " ".join(v["_ws.expert.message"] for v in got.values())
+        assert got[frame]["%s.cut" % system] and "Cut by the capture at 24 of its" in msgs, msgs
+        assert short in msgs
