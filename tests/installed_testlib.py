@@ -16,7 +16,12 @@ depends on the folders they sit in. These layouts are the documented ones:
              folders with the staged files added, bind-mounted in a private
              mount namespace (needs root: `unshare -m`), as that user.
   lua-only   the contents of lua/ copied into
-             ~/.local/lib/wireshark/plugins/vrshark/ (no C plugin, no compiler).
+             ~/.local/lib/wireshark/plugins/vrshark/ (no C plugin, no compiler),
+             the profile written by tools/profile into
+             ~/.config/wireshark/profiles/vrshark/.
+  archive    the zip of tools/package unpacked and copied into that home by
+             the Linux lines of its INSTALL.txt (the Lua plugins, the profile,
+             the IO-list folder).
 
 Every run is the system tshark (or wireshark) as an unprivileged user (uid
 65534 when the tests run as root), HOME the layout's home, no
@@ -27,13 +32,14 @@ import os
 import shutil
 import subprocess
 import tempfile
+import zipfile
 from pathlib import Path
 
 from conftest import ROOT
 
 RUN_UID = 65534
 IS_ROOT = os.getuid() == 0
-KINDS = ("personal", "system", "lua-only")
+KINDS = ("personal", "system", "lua-only", "archive")
 
 
 def _folders():
@@ -120,7 +126,21 @@ class Installed:
         plugins = self.home / ".local" / "lib" / "wireshark" / "plugins" / "vrshark"
         shutil.copytree(ROOT / "lua", plugins)
         profile = self.home / ".config" / "wireshark" / "profiles" / "vrshark"
-        shutil.copytree(ROOT / "profile" / "vrshark", profile)
+        _run(["sh", str(ROOT / "tools" / "profile"), str(profile)], _user_env(self.home))
+
+    def _install_archive(self):
+        dist = self.top / "dist"
+        out = _run([str(ROOT / "tools" / "package"), "-o", str(dist)], _user_env(self.top)).stdout.split()
+        archive = [p for p in out if p.endswith(".zip")][0]
+        with zipfile.ZipFile(archive) as z:     # as unzip does, with the files' modes
+            for info in z.infolist():
+                z.extract(info, dist)
+                (dist / info.filename).chmod((info.external_attr >> 16) & 0o777 or 0o644)
+        folder = next(p for p in dist.iterdir() if p.is_dir())
+        text = (folder / "INSTALL.txt").read_text()
+        lines = text.split("Linux and macOS", 1)[1].split("\n\n")[1]
+        _run(["sh", "-ec", lines], _user_env(self.home), cwd=str(folder))
+        self.archive_folder = folder
 
     # -- running it --------------------------------------------------------------
 
