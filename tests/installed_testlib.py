@@ -15,9 +15,9 @@ depends on the folders they sit in. These layouts are the documented ones:
              a staging folder (DESTDIR); the run sees Wireshark's real global
              folders with the staged files added, bind-mounted in a private
              mount namespace (needs root: `unshare -m`), as that user.
-  lua-only   the contents of lua/ copied into
-             ~/.local/lib/wireshark/plugins/vrshark/ (no C plugin, no compiler),
-             the profile written by tools/profile into
+  lua-only   README.md's lines, run as they stand there: the contents of lua/
+             copied into ~/.local/lib/wireshark/plugins/vrshark/ (no C plugin,
+             no compiler), the profile written by tools/profile into
              ~/.config/wireshark/profiles/vrshark/.
   archive    the zip of tools/package unpacked and copied into that home by
              the Linux lines of its INSTALL.txt (the Lua plugins, the profile,
@@ -29,6 +29,7 @@ WIRESHARK_PLUGIN_DIR, no WIRESHARK_CONFIG_DIR: the personal configuration
 folder ~/.config/wireshark is the one Wireshark finds by itself.
 """
 import os
+import re
 import shutil
 import subprocess
 import tempfile
@@ -123,10 +124,12 @@ class Installed:
             self.mounts.append((real, copy))
 
     def _install_lua_only(self):
-        plugins = self.home / ".local" / "lib" / "wireshark" / "plugins" / "vrshark"
-        shutil.copytree(ROOT / "lua", plugins)
-        profile = self.home / ".config" / "wireshark" / "profiles" / "vrshark"
-        _run(["sh", str(ROOT / "tools" / "profile"), str(profile)], _user_env(self.home))
+        """README's Lua-only lines (its sh block that runs tools/profile), from
+        the top of the checkout."""
+        blocks = re.findall(r"```sh\n(.*?)```", (ROOT / "README.md").read_text(), re.S)
+        lines = [b for b in blocks if "tools/profile " in b and "cp -r lua/" in b]
+        assert len(lines) == 1, "README.md: no single sh block of the Lua-only install"
+        _run(["sh", "-ec", lines[0]], _user_env(self.home), cwd=str(ROOT))
 
     def _install_archive(self):
         dist = self.top / "dist"
