@@ -8,6 +8,7 @@ import shutil
 import subprocess
 import tarfile
 import tempfile
+import textwrap
 import zipfile
 from pathlib import Path
 
@@ -67,6 +68,12 @@ def test_install_txt_names_the_folders_of_each_os(archives):
     for words in ('xcopy /e /i /y wireshark "%APPDATA%\\Wireshark"', "~/.local/lib/wireshark/plugins/",
                   "~/.config/wireshark/", "Help > About Wireshark > Folders", "python3 vrshark-report/vrshark-report"):
         assert words in text, words
+    # docs/install.md gives the same commands
+    doc = (ROOT / "docs" / "install.md").read_text().split("## The archive", 1)[1].split("\n## ", 1)[0]
+    linux = text.split("Linux and macOS", 1)[1].split("\n\n")[1]
+    assert textwrap.dedent(linux).strip() in doc
+    windows = [ln.strip() for ln in text.splitlines() if ln.strip().startswith("xcopy ")]
+    assert len(windows) == 1 and windows[0] in doc
 
 
 def test_installed_where_install_txt_says(installed):
