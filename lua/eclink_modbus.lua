@@ -168,6 +168,8 @@ local NO_REQUEST_TEXT = "Response without a request in the capture: the request 
     .. "tcp.reassemble_out_of_order:TRUE reassembles"
 hs_experts[#hs_experts + 1] = ef.poll_gap
 proto.experts = hs_experts
+-- the BU display text beside the findings that cause it (TS-0007 9): eclink.lcd
+local LCD = handshake.lcd_by_expert(ef)
 
 ------------------------------------------------------------------------
 -- Value tables
@@ -1396,7 +1398,10 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
     end
     for _, fd in ipairs(rec.findings or NONE) do
         local ex, text = handshake.shown(fd, pinfo.visited)
-        if ex then item:add_proto_expert_info(ex, text) end
+        if ex then
+            item:add_proto_expert_info(ex, text)
+            if LCD[ex] then set_generated(add(item, image.fields.lcd, LCD[ex])) end
+        end
     end
     local tags = adu_tags(rec, pinfo)
     if tags ~= "" then infos.tags = (infos.tags or "") .. tags end

@@ -86,6 +86,8 @@ for _, k in ipairs({ "iops_bad", "short", "learned", "inferred", "pn_malformed",
     eclp_experts[#eclp_experts + 1] = eef[k]
 end
 eclp.experts = eclp_experts
+-- the BU display text beside the findings that cause it (TS-0007 9): eclink.lcd
+for ex, text in pairs(eclink_handshake.lcd_by_expert(eef)) do record.beside[ex] = { image.fields.lcd, text } end
 
 ------------------------------------------------------------------------
 -- Per-capture state
@@ -253,7 +255,7 @@ local function show(rec, tvb, pinfo, tree)
     local unacked = rec.unacked
     for _, f in ipairs(rec.passing or {}) do
         local ex, text = eclink_handshake.shown(f, pinfo.visited)
-        if ex then (info and info.item or root):add_proto_expert_info(ex, text) end
+        if ex then record.expert(info and info.item or root, ex, text) end
         if ex == eef.cmd_from_ru_late or ex == eef.cmd_to_ru_late then unacked = true end
     end
     if not partial then record.add_ioxs(root, rec, tvb, epf.iops, epf.iocs) end

@@ -108,6 +108,8 @@ local pf = {
     watchdog_ms = ProtoField.uint32("mcmb2.watchdog_ms", "Watchdog unchanged for (ms)"),
     watchdog_since = ProtoField.framenum("mcmb2.watchdog_since", "Watchdog value unchanged since"),
     frame_id = ProtoField.uint16("mcmb2.frame_id", "FrameID", base.HEX),
+    -- what the base indicates (SP-14-023 1.5, 2.4): E010, beside the findings
+    display = ProtoField.string("mcmb2.display", "Base display (SP-14-023 2.4)"),
 }
 mcmb2.fields = pf
 
@@ -202,6 +204,9 @@ mcmb2.experts = { ef.status_undefined, ef.slot_status_undefined, ef.terminal_not
                   ef.inferred, ef.ambiguous, ef.pn_malformed, ef.candidate, ef.time_backwards, ef.cut,
                   ef.connect_cut, ef.uplink_slow, ef.downlink_slow, ef.uplink_back, ef.downlink_back,
                   ef.uplink_jump, ef.downlink_jump }
+-- the base's display beside the findings it follows from (SP-14-023 2.4): E010
+record.beside[ef.e010] = { pf.display, "E010" }
+record.beside[ef.downlink_stalled] = { pf.display, "E010" }
 
 ------------------------------------------------------------------------
 -- Preferences

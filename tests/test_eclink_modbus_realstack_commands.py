@@ -100,7 +100,7 @@ def test_findings_on_the_frames_that_carry_them(tshark, commands_capture):
     for deadline, cmd in deadlines.items():
         assert int(one[deadline]["eclink_modbus.cmd_from_ru_in"]) == cmd
         cci = got[cmd]["eclink.cci"]
-        assert "Command from RU (CCI %s in frame %d) not acknowledged by CAO within 2.000 s" % (cci, cmd) \
+        assert "Command from RU (CCI %s in frame %d) not acknowledged by CAO within 2.000 s: the BU shows \"EC: Bad data\"" % (cci, cmd) \
             in one[deadline]["_ws.expert.message"].split(",")
         assert not one[cmd]["eclink_modbus.deadline_in"] and "[unacked]" not in one[cmd]["_ws.col.Info"]
     assert "[late ack]" in one[echo]["_ws.col.Info"] and not one[echo]["eclink_modbus.cmd_from_ru.late"]

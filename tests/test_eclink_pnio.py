@@ -32,14 +32,14 @@ def test_handshake_experts(tshark, capture_file):
     assert "CAI 1 acknowledges the command to RU after 0.124 s" in ex[21]
     assert "PCI 10 has not changed for 0.625 s (limit 0.500 s)" in ex[31]
     assert "New command from RU: CCI 1 -> 2" in ex[43]
-    assert "PCO 18 has not changed for 2.125 s (limit 2.000 s)" in ex[72]
+    assert "PCO 18 has not changed for 2.125 s (limit 2.000 s): the BU shows \"EC: Bad data\"" in ex[72]
     # one pass: the first frame past the deadline carries the failed command's warning
-    assert ex[76] == ["Command from RU (CCI 2 in frame 43) not acknowledged by CAO within 2.000 s"]
+    assert ex[76] == ["Command from RU (CCI 2 in frame 43) not acknowledged by CAO within 2.000 s: the BU shows \"EC: Bad data\""]
     assert "New command from RU: CCI 1 -> 2" in ex[43] and len(ex[43]) == 1
     # the second pass: on the command, and a note at the deadline
     two = tshark.experts(capture_file(CAP), two_pass=True)
-    assert "Command from RU (CCI 2) not acknowledged by CAO within 2.000 s (deadline at frame 76)" in two[43]
-    assert two[76] == ["Deadline of the command from RU (CCI 2) passed with no CAO echo"]
+    assert "Command from RU (CCI 2) not acknowledged by CAO within 2.000 s (deadline at frame 76): the BU shows \"EC: Bad data\"" in two[43]
+    assert two[76] == ["Deadline of the command from RU (CCI 2) passed with no CAO echo: the BU shows \"EC: Bad data\""]
     stalls = [n for n, m in ex.items() if any("has not changed" in x for x in m)]
     assert stalls == [31, 72]
 
@@ -93,18 +93,19 @@ def test_filters_by_expert_field(tshark, capture_file):
     assert list(tshark.frames(cap, [], display_filter="eclink_pnio.cmd_from_ru.late", two_pass=True)) == [43]
     assert list(tshark.frames(cap, [], display_filter="eclink_pnio.cmd_from_ru.deadline", two_pass=True)) == [76]
     tshark.expect(cap, 76, {"eclink_pnio.cmd_from_ru_in": 43, "_ws.expert.message":
-                            "Deadline of the command from RU (CCI 2) passed with no CAO echo"}, two_pass=True)
+                            "Deadline of the command from RU (CCI 2) passed with no CAO echo: the BU shows \"EC: Bad data\""}, two_pass=True)
     # one pass (how CI runs tshark): the warning on the frame past the deadline
     assert list(tshark.frames(cap, [], display_filter="eclink_pnio.cmd_from_ru.late")) == [76]
     assert list(tshark.frames(cap, [], display_filter="eclink_pnio.cmd_from_ru.deadline")) == []
     tshark.expect(cap, 76, {"eclink_pnio.cmd_from_ru_in": 43, "_ws.expert.message":
-                            "Command from RU (CCI 2 in frame 43) not acknowledged by CAO within 2.000 s"})
+                            "Command from RU (CCI 2 in frame 43) not acknowledged by CAO within 2.000 s: the BU shows \"EC: Bad data\""})
     warning = "_ws.expert.severity >= warning && eclink_pnio.cmd_from_ru.late"
     assert list(tshark.frames(cap, [], display_filter=warning)) == [76]
     assert list(tshark.frames(cap, [], display_filter=warning, two_pass=True)) == [43]
-    for two_pass, text in (([], "Command from RU (CCI 2 in frame 43) not acknowledged by CAO within 2.000 s"),
+    for two_pass, text in (([], "Command from RU (CCI 2 in frame 43) not acknowledged by CAO within 2.000 s: "
+                                "the BU shows \"EC: Bad data\""),
                            (["-2"], "Command from RU (CCI 2) not acknowledged by CAO within 2.000 s "
-                                    "(deadline at frame 76)")):
+                                    "(deadline at frame 76): the BU shows \"EC: Bad data\"")):
         out = tshark.run(["-q", "-n", "-r", str(cap), "-z", "expert,warn"] + two_pass).stdout
         assert [line.split()[0] for line in out.splitlines() if "not acknowledged" in line] == ["1"], out
         assert text in out
@@ -116,11 +117,11 @@ def test_two_pass_agrees(tshark, capture_file):
     fields = ["eclink.pci", "eclink_pnio.pci_age", "_ws.expert.message"]
     one = tshark.frames(capture_file(CAP), fields)
     two = tshark.frames(capture_file(CAP), fields, two_pass=True)
-    forward = ",Command from RU (CCI 2) not acknowledged by CAO within 2.000 s (deadline at frame 76)"
+    forward = ",Command from RU (CCI 2) not acknowledged by CAO within 2.000 s (deadline at frame 76): the BU shows \"EC: Bad data\""
     assert forward in two[43]["_ws.expert.message"]
     two[43]["_ws.expert.message"] = two[43]["_ws.expert.message"].replace(forward, "")
-    assert one[76]["_ws.expert.message"] == "Command from RU (CCI 2 in frame 43) not acknowledged by CAO within 2.000 s"
-    one[76]["_ws.expert.message"] = "Deadline of the command from RU (CCI 2) passed with no CAO echo"
+    assert one[76]["_ws.expert.message"] == "Command from RU (CCI 2 in frame 43) not acknowledged by CAO within 2.000 s: the BU shows \"EC: Bad data\""
+    one[76]["_ws.expert.message"] = "Deadline of the command from RU (CCI 2) passed with no CAO echo: the BU shows \"EC: Bad data\""
     assert one == two
     assert any(r["_ws.expert.message"] for r in one.values())
 
@@ -162,7 +163,7 @@ def test_late_echo_reads_late_ack(tshark, work_dir):
     (command, echo) = sorted(late)
     assert late[command]["_ws.col.Info"].endswith("CCI=4 BU=Armed RU 0x4242=Enabled [unacked]")
     assert late[echo]["_ws.col.Info"].endswith("[late ack]")
-    assert late[echo]["_ws.expert.message"] == "CAO echoed CCI 4 after 2.505 s (limit 2.000 s)"
+    assert late[echo]["_ws.expert.message"] == "CAO echoed CCI 4 after 2.505 s (limit 2.000 s): the BU shows \"EC: Bad data\""
     tshark.expect(path, echo, {"eclink_pnio.cmd_from_ru.late_ack": True, "eclink_pnio.cmd_from_ru.late": None})
     # one pass: the warning on the first frame past the deadline, before the echo
     one = tshark.frames(path, ["_ws.col.Info", "eclink_pnio.cmd_from_ru_in"],
@@ -196,7 +197,7 @@ def test_late_echo_first_past_the_deadline(tshark, work_dir):
     two = tshark.frames(path, names, display_filter=late, two_pass=True)
     assert sorted(two) == [command, echo]
     assert two[command]["_ws.col.Info"].endswith("[unacked]")
-    assert "Command from RU (CCI 4) not acknowledged by CAO within 2.000 s (deadline at frame %d)" % echo \
+    assert "Command from RU (CCI 4) not acknowledged by CAO within 2.000 s (deadline at frame %d): the BU shows \"EC: Bad data\"" % echo \
         in two[command]["_ws.expert.message"]
     assert int(two[command]["eclink_pnio.deadline_in"]) == echo
     assert two[echo]["_ws.col.Info"].endswith("[late ack]") and "[unacked]" not in two[echo]["_ws.col.Info"]
@@ -204,8 +205,8 @@ def test_late_echo_first_past_the_deadline(tshark, work_dir):
     assert sorted(one) == [echo]
     assert one[echo]["_ws.col.Info"].endswith("[unacked] [late ack]")
     assert one[echo]["_ws.expert.message"].split(",")[-2:] == [
-        "CAO echoed CCI 4 after 2.500 s (limit 2.000 s)",
-        "Command from RU (CCI 4 in frame %d) not acknowledged by CAO within 2.000 s" % command]
+        "CAO echoed CCI 4 after 2.500 s (limit 2.000 s): the BU shows \"EC: Bad data\"",
+        "Command from RU (CCI 4 in frame %d) not acknowledged by CAO within 2.000 s: the BU shows \"EC: Bad data\"" % command]
     assert int(one[echo]["eclink_pnio.cmd_from_ru_in"]) == command
     tshark.expect(path, echo, {"eclink_pnio.cmd_from_ru.late_ack": True, "eclink_pnio.cmd_from_ru.late": True})
     tshark.expect(path, echo, {"eclink_pnio.cmd_from_ru.late_ack": True, "eclink_pnio.cmd_from_ru.late": None},

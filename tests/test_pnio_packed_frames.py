@@ -45,7 +45,7 @@ def test_eclink_second_pass_reads_packed_chunks(tshark, work_dir):
     command, echo = frames[("in", 100)], frames[("out", 412)]
     assert command < 1024 and echo < 1024 < frames[("in", 600)] < 2048
     # the command (chunk 0) gets its forward finding and link on the second pass only
-    assert "Command from RU (CCI 5) not acknowledged by CAO within 2.000 s" in two[command]["_ws.expert.message"]
+    assert "Command from RU (CCI 5) not acknowledged by CAO within 2.000 s (deadline at frame" in two[command]["_ws.expert.message"]
     assert two[command]["_ws.col.Info"].endswith("[unacked]")
     assert two[command]["eclink_pnio.deadline_in"] != ""
     deadline = int(two[command]["eclink_pnio.deadline_in"])

@@ -185,8 +185,8 @@ def test_failed_commands_are_not_a_burst():
                      row(29, t=2.9, eclink_modbus__cmd_from_ru__late=1, eclink_modbus__cmd_from_ru_in=18,
                          **base)])
     assert entries(rep) == [
-        (28, "warning", 1, "command from RU of frame 17 not echoed by CAO in time: the command failed"),
-        (29, "warning", 1, "command from RU of frame 18 not echoed by CAO in time: the command failed")]
+        (28, "warning", 1, "command from RU of frame 17 not echoed by CAO in time: the command failed, the BU shows \"EC: Bad data\""),
+        (29, "warning", 1, "command from RU of frame 18 not echoed by CAO in time: the command failed, the BU shows \"EC: Bad data\"")]
 
 
 def test_every_finding_with_a_value_names_it():

@@ -153,12 +153,17 @@ EXPERTS = {
                                  "malformed to Wireshark's PROFINET dissector, decoded by the layout"),
 }
 
+# What the EC-Link BU's display shows for a controller that lets PCO stand
+# or does not echo a command from the RU with CAO (TS-0007 9), as the
+# dissectors' messages end.
+BAD_DATA = 'the BU shows "EC: Bad data"'
+
 # The EC-Link handshake findings, the same on both transports.
 HANDSHAKE = {
     "pci_stalled": (ERROR, "stall", "PCI"),
     "pco_stalled": (ERROR, "stall", "PCO"),
     "cmd_from_ru.late": (WARNING, "failed",
-                         "command from RU{of} not echoed by CAO in time: the command failed"),
+                         "command from RU{of} not echoed by CAO in time: the command failed, " + BAD_DATA),
     "cmd_to_ru.late": (WARNING, "failed",
                        "command to RU{of} not echoed by CAI in time: the command failed"),
     "cmd_from_ru.deadline": (NOTE, "deadline", "deadline of the command from RU{of} passed"),

@@ -759,6 +759,8 @@ class Capture:
             what = what.replace(" echoed", " of frame %s echoed" % last(link))
         if latency:
             what += " (after %s)" % fmt_s(float(last(latency)))
+        if cmd.endswith(".cmd_from_ru"):
+            what += ": " + catalog.BAD_DATA
         return what
 
     def _command_failed(self, dev, c, frame, t, field, severity, what):
@@ -791,6 +793,8 @@ class Capture:
             detail = "unchanged since frame %d, %s" % (cur[2], detail)
         if counter == "downlink watchdog":
             detail += ": the base shows E010"
+        elif counter == "PCO":
+            detail += ": " + catalog.BAD_DATA
         entry = Entry(dev, frame, t, severity, "stall", what, field, detail)
         entry.since = since
         dev.open[counter] = entry
