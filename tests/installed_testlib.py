@@ -6,7 +6,7 @@ user has that layout, and the order in which Wireshark hands off plugins
 depends on the folders they sit in. These layouts are the documented ones:
 
   personal   `cmake -S . -B build && cmake --build build && cmake --install
-             build` as an unprivileged user with a fresh HOME: eglink.so in
+             build` as an unprivileged user with a fresh HOME: vrshark.so in
              ~/.local/lib/wireshark/plugins/<version>/epan/, the Lua plugins
              in ~/.local/lib/wireshark/plugins/vrshark/, the profile in
              ~/.config/wireshark/profiles/vrshark/; Wireshark's own plugins

@@ -1,5 +1,5 @@
 """The Protocol and Info columns written through the C plugin
-(plugins/eglink/vrshark-columns.c, taken by lua/vrshark/frontends.luam with
+(plugins/vrshark/vrshark-columns.c, taken by lua/vrshark/frontends.luam with
 package.loadlib): a Lua decoder called by a front end hands its text over
 as parts, and the C plugin joins and writes them. Without the plugin, or
 with VRSHARK_LUA_COLUMNS set, the decoders write through pinfo.cols. What

@@ -742,7 +742,7 @@ def test_statistics_tree_spelling(tshark, cap):
 def test_statistics_use_the_public_api_only():
     """No private Wireshark header: stats_tree_priv.h can change in any release."""
     from conftest import ROOT
-    sources = sorted((ROOT / "plugins" / "eglink").glob("*.[ch]"))
+    sources = sorted((ROOT / "plugins" / "vrshark").glob("*.[ch]"))
     assert sources
     assert [p.name for p in sources if "stats_tree_priv.h" in p.read_text()] == []
 

@@ -1,5 +1,5 @@
 """EG-Link C sources: one compat header. Every difference between Wireshark 4.0
-and 4.6 is decided in plugins/eglink/eglink-compat.h; the other files include
+and 4.6 is decided in plugins/vrshark/eglink-compat.h; the other files include
 it, write the new API names and never compare versions themselves."""
 import re
 
@@ -7,7 +7,7 @@ import pytest
 
 from conftest import ROOT
 
-PLUGIN = ROOT / "plugins" / "eglink"
+PLUGIN = ROOT / "plugins" / "vrshark"
 COMPAT = PLUGIN / "eglink-compat.h"
 SOURCES = sorted(p for p in PLUGIN.glob("*.[ch]") if p != COMPAT)
 C_FILES = [p for p in SOURCES if p.suffix == ".c"]

@@ -2,7 +2,7 @@
 the same in the second pass (tshark -2) and in the GUI.
 
 Most packets keep a 12-byte record in a table by frame number
-(eglink_frame_store() in plugins/eglink/eglink-analysis.c): the expected
+(eglink_frame_store() in plugins/vrshark/eglink-analysis.c): the expected
 serial is not stored but derived from the packet's serial when it was in
 sequence, and the layer of the EG-Link header sits in three bits. Packets
 after a gap, deeper than eight layers, or with findings keep the full

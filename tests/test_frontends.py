@@ -1,4 +1,4 @@
-"""The C front ends (plugins/eglink/vrshark-frontends.c): which frames reach Lua.
+"""The C front ends (plugins/vrshark/vrshark-frontends.c): which frames reach Lua.
 
 A probe script (-X lua_script) takes the place of the Lua decoders in the
 front ends' hooks and writes down every call: hook, frame number, pass.
@@ -254,7 +254,7 @@ def test_foreign_modbus_keeps_wiresharks_layers(tshark, work_dir):
 
 
 def test_lua_only_run_leaves_the_c_plugin_out(tshark, capture_file):
-    """VRSHARK_NO_C_PLUGIN=1: no eglink.so; the Lua plugins wrap PN-RT and mbtcp themselves."""
+    """VRSHARK_NO_C_PLUGIN=1: no vrshark.so; the Lua plugins wrap PN-RT and mbtcp themselves."""
     env = dict(tshark.env, VRSHARK_NO_C_PLUGIN="1")
     out = subprocess.run([tshark.cmd, "-G", "protocols"], env=env, capture_output=True, text=True,
                          timeout=600).stdout

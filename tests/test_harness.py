@@ -9,8 +9,8 @@ from conftest import BUILD, ROOT, _world_dir
 def test_eglink_plugin_listed(tshark):
     out = tshark.run(["-G", "plugins"]).stdout
     rows = [line.split("\t") for line in out.splitlines()]
-    eglink = [r for r in rows if r[0].strip() == "eglink.so"]
-    assert eglink, "eglink.so not in tshark -G plugins"
+    eglink = [r for r in rows if r[0].strip() == "vrshark.so"]
+    assert eglink, "vrshark.so not in tshark -G plugins"
     assert eglink[0][2] == "dissector"
     assert eglink[0][3].startswith(str(BUILD / "wsplugins"))
 

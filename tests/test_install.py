@@ -20,6 +20,12 @@ def installed_home():
     for cmd in (["cmake", "-S", str(ROOT), "-B", str(build)],
                 ["cmake", "--build", str(build), "-j", "2"],
                 ["cmake", "--install", str(build)]):
+        if cmd[1] == "--install":
+            # an install over an earlier one, whose library was eglink.so
+            version = next((build / "wsplugins").glob("*/epan")).parent.name
+            old = home / ".local/lib/wireshark/plugins" / version / "epan" / "eglink.so"
+            old.parent.mkdir(parents=True)
+            old.write_bytes(b"an earlier build")
         proc = subprocess.run(cmd, env=env, capture_output=True, text=True)
         assert proc.returncode == 0, proc.stdout + proc.stderr
     shutil.rmtree(build)
@@ -43,7 +49,9 @@ def plain_tshark(home, args, personal_config=False):
 
 def test_install_layout(installed_home):
     plugins = installed_home / ".local" / "lib" / "wireshark" / "plugins"
-    assert len(list(plugins.glob("*/epan/eglink.so"))) == 1
+    assert len(list(plugins.glob("*/epan/vrshark.so"))) == 1
+    # the earlier build's library is gone: Wireshark would load both
+    assert list(plugins.glob("*/epan/eglink.so")) == []
     def lua_tree(top):
         return sorted(p.relative_to(top).as_posix() for p in top.rglob("*") if p.suffix in (".lua", ".luam"))
     assert lua_tree(plugins / "vrshark") == lua_tree(ROOT / "lua")
@@ -52,7 +60,7 @@ def test_install_layout(installed_home):
 
 def test_installed_plugins_decode(installed_home):
     out = plain_tshark(installed_home, ["-G", "plugins"]).stdout
-    assert "eglink.so" in out
+    assert "vrshark.so" in out
     for name in ("eclink_modbus.lua", "eclink_pnio.lua", "mcmb2.lua", "vrshark_pnio.lua"):
         assert name in out
     proc = plain_tshark(installed_home, ["-n", "-r", str(ROOT / "captures" / "eglink_armed.pcap"),
@@ -94,8 +102,8 @@ def test_install_by_user_after_root_configured():
         # every installed file is reported, and all of them are in the user's home
         installed = [line.split(": ", 1)[1] for line in proc.stdout.splitlines()
                      if line.startswith("-- Installing: ")]
-        assert str(user_home / ".local/lib/wireshark/plugins/4.0/epan/eglink.so") in installed \
-            or any(p.endswith("/epan/eglink.so") for p in installed)
+        assert str(user_home / ".local/lib/wireshark/plugins/4.0/epan/vrshark.so") in installed \
+            or any(p.endswith("/epan/vrshark.so") for p in installed)
         assert installed and all(p.startswith(str(user_home) + "/") for p in installed), installed
         assert (user_home / ".config/wireshark/profiles/vrshark/colorfilters").exists()
         assert not list(root_home.rglob("*"))

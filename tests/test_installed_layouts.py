@@ -153,7 +153,7 @@ def test_installed_files(installed):
     plugins = installed.tshark(["-G", "plugins"]).stdout
     for name in ("eclink_modbus.lua", "eclink_pnio.lua", "mcmb2.lua", "vrshark_pnio.lua", "vrshark_io.lua"):
         assert name in plugins, "%s not loaded in the %s install" % (name, installed.kind)
-    assert ("eglink.so" in plugins) == (installed.kind != "lua-only")
+    assert ("vrshark.so" in plugins) == (installed.kind != "lua-only")
     # Lua modules (.luam) are not run as plugins
     assert ".luam" not in plugins
 

@@ -1,6 +1,6 @@
 """The sparse view: in an invisible tree (the packet list, -Y, -z taps) the C
 front end tells the Lua decoders what is looked at (columns, expert info, the
-referenced fields; plugins/eglink/vrshark-frontends.c lua_view), and the
+referenced fields; plugins/vrshark/vrshark-frontends.c lua_view), and the
 MC-MB2-PN and EC-Link over Modbus/TCP decoders add only that (lua/mcmb2.lua
 sparse(), lua/eclink_modbus.lua sparse_plan()).
 
@@ -200,7 +200,7 @@ def test_what_the_front_end_sends(tshark, work_dir):
     assert view(["-T", "pdml"]) == "frame_id"
     # -T fields prints only what -e names: the tree is visible on 4.0 (not on
     # 4.6), the -e fields unmarked; the front end reads them from the command
-    # line (plugins/eglink/vrshark-output.c), the same view on every version
+    # line (plugins/vrshark/vrshark-output.c), the same view on every version
     assert view(["-T", "fields", "-e", "mcmb2.status"]) == "frame_id.sparse::mcmb2.status"
     assert view(["-Tfields", "-e", "mcmb2.status", "-e", "frame.number"]) == "frame_id.sparse::mcmb2.status"
     assert view(["-nqT", "fields", "-emcmb2.status"]) == "frame_id.sparse::mcmb2.status"
@@ -368,7 +368,7 @@ def test_the_sparse_display_serves_the_eclink_pnio_frames(tshark, work_dir):
 
 # -T fields prints only what -e names; on 4.0 its tree is visible, and the
 # front end reads the -e fields from tshark's command line
-# (plugins/eglink/vrshark-output.c). Per protocol, the fields its sparse
+# (plugins/vrshark/vrshark-output.c). Per protocol, the fields its sparse
 # display adds itself, and the captures that carry it.
 FIELDS_CASES = {
     "mcmb2": (MCMB2_CAPTURES + PUBLIC, lambda tshark: _fields(tshark)),

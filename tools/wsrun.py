@@ -52,7 +52,7 @@ def system_plugin_dir(dest):
         out = dest / sysdir.name / kind.name
         out.mkdir(parents=True)
         for so in sorted(kind.glob("*.so")):
-            if so.name != "eglink.so":
+            if so.name != "vrshark.so":
                 (out / so.name).symlink_to(so)
     make_world_readable(dest)
     return dest

@@ -1,6 +1,7 @@
 /* plugin.c
- * Plugin entry points of the EG-Link dissector, as Wireshark's generated
- * plugin.c would write them. What differs between Wireshark 4.0 and 4.6
+ * Plugin entry points of the vrshark C plugin (vrshark.so: the EG-Link
+ * dissector and the front ends of the Lua decoders), as Wireshark's
+ * generated plugin.c would write them. What differs between Wireshark 4.0 and 4.6
  * (plugin_describe() from 4.2 on) is decided in eglink-compat.h.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
