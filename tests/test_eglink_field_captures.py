@@ -124,10 +124,11 @@ def test_wrong_port_belongs_to_its_controller(tshark):
     assert exp == {
         8: [("eglink.analysis.wrong_port",
              "VRAO sent to UDP port 6001: the machine controller sends VRPO, VRCO and VRAO to the "
-             "BU's input port + 2 (5827 here, TS-0006); analysed with this controller's packets")],
+             "BU's input port + 2 (5827 here, TS-0006 §2.2); analysed with this controller's packets")],
         14: [("eglink.analysis.wrong_port",
-              "VRCO sent to UDP port 5825: the machine controller sends VRPO, VRCO and VRAO to the "
-              "BU's input port + 2 (5827 here, TS-0006); analysed with this controller's packets")]}
+              "VRCO sent to UDP port 5825, the BU's input port: the machine controller sends VRPO, "
+              "VRCO and VRAO to the BU's input port + 2 (5827 here, TS-0006 §2.2); analysed with "
+              "this controller's packets")]}
     fields = ["eglink.analysis.expected_port", "eglink.analysis.ack_to", "eglink.analysis.lost"]
     assert both_passes(tshark, cap, fields) == {
         8: {"eglink.analysis.expected_port": "5827", "eglink.analysis.ack_to": "7"},
@@ -258,22 +259,22 @@ def no_negative_times(tshark, capture):
 def test_clock_step_capture(tshark):
     cap = CAPTURES / "eglink_analysis_clock_step.pcap"
     exp = analysis(tshark, cap)
-    assert exp[20] == [("eglink.analysis.time_backwards",
+    assert exp[27] == [("eglink.analysis.time_backwards",
                         "Time went backwards by 1.940 s (clock step): this packet is older than the "
                         "EG-Link packet before it; gap, age and deadline rules restart here")]
     # the command of 0.2 s fails 2 s after the step (-1.0 s), at the first packet past 1.0 s
-    assert exp[57] == [("eglink.analysis.vrco_unacked",
+    assert exp[64] == [("eglink.analysis.vrco_unacked",
                         "VRCO command 4 (frame 5) not acknowledged by a VRAI within 2000 ms")]
-    assert sorted(exp) == [20, 57]
+    assert sorted(exp) == [27, 64]
     assert both_passes(tshark, cap, ["eglink.analysis.time_backwards_after"]) == \
-        {20: {"eglink.analysis.time_backwards_after": "19"}}
+        {27: {"eglink.analysis.time_backwards_after": "26"}}
     # no interval across the step; the next ones measured from it
-    tshark.expect(cap, 20, {"eglink.analysis.time_since_prev_vrpi": None})
-    tshark.expect(cap, 21, {"eglink.analysis.time_since_prev_vrpo": None})
-    tshark.expect(cap, 22, {"eglink.analysis.time_since_prev_vrpi": 0.125})
-    tshark.expect(cap, 23, {"eglink.analysis.time_since_prev_vrpo": 0.1})
+    tshark.expect(cap, 27, {"eglink.analysis.time_since_prev_vrpi": None})
+    tshark.expect(cap, 28, {"eglink.analysis.time_since_prev_vrpo": None})
+    tshark.expect(cap, 29, {"eglink.analysis.time_since_prev_vrpi": 0.125})
+    tshark.expect(cap, 30, {"eglink.analysis.time_since_prev_vrpo": 0.1})
     no_negative_times(tshark, cap)
-    assert tshark.frame(cap, 20, ["_ws.col.Info"])["_ws.col.Info"].endswith("[time backwards 1.940 s]")
+    assert tshark.frame(cap, 27, ["_ws.col.Info"])["_ws.col.Info"].endswith("[time backwards 1.940 s]")
 
 
 def test_clock_set_back_by_editcap(tshark, work_dir):

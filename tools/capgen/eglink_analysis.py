@@ -171,13 +171,15 @@ def vrco_acked():
 
 
 @capture("eglink_analysis_vrco_unacked.pcap", "VRCO command 4 never acknowledged; VRCO "
-         "command 5 acknowledged by VRAI after 2.3 s (late)")
+         "command 5 acknowledged by VRAI after 2.3 s (late); each resent every 100 ms for "
+         "1.9 s, until its 2000 ms timeout (TS-0006 5.1.4)")
 def vrco_unacked():
     link = Link()
-    events = [(0.2 + 0.1 * i, lambda t: link.ctrl(t, "VRCO", command(4, b"\x21\x00ALARM")))
-              for i in range(5)]
+    events = [(round(0.2 + 0.1 * i, 6), lambda t: link.ctrl(t, "VRCO", command(4, b"\x21\x00ALARM")))
+              for i in range(20)]
+    events += [(round(2.5 + 0.1 * i, 6), lambda t: link.ctrl(t, "VRCO", command(5, b"\x22\x00RESET")))
+               for i in range(20)]
     events += [
-        (2.5, lambda t: link.ctrl(t, "VRCO", command(5, b"\x22\x00RESET"))),
         (4.8, lambda t: link.bu(t, "VRAI", ack(5))),
     ]
     timeline(link, 0.0, 5.0, events=events)
@@ -331,10 +333,10 @@ def shared_group():
         (0.61, lambda t: b.ctrl(t, "VRCO", command(2, b"\x10\x00LOAD B"))),
         (0.62, lambda t: a.bu(t, "VRAI", ack(2))),
         (0.64, lambda t: b.bu(t, "VRAI", ack(2))),
-        (0.90, lambda t: a.bu(t, "VRCI", command(1, b"\x01\x00STOP A"))),
-        (0.91, lambda t: b.bu(t, "VRCI", command(1, b"\x01\x00STOP B"))),
-        (0.93, lambda t: b.ctrl(t, "VRAO", ack(1))),
-        (0.95, lambda t: a.ctrl(t, "VRAO", ack(1))),
+        (0.90, lambda t: a.bu(t, "VRCI", command(6, b"\x01\x00STOP A"))),
+        (0.91, lambda t: b.bu(t, "VRCI", command(10, b"\x01\x00STOP B"))),
+        (0.93, lambda t: b.ctrl(t, "VRAO", ack(10))),
+        (0.95, lambda t: a.ctrl(t, "VRAO", ack(6))),
     ]
     play(plan)
     return a.cap
@@ -404,13 +406,15 @@ def wrong_port():
     return link.cap
 
 
-@capture("eglink_analysis_clock_step.pcap", "VRCO 4 at 0.2 s is never acknowledged; at 1.0 s "
-         "the capture's clock is set back 2 s (frame 20 reads -1.000 s): the step is a finding, "
-         "no interval or age is below 0, and the command's deadline counts from the step "
-         "(frame 57)")
+@capture("eglink_analysis_clock_step.pcap", "VRCO 4 at 0.2 s (resent every 100 ms until 0.9 s) "
+         "is never acknowledged; at 1.0 s the capture's clock is set back 2 s (frame 27 reads "
+         "-1.000 s): the step is a finding, no interval or age is below 0, and the command's "
+         "deadline counts from the step (frame 64)")
 def clock_step():
     link = Link()
-    timeline(link, 0.0, 1.0, events=((0.20, lambda t: link.ctrl(t, "VRCO", command(4, b"\x10\x00LOAD"))),))
+    timeline(link, 0.0, 1.0, events=[(round(0.2 + 0.1 * i, 6),
+                                      lambda t: link.ctrl(t, "VRCO", command(4, b"\x10\x00LOAD")))
+                                     for i in range(8)])
     timeline(link, -1.0, 1.5)   # 1.0 s to 3.5 s on a clock 2 s behind
     return link.cap
 
