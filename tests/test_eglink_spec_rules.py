@@ -404,3 +404,17 @@ def test_not_resent_property(tshark, work_dir, delay_ms, direction):
                     "%s command 1 (frame 1) not resent for 0.%03d s while unacknowledged: TS-0006 §%s resends "
                     "it every 100 ms until a %s" % (what, delay_ms, section, ack))]
     assert findings(tshark, write(work_dir, link)) == want
+
+
+def test_command_ids_count_afresh_after_a_restart(tshark, work_dir):
+    """TS-0006 4.5: a controller that restarted (its serial jumped back) numbers its
+    commands afresh: VRCO 1 after VRCO 5 is no break then."""
+    link = gen.Link()
+    link.ctrl_serial = 5000
+    vrco(link, 0.1, 5)
+    link.bu(0.11, "VRAI", gen.ack(5))
+    link.ctrl_serial = 0
+    vrco(link, 0.3, 1)
+    link.bu(0.31, "VRAI", gen.ack(1))
+    assert findings(tshark, write(work_dir, link)) == {
+        3: [("eglink.analysis.serial_restart", "Serial jumped back from 5000 to 0: the sender restarted?")]}

@@ -1650,6 +1650,8 @@ analyse_packet(packet_info *pinfo, const eglink_info_t *info, eglink_frame_t *fd
     track_serial(s, fd, pinfo, info->serial);
     if (fd->serial_status == SERIAL_REPEAT)
         return;
+    if (fd->serial_status == SERIAL_RESTART || fd->serial_status == SERIAL_FIRST)
+        s->have_cmd_id = FALSE;     /* a sender (re)starting numbers its commands afresh */
 
     /* An acknowledgement may tell which BU a controller talks to. */
     if (info->type == EGLINK_TYPE_VRAO && info->has_command_id) {
