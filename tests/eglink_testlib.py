@@ -20,7 +20,7 @@ DISSECTOR_EXPERTS = {
     "eglink.link_status.unknown", "eglink.vlaps.range", "eglink.ru_state.stopped",
     "eglink.ru_state.unknown", "eglink.ru_battery.range", "eglink.ru_rssi.range",
     "eglink.flag.invalid", "eglink.ru_disabled.unknown", "eglink.joystick.range",
-    "eglink.armed_ru.unarmed_data",
+    "eglink.armed_ru.unarmed_data", "eglink.link_status.passive", "eglink.ru_state.disarmed",
 }
 
 

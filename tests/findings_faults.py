@@ -121,8 +121,8 @@ FAULTS = {
     "eglink.analysis.vrci_unacked": ("eglink_analysis_vrci_unacked.pcap", [5]),
     # vrco_unacked: VRCO 4 (frame 5) never acknowledged, VRCO 5 (frame 52)
     # acknowledged 2.3 s later (frame 94)
-    "eglink.analysis.vrco_unacked": ("eglink_analysis_vrco_unacked.pcap", [5, 52]),
-    "eglink.analysis.late_ack": ("eglink_analysis_vrco_unacked.pcap", [94]),
+    "eglink.analysis.vrco_unacked": ("eglink_analysis_vrco_unacked.pcap", [5, 67]),
+    "eglink.analysis.late_ack": ("eglink_analysis_vrco_unacked.pcap", [128]),
     # eclink_modbus_faults: CCI 2 read in frame 17 and CCO 2 written in 18,
     # neither echoed within 2 s; CAO echoes CCI 2 in frame 34 (3.0 s)
     "eclink_modbus.cmd_from_ru.late": ("eclink_modbus_faults.pcap", [17]),
@@ -132,7 +132,7 @@ FAULTS = {
     "eclink_pnio.cmd_from_ru.late": ("eclink_pnio_connect.pcap", [43]),
     # --- the first frame after a missed deadline (the notes naming the command)
     "eglink.analysis.vrci_deadline": ("eglink_analysis_vrci_unacked.pcap", [61]),
-    "eglink.analysis.vrco_deadline": ("eglink_analysis_vrco_unacked.pcap", [46, 89]),
+    "eglink.analysis.vrco_deadline": ("eglink_analysis_vrco_unacked.pcap", [61, 123]),
     # the read query of the cycle 2.6 s after the commands
     "eclink_modbus.cmd_from_ru.deadline": ("eclink_modbus_faults.pcap", [28]),
     "eclink_modbus.cmd_to_ru.deadline": ("eclink_modbus_faults.pcap", [28]),
@@ -142,7 +142,27 @@ FAULTS = {
     # wrong_port: the controller's VRAO to port 6001 (8), its VRCO to the input port (14)
     "eglink.analysis.wrong_port": ("eglink_analysis_wrong_port.pcap", [8, 14]),
     # clock_step: the first packet after the clock was set back 2 s
-    "eglink.analysis.time_backwards": ("eglink_analysis_clock_step.pcap", [20]),
+    "eglink.analysis.time_backwards": ("eglink_analysis_clock_step.pcap", [27]),
+    # --- the TS-0006 rules of eglink_analysis_spec_rules (tools/capgen/eglink_analysis.py
+    # spec_rules): BU 0x1002's VRPO bursts from 0: packet 1 of the 4th 15 ms late (20), the
+    # 6th's packet 0 short (its packet 1, 32), the 9th 250 ms after the 8th (46), the 11th
+    # numbered 0, 2 (65); BU 0x1001: VRCI 1 resent 50 ms after its resend (24), VRCI 2 (frame
+    # 38) not resent by the VRPO at 0.84 s (42), VRCI 3 resent after its VRAO (56), VRCO 3
+    # after VRCO 1 (69), VRCI 4 (frame 80) resent 2.1 s after it (197)
+    "eglink.analysis.burst_spread": ("eglink_analysis_spec_rules.pcap", [20]),
+    "eglink.analysis.vrpo_not_full": ("eglink_analysis_spec_rules.pcap", [32]),
+    "eglink.analysis.vrpo_interval": ("eglink_analysis_spec_rules.pcap", [46]),
+    "eglink.analysis.vrpo_number": ("eglink_analysis_spec_rules.pcap", [65]),
+    "eglink.analysis.resend_interval": ("eglink_analysis_spec_rules.pcap", [24]),
+    "eglink.analysis.not_resent": ("eglink_analysis_spec_rules.pcap", [42]),
+    "eglink.analysis.resent_after_ack": ("eglink_analysis_spec_rules.pcap", [56]),
+    "eglink.analysis.command_id_sequence": ("eglink_analysis_spec_rules.pcap", [69]),
+    "eglink.analysis.resent_after_deadline": ("eglink_analysis_spec_rules.pcap", [197]),
+    # eglink_header: the VRPI of revision 1 (frame 1)
+    "eglink.analysis.revision_ignored": ("eglink_header.pcap", [1]),
+    # eglink_states: a VRPI with RU state 1 (8), one with EG-Link status Passive (13)
+    "eglink.ru_state.disarmed": ("eglink_states.pcap", [8]),
+    "eglink.link_status.passive": ("eglink_states.pcap", [13]),
     # corrupted: serial 103 with a bad CRC (8) before the VRPI at 10, the VRPO
     # with a wrong Size (13) before the VRPO at 14
     "eglink.analysis.serial_corrupted": ("eglink_analysis_corrupted.pcap", [10, 14]),

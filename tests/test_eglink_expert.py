@@ -70,6 +70,10 @@ def test_relays_open_and_stopped(tshark, capture_file):
             "switch the RU on and arm it again"],
         5: ["ES-Link relays open: BU state Failed (0x04), the BU self-test found a fatal "
             "internal error"],
+        # TS-0006 4.1.3: RU state 1 is used inside the BU only
+        8: ["RU state 1 (Disarmed) on the wire: TS-0006 uses it only inside the BU"],
+        # TS-0006 4.1.2: Passive is reported on the C-Link only
+        13: ["EG-Link status Passive: only the C-Link reports Passive"],
     }
 
 
@@ -110,6 +114,9 @@ VOICE = {
     "eglink.origin.zero": ("warning", "protocol"),
     "eglink.spare.nonzero": ("warning", "protocol"),
     "eglink.payload_spare.nonzero": ("warning", "protocol"),
+    # TS-0006 4.1.2 / 4.1.3: Passive where it is not allowed, RU state 1 on the wire
+    "eglink.link_status.passive": ("warning", "protocol"),
+    "eglink.ru_state.disarmed": ("note", "protocol"),
     # what Wireshark says of its own kind: a packet type it cannot decode, a
     # CRC that another variant explains
     "eglink.type.unknown": ("warning", "undecoded"),

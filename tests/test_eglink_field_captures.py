@@ -124,10 +124,11 @@ def test_wrong_port_belongs_to_its_controller(tshark):
     assert exp == {
         8: [("eglink.analysis.wrong_port",
              "VRAO sent to UDP port 6001: the machine controller sends VRPO, VRCO and VRAO to the "
-             "BU's input port + 2 (5827 here, TS-0006); analysed with this controller's packets")],
+             "BU's input port + 2 (5827 here, TS-0006 §2.2); analysed with this controller's packets")],
         14: [("eglink.analysis.wrong_port",
-              "VRCO sent to UDP port 5825: the machine controller sends VRPO, VRCO and VRAO to the "
-              "BU's input port + 2 (5827 here, TS-0006); analysed with this controller's packets")]}
+              "VRCO sent to UDP port 5825, the BU's input port: the machine controller sends VRPO, "
+              "VRCO and VRAO to the BU's input port + 2 (5827 here, TS-0006 §2.2); analysed with "
+              "this controller's packets")]}
     fields = ["eglink.analysis.expected_port", "eglink.analysis.ack_to", "eglink.analysis.lost"]
     assert both_passes(tshark, cap, fields) == {
         8: {"eglink.analysis.expected_port": "5827", "eglink.analysis.ack_to": "7"},
@@ -236,10 +237,10 @@ def test_cut_capture_in_the_report(work_dir):
     cut = editcap(work_dir, CAPTURES / "eglink_analysis_vrco_unacked.pcap", "cut96.pcap", "-s", "96")
     _, whole = report("captures/eglink_analysis_vrco_unacked.pcap")
     _, rep = report(cut)
-    assert devices(rep) == devices(whole) == [("EG-Link BU 0x1001 (192.168.32.10 to 239.255.42.20:5825)", 97)]
+    assert devices(rep) == devices(whole) == [("EG-Link BU 0x1001 (192.168.32.10 to 239.255.42.20:5825)", 131)]
     lines = timeline(rep)
     assert lines[0][1:] == ("note", "packet cut by the capture (snaplen): decoded as far as captured "
-                            "(90x, frames 1-97 over 4.940 s)")
+                            "(90x, frames 1-131 over 4.940 s)")
     assert lines[1:] == timeline(whole)
 
 
@@ -258,22 +259,24 @@ def no_negative_times(tshark, capture):
 def test_clock_step_capture(tshark):
     cap = CAPTURES / "eglink_analysis_clock_step.pcap"
     exp = analysis(tshark, cap)
-    assert exp[20] == [("eglink.analysis.time_backwards",
+    assert exp[27] == [("eglink.analysis.time_backwards",
                         "Time went backwards by 1.940 s (clock step): this packet is older than the "
                         "EG-Link packet before it; gap, age and deadline rules restart here")]
     # the command of 0.2 s fails 2 s after the step (-1.0 s), at the first packet past 1.0 s
-    assert exp[57] == [("eglink.analysis.vrco_unacked",
+    assert exp[64] == [("eglink.analysis.vrco_unacked",
                         "VRCO command 4 (frame 5) not acknowledged by a VRAI within 2000 ms")]
-    assert sorted(exp) == [20, 57]
+    # (and VRCO 4 resent every 100 ms until 0.9 s, TS-0006 5.1.4)
+    assert sorted(f for f, v in exp.items() if [n for n, _ in v] != ["eglink.analysis.retransmission"]) == \
+        [27, 64]
     assert both_passes(tshark, cap, ["eglink.analysis.time_backwards_after"]) == \
-        {20: {"eglink.analysis.time_backwards_after": "19"}}
+        {27: {"eglink.analysis.time_backwards_after": "26"}}
     # no interval across the step; the next ones measured from it
-    tshark.expect(cap, 20, {"eglink.analysis.time_since_prev_vrpi": None})
-    tshark.expect(cap, 21, {"eglink.analysis.time_since_prev_vrpo": None})
-    tshark.expect(cap, 22, {"eglink.analysis.time_since_prev_vrpi": 0.125})
-    tshark.expect(cap, 23, {"eglink.analysis.time_since_prev_vrpo": 0.1})
+    tshark.expect(cap, 27, {"eglink.analysis.time_since_prev_vrpi": None})
+    tshark.expect(cap, 28, {"eglink.analysis.time_since_prev_vrpo": None})
+    tshark.expect(cap, 29, {"eglink.analysis.time_since_prev_vrpi": 0.125})
+    tshark.expect(cap, 30, {"eglink.analysis.time_since_prev_vrpo": 0.1})
     no_negative_times(tshark, cap)
-    assert tshark.frame(cap, 20, ["_ws.col.Info"])["_ws.col.Info"].endswith("[time backwards 1.940 s]")
+    assert tshark.frame(cap, 27, ["_ws.col.Info"])["_ws.col.Info"].endswith("[time backwards 1.940 s]")
 
 
 def test_clock_set_back_by_editcap(tshark, work_dir):
@@ -284,7 +287,7 @@ def test_clock_set_back_by_editcap(tshark, work_dir):
         pytest.skip("mergecap is not installed")
     whole = CAPTURES / "eglink_analysis_vrco_unacked.pcap"
     first = editcap(work_dir, whole, "a.pcap", "-r", frames="1-40")
-    second = editcap(work_dir, editcap(work_dir, whole, "b0.pcap", "-r", frames="41-97"),
+    second = editcap(work_dir, editcap(work_dir, whole, "b0.pcap", "-r", frames="41-132"),
                      "b.pcap", "-t", "-2")
     stepped = work_dir / "stepped.pcap"
     subprocess.run(["mergecap", "-a", "-w", str(stepped), str(first), str(second)], check=True)
@@ -292,15 +295,15 @@ def test_clock_set_back_by_editcap(tshark, work_dir):
     for two_pass in (False, True):
         exp = analysis(tshark, stepped, two_pass)
         assert exp[41] == [("eglink.analysis.time_backwards",
-                            "Time went backwards by 1.935 s (clock step): this packet is older than "
+                            "Time went backwards by 1.940 s (clock step): this packet is older than "
                             "the EG-Link packet before it; gap, age and deadline rules restart here")]
     no_negative_times(tshark, stepped)
-    # command 4 (frame 5) fails 2 s after the step, no longer 2 s after it was sent (46)
+    # command 4 (frame 5) fails 2 s after the step, no longer 2 s after it was sent (61)
     one = analysis(tshark, stepped)
     failed = [f for f, v in one.items() if ("eglink.analysis.vrco_unacked" in dict(v))]
-    assert failed == [79, 89]
+    assert failed == [96, 123]
     _, rep = report(stepped)
-    assert devices(rep) == [("EG-Link BU 0x1001 (192.168.32.10 to 239.255.42.20:5825)", 97)]
+    assert devices(rep) == [("EG-Link BU 0x1001 (192.168.32.10 to 239.255.42.20:5825)", 131)]
     assert (41, "warning", "time went backwards (clock step): gap and deadline rules restart") in timeline(rep)
     for entry in rep["timeline"]:
         assert entry["duration"] is None or entry["duration"] >= 0, entry

@@ -104,8 +104,10 @@ TIMELINES = {
         (7, 'note', 1, 'BU state Disarmed -> Armed (after 0.125 s)'),
         (7, 'note', 1, 'RU state Initial (no RU armed) -> Initial (RU 0xbeef) (after 0.500 s)'),
         (8, 'note', 1, 'RU 0xbeef state Initial -> Disarmed (after 0.125 s)'),
+        (8, 'note', 1, 'RU state Disarmed (used inside the BU only) on the wire'),
         (9, 'note', 1, 'RU 0xbeef state Disarmed -> Armed (after 0.125 s)'),
         (12, 'note', 1, 'RU 0xbeef state Armed -> Enabled (after 0.375 s)'),
+        (13, 'warning', 1, 'link status Passive where it is not allowed'),
     ],
     "eglink_analysis_vrpo_gap.pcap": [
         (35, 'note', 1, 'BU state Armed -> External link error (after 3.000 s or more)'),
@@ -126,14 +128,15 @@ TIMELINES = {
                'deadline of the VRCI of frame 5 passed'),
     ],
     "eglink_analysis_vrco_unacked.pcap": [
-        (8, 'note', 1, 'command retransmitted: first sent in frame 5 (4x, frames 8-16 over 0.300 s)'),
-        failed(46, 'eglink.analysis.vrco_unacked',
+        (8, 'note', 1, 'command retransmitted: first sent in frame 5 and 1 other value '
+         '(38x, frames 8-120 over 4.100 s)'),
+        failed(61, 'eglink.analysis.vrco_unacked',
                'VRCO of frame 5 not acknowledged in time: the command failed',
                'deadline of the VRCO of frame 5 passed'),
-        failed(89, 'eglink.analysis.vrco_unacked',
-               'VRCO of frame 52 not acknowledged in time: the command failed',
-               'deadline of the VRCO of frame 52 passed'),
-        (94, 'warning', 1, 'command 5 acknowledged after 2.300 s (late)'),
+        failed(123, 'eglink.analysis.vrco_unacked',
+               'VRCO of frame 67 not acknowledged in time: the command failed',
+               'deadline of the VRCO of frame 67 passed'),
+        (128, 'warning', 1, 'command 5 acknowledged after 2.300 s (late)'),
     ],
     "eglink_analysis_vrpi_gap.pcap": [
         (16, 'error', 1, 'no VRPI for 0.875 s (after frame 10, limit 500 ms), received again in frame 20'),
@@ -234,12 +237,14 @@ TIMELINES = {
     ],
     "eglink_header.pcap": [
         (1, 'warning', 1, 'unknown layout revision 1'),
+        # TS-0006 5.1.5: the packet of revision 1 is kept out of the analysis, so the
+        # BU's origin is first known from frame 5 (0), and changes at frame 7
+        (1, 'note', 1, 'packet of another header revision not analysed'),
         (2, 'warning', 1, 'origin not 0 in a controller packet: 0x1001 and 2 other values '
          '(3x, frames 2-4 over 0.020 s)'),
         (5, 'warning', 1, 'origin 0 in a BU packet (2x, frames 5-6 over 0.010 s)'),
-        (5, 'warning', 1, 'another origin at the same BU address: 0x0000 and 1 other value '
-         '(2x, frames 5-7 over 0.020 s)'),
         (7, 'warning', 1, 'header spare not 0: 0x00000100'),
+        (7, 'warning', 1, 'another origin at the same BU address: 0x1001'),
         (8, 'warning', 1, 'payload spare not 0: bytes 00ff0000 and 1 other value (2x, frames 8-9 over 0.010 s)'),
     ],
 }

@@ -122,6 +122,16 @@ static expert_field ei_ack = EI_INIT;
 static expert_field ei_serial_corrupted = EI_INIT;
 static expert_field ei_wrong_port = EI_INIT;
 static expert_field ei_time_backwards = EI_INIT;
+static expert_field ei_vrpo_number = EI_INIT;
+static expert_field ei_vrpo_interval = EI_INIT;
+static expert_field ei_burst_spread = EI_INIT;
+static expert_field ei_vrpo_not_full = EI_INIT;
+static expert_field ei_resend_interval = EI_INIT;
+static expert_field ei_not_resent = EI_INIT;
+static expert_field ei_resent_after_ack = EI_INIT;
+static expert_field ei_resent_after_deadline = EI_INIT;
+static expert_field ei_command_id_sequence = EI_INIT;
+static expert_field ei_revision_ignored = EI_INIT;
 
 /* Preferences */
 static guint pref_vrpi_gap_ms = 500;
@@ -130,6 +140,13 @@ static guint pref_vrci_ack_timeout_ms = 2000;
 static guint pref_vrco_ack_timeout_ms = 2000;
 static guint pref_periodic_size = 0;
 static eglink_pref_bool_t pref_reassemble = TRUE;
+/* TS-0006 5.1.3, 5.1.4: commands are resent every 100 ms until acknowledged. */
+#define EGLINK_RESEND_INTERVAL_MS 100
+static guint pref_resend_tolerance_ms = 20;
+/* TS-0006 5.1.2: VRPO every 50 to 200 ms (recommended); a split burst without delay. */
+#define EGLINK_VRPO_INTERVAL_MIN_MS 50
+#define EGLINK_VRPO_INTERVAL_MAX_MS 200
+static guint pref_burst_spread_ms = 10;
 
 static reassembly_table eglink_reassembly_table;
 
@@ -155,6 +172,7 @@ typedef struct {
     nstime_t first_ts;
     nstime_t last_ts;           /* latest transmission */
     guint32 first_frame;
+    guint32 last_frame;         /* latest transmission */
     guint32 ack_frame;          /* first acknowledgement, 0 if none (yet) */
     guint32 deadline_frame;     /* first packet seen after the deadline passed unacknowledged */
     guint16 command_id;
@@ -162,6 +180,7 @@ typedef struct {
     guint8 failed;              /* the deadline passed unacknowledged */
     guint8 clock_step;          /* the clock stepped back while it waited: its deadline counts
                                  * from the step, its acknowledgement time is not known */
+    guint8 resend_reported;     /* a resend that did not come was flagged (or cannot be timed) */
 } eglink_cmd_t;
 
 /* Where the packets of BUs and controllers meet: a multicast group and the
@@ -205,6 +224,8 @@ typedef struct {
 
     eglink_cmd_t *cmds[EGLINK_CMD_SLOTS];
     guint cmd_next;
+    gboolean have_cmd_id;       /* the Command ID of its latest new command ... */
+    guint16 last_cmd_id;        /* ... (TS-0006 4.3, 4.5: numbered sequentially) */
 
     gboolean shared_reported;   /* the shared-group warning was given */
     gboolean clock_restart;     /* the clock stepped back: no interval to the next periodic packet */
@@ -233,16 +254,38 @@ struct eglink_bu {
     eglink_bu_t *next;          /* in chan->bus */
 };
 
-/* A split VRPO burst of one controller. */
+/* How a controller numbers its VRPO packets (TS-0006 4.2 only says "incremented
+ * by one for each packet"): each burst from 0, each burst from 1, or one
+ * counter running on across bursts. Learned from the start of its second burst. */
+typedef enum {
+    VRPO_NUM_UNKNOWN,
+    VRPO_NUM_FROM0,
+    VRPO_NUM_FROM1,
+    VRPO_NUM_RUNNING
+} eglink_vrpo_numbering_t;
+
+/* A split VRPO burst of one controller, and its VRPO numbering. */
 typedef struct {
     gboolean open;              /* a burst whose end is not seen yet */
     gboolean broken;            /* ... with a packet missing: it cannot complete */
+    gboolean quiet;             /* ... the tail of one already ended: not reported incomplete */
     guint32 id;                 /* its reassembly ID (0 when broken from the start) */
     guint32 first_frame;
+    guint16 start;              /* packet number of its first packet */
     guint16 next;               /* packet number expected next */
     guint16 missing;            /* first missing packet number */
     gboolean missing_cut;       /* ... in the capture, cut by its snap length */
     guint32 bytes;
+
+    guint8 numbering;           /* eglink_vrpo_numbering_t */
+    guint16 first_start;        /* number of the first burst's first packet (numbering unknown) */
+    gboolean have_prev;         /* the previous VRPO of the controller: */
+    guint16 prev_number;
+    guint32 prev_frame;
+    guint32 prev_len;
+    nstime_t prev_ts;
+    gboolean have_start_ts;     /* the first packet of its previous burst (VRPO interval) */
+    nstime_t start_ts;
 } eglink_burst_t;
 
 /* A machine controller: its address, on one channel; joined to the BU it
@@ -280,8 +323,23 @@ typedef enum {
     FND_CORRUPTED,              /* frame: a packet of the serial gap that failed its check,
                                  * value: its serial | EGLINK_CORRUPTED_CRC */
     FND_WRONG_PORT,             /* value: the port it belongs on */
-    FND_TIME_BACKWARDS          /* frame: the EG-Link packet before, ns: how far back */
+    FND_TIME_BACKWARDS,         /* frame: the EG-Link packet before, ns: how far back */
+    FND_VRPO_NUMBER,            /* frame: previous VRPO, value: number expected, ns: VRPO_BREAK_* */
+    FND_VRPO_INTERVAL,          /* ns: time since the previous burst's first packet */
+    FND_BURST_SPREAD,           /* frame: previous packet of the burst, ns: delay after it */
+    FND_VRPO_NOT_FULL,          /* frame: the short packet, value: its number | its bytes << 16 */
+    FND_RESEND_INTERVAL,        /* frame: previous transmission, value: command ID | dir << 16, ns */
+    FND_NOT_RESENT,             /* frame: latest transmission, value: command ID | dir << 16, ns */
+    FND_RESENT_AFTER_ACK,       /* frame: the acknowledgement, value: command ID | dir << 16 */
+    FND_RESENT_AFTER_DEADLINE,  /* frame: first transmission, value: command ID | dir << 16 */
+    FND_CMD_ID_SEQUENCE,        /* value: command ID expected | dir << 16, ns: previous ID */
+    FND_REVISION                /* value: the header revision */
 } eglink_finding_kind_t;
+
+/* FND_VRPO_NUMBER: how the numbering broke */
+#define VRPO_BREAK_GAP      0
+#define VRPO_BREAK_REPEAT   1
+#define VRPO_BREAK_BACK     2
 
 #define EGLINK_CORRUPTED_CRC    0x10000u    /* FND_CORRUPTED: a bad CRC (else a wrong size) */
 #define EGLINK_BURST_CUT        0x10000u    /* FND_BURST_INCOMPLETE: the packet is cut, not missing */
@@ -307,6 +365,8 @@ typedef enum {
 #define FF_DELTA        0x0004  /* delta_ns is set */
 #define FF_RETRANS      0x0008  /* VRCI/VRCO retransmission */
 #define FF_FIRST_ACK    0x0010  /* first VRAO/VRAI of its command */
+#define FF_BURST_ONE    0x0020  /* VRPO: a burst of one packet, complete as it is */
+#define FF_REVISION     0x0080  /* header revision not 0: kept out of the analysis */
 #define FF_BURST_LAST   0x0040  /* the last fragment of its burst */
 #define FF_FLAGS_MASK   0x00FF  /* the flags above (the full record's) */
 /* Only in the compact record: */
@@ -323,6 +383,7 @@ typedef struct {
     eglink_finding_t *findings;
     gint64 delta_ns;            /* VRPI/VRPO: since the previous one; VRAO/VRAI: ack time */
     guint32 burst_id;           /* VRPO fragment: reassembly ID, 0 if not reassembled */
+    guint16 burst_seq;          /* ... its place in the burst, from 0 */
     guint16 flags;
     guint16 expected_serial;
     guint16 bu_origin;
@@ -843,6 +904,7 @@ sender_restart_clock(eglink_sender_t *s, const nstime_t *now)
         if (cmd && !cmd->ack_frame && !cmd->failed) {
             cmd->first_ts = cmd->last_ts = *now;
             cmd->clock_step = TRUE;
+            cmd->resend_reported = TRUE;    /* its resends cannot be timed across the step */
         }
     }
 }
@@ -858,8 +920,11 @@ restart_clock(const nstime_t *now)
         bu->state_since = *now;
         bu->state_since_step = TRUE;
     }
-    for (i = 0; eglink_ctrl_by_index && i < wmem_array_get_count(eglink_ctrl_by_index); i++)
-        sender_restart_clock(&(*(eglink_ctrl_t **)wmem_array_index(eglink_ctrl_by_index, i))->s, now);
+    for (i = 0; eglink_ctrl_by_index && i < wmem_array_get_count(eglink_ctrl_by_index); i++) {
+        eglink_ctrl_t *ctrl = *(eglink_ctrl_t **)wmem_array_index(eglink_ctrl_by_index, i);
+        sender_restart_clock(&ctrl->s, now);
+        ctrl->burst.have_start_ts = FALSE;
+    }
 }
 
 /* Time going backwards from one EG-Link packet to the next (a clock set
@@ -923,9 +988,38 @@ ack_timeout_ns(int dir)
     return ms_to_ns(dir == EGLINK_DIR_IN ? pref_vrci_ack_timeout_ms : pref_vrco_ack_timeout_ms);
 }
 
-/* Commands of one sender whose deadline passed before now. */
+static gint64
+resend_limit_ns(void)
+{
+    return ms_to_ns(EGLINK_RESEND_INTERVAL_MS + pref_resend_tolerance_ms);
+}
+
+/* TS-0006 5.1.3, 5.1.4: a command is resent every 100 ms until it is
+ * acknowledged (or its timeout passes). Flagged once per command, on the
+ * first packet of its BU or controller more than 100 ms + the tolerance
+ * after its latest transmission while it is unacknowledged, when that
+ * resend was due before its deadline. */
 static void
-check_commands(eglink_sender_t *s, eglink_frame_t *fd, packet_info *pinfo, int dir)
+check_resend_due(eglink_cmd_t *cmd, eglink_frame_t *fd, packet_info *pinfo, int dir)
+{
+    gint64 since, interval = ms_to_ns(EGLINK_RESEND_INTERVAL_MS);
+
+    if (cmd->ack_frame || cmd->failed || cmd->resend_reported)
+        return;
+    since = ns_between(&pinfo->abs_ts, &cmd->last_ts);
+    if (since <= resend_limit_ns())
+        return;
+    if (ns_between(&cmd->last_ts, &cmd->first_ts) + interval >= ack_timeout_ns(dir))
+        return;                 /* the next resend would fall past the deadline */
+    cmd->resend_reported = TRUE;
+    add_finding(fd, FND_NOT_RESENT, cmd->last_frame, cmd->command_id | ((guint32)dir << 16), since);
+}
+
+/* Commands of one sender whose deadline (or resend) passed before now.
+ * own_id: the Command ID of this packet when it is a VRCI/VRCO of this
+ * sender (its resend is timed by track_command()), else -1. */
+static void
+check_commands(eglink_sender_t *s, eglink_frame_t *fd, packet_info *pinfo, int dir, gint32 own_id)
 {
     gint64 timeout = ack_timeout_ns(dir);
     int i;
@@ -934,6 +1028,8 @@ check_commands(eglink_sender_t *s, eglink_frame_t *fd, packet_info *pinfo, int d
         eglink_cmd_t *cmd = s->cmds[i];
         gint64 age;
 
+        if (cmd && (gint32)cmd->command_id != own_id)
+            check_resend_due(cmd, fd, pinfo, dir);
         /* The acknowledgement this packet carries, even late, is not a
          * deadline passing unnoticed: track_ack() records it. */
         if (!cmd || cmd->ack_frame || cmd->failed || cmd == fd->cmd)
@@ -970,8 +1066,11 @@ check_periodic(eglink_sender_t *s, eglink_frame_t *fd, packet_info *pinfo, guint
  * BU is not known speaks for itself only. */
 static void
 check_deadlines(eglink_chan_t *chan, eglink_bu_t *bu, eglink_ctrl_t *sender, eglink_frame_t *fd,
-                packet_info *pinfo, eglink_type_t type)
+                packet_info *pinfo, const eglink_info_t *info)
 {
+    eglink_type_t type = info->type;
+    gint32 vrci_id = type == EGLINK_TYPE_VRCI && info->has_command_id ? info->command_id : -1;
+    gint32 vrco_id = type == EGLINK_TYPE_VRCO && info->has_command_id ? info->command_id : -1;
     eglink_ctrl_t *ctrl;
 
     if (bu && type != EGLINK_TYPE_VRPI)
@@ -983,10 +1082,10 @@ check_deadlines(eglink_chan_t *chan, eglink_bu_t *bu, eglink_ctrl_t *sender, egl
             check_periodic(&ctrl->s, fd, pinfo, pref_vrpo_gap_ms, FND_VRPO_MISSING);
     }
     if (bu)
-        check_commands(&bu->s, fd, pinfo, EGLINK_DIR_IN);
+        check_commands(&bu->s, fd, pinfo, EGLINK_DIR_IN, sender ? -1 : vrci_id);
     for (ctrl = chan->ctrls; ctrl; ctrl = ctrl->next)
         if (ctrl == sender || (bu && ctrl->bu == bu))
-            check_commands(&ctrl->s, fd, pinfo, EGLINK_DIR_OUT);
+            check_commands(&ctrl->s, fd, pinfo, EGLINK_DIR_OUT, ctrl == sender ? vrco_id : -1);
 }
 
 /* The most recent command of this sender with this ID. */
@@ -1005,6 +1104,43 @@ find_command(eglink_sender_t *s, guint16 command_id)
     return best;
 }
 
+/* TS-0006 5.1.3, 5.1.4: a retransmission comes 100 ms after the previous
+ * transmission (within the tolerance), and only while the command waits for
+ * its acknowledgement: not after it, nor after the deadline. */
+static void
+check_resend(const eglink_cmd_t *cmd, eglink_frame_t *fd, packet_info *pinfo, int dir)
+{
+    guint32 value = cmd->command_id | ((guint32)dir << 16);
+    gint64 interval = ns_between(&pinfo->abs_ts, &cmd->last_ts);
+    gint64 off = interval - ms_to_ns(EGLINK_RESEND_INTERVAL_MS);
+
+    if (cmd->ack_frame) {
+        add_finding(fd, FND_RESENT_AFTER_ACK, cmd->ack_frame, value, 0);
+        return;
+    }
+    if (cmd->failed) {
+        add_finding(fd, FND_RESENT_AFTER_DEADLINE, cmd->first_frame, value,
+                    ns_between(&pinfo->abs_ts, &cmd->first_ts));
+        return;
+    }
+    if (!cmd->clock_step && (off > ms_to_ns(pref_resend_tolerance_ms) || -off > ms_to_ns(pref_resend_tolerance_ms)))
+        add_finding(fd, FND_RESEND_INTERVAL, cmd->last_frame, value, interval);
+}
+
+/* TS-0006 4.3, 4.5: a sender numbers its commands sequentially: a new
+ * command's ID is the previous one + 1 (65535 is followed by 0). The first
+ * command of a sender, or the first after it restarted, sets the count. */
+static void
+check_command_id(eglink_sender_t *s, eglink_frame_t *fd, int dir, guint16 command_id)
+{
+    guint16 expected = (guint16)(s->last_cmd_id + 1);
+
+    if (s->have_cmd_id && command_id != expected)
+        add_finding(fd, FND_CMD_ID_SEQUENCE, 0, expected | ((guint32)dir << 16), s->last_cmd_id);
+    s->have_cmd_id = TRUE;
+    s->last_cmd_id = command_id;
+}
+
 static void
 track_command(eglink_sender_t *s, eglink_frame_t *fd, packet_info *pinfo, int dir, guint16 command_id)
 {
@@ -1015,12 +1151,16 @@ track_command(eglink_sender_t *s, eglink_frame_t *fd, packet_info *pinfo, int di
      * that reuses the ID (wrap-around, restarted sender). */
     if (cmd && ns_between(&pinfo->abs_ts, &cmd->last_ts) <= ack_timeout_ns(dir)) {
         fd->flags |= FF_RETRANS;
+        check_resend(cmd, fd, pinfo, dir);
         cmd->last_ts = pinfo->abs_ts;
+        cmd->last_frame = pinfo->num;
     } else {
+        check_command_id(s, fd, dir, command_id);
         cmd = wmem_new0(wmem_file_scope(), eglink_cmd_t);
         cmd->first_ts = pinfo->abs_ts;
         cmd->last_ts = pinfo->abs_ts;
         cmd->first_frame = pinfo->num;
+        cmd->last_frame = pinfo->num;
         cmd->command_id = command_id;
         cmd->dir = (guint8)dir;
         s->cmds[s->cmd_next] = cmd;
@@ -1143,60 +1283,163 @@ burst_check_size(const eglink_burst_t *b, eglink_frame_t *fd)
         add_finding(fd, FND_BURST_SIZE, 0, b->bytes, pref_periodic_size);
 }
 
-/* VRPO packet numbers count 0..N-1 within a burst; all but the last carry
- * 488 bytes. A burst ends at a short packet, when it reaches the configured
- * periodic data size, or when the next burst starts at packet 0. */
+/* The previous burst ends before this packet starts a new one: complete
+ * (all its packets full, its end not shown otherwise) or incomplete. */
 static void
-track_burst(eglink_burst_t *b, eglink_frame_t *fd, packet_info *pinfo, const eglink_info_t *info)
+burst_close_open(eglink_burst_t *b, eglink_frame_t *fd)
+{
+    if (!b->open)
+        return;
+    if (b->quiet) {
+        /* the tail of a burst that ended already: said by FND_VRPO_NOT_FULL */
+    } else if (!b->broken && pref_periodic_size == 0) {
+        add_finding(fd, FND_BURST_DONE, b->first_frame, b->id, 0);
+    } else {
+        add_finding(fd, FND_BURST_INCOMPLETE, b->first_frame,
+                    b->broken ? b->missing | (b->missing_cut ? EGLINK_BURST_CUT : 0) : b->next, 0);
+    }
+    b->open = FALSE;
+}
+
+/* The packet number a new burst starts with, by the numbering learned;
+ * -1 while it is not known (any number starts one). */
+static gint32
+burst_expected_start(const eglink_burst_t *b)
+{
+    switch ((eglink_vrpo_numbering_t)b->numbering) {
+    case VRPO_NUM_FROM0:
+        return 0;
+    case VRPO_NUM_FROM1:
+        return 1;
+    case VRPO_NUM_RUNNING:
+        return (guint16)(b->prev_number + 1);
+    case VRPO_NUM_UNKNOWN:
+    default:
+        return -1;
+    }
+}
+
+/* Learns the numbering at the start of the controller's second burst
+ * (TS-0006 4.2): the previous packet's + 1 is a running counter; else the
+ * first burst's number (0 or 1) is the number each burst starts with, also
+ * when this one's first packets are missing. A first burst that started at
+ * another number (the capture started within a burst) leaves it to this
+ * one: 0 or 1, else a running counter. */
+static void
+burst_learn_numbering(eglink_burst_t *b, guint16 pn)
+{
+    guint16 from = b->first_start <= 1 ? b->first_start : pn;
+
+    if (b->numbering != VRPO_NUM_UNKNOWN || !b->have_prev)
+        return;
+    if (pn == (guint16)(b->prev_number + 1))
+        b->numbering = VRPO_NUM_RUNNING;
+    else if (from == 0)
+        b->numbering = VRPO_NUM_FROM0;
+    else if (from == 1)
+        b->numbering = VRPO_NUM_FROM1;
+    else
+        b->numbering = VRPO_NUM_RUNNING;
+}
+
+/* A number that breaks the numbering learned (TS-0006 4.2: incremented by
+ * one for each packet): a repeat, a step back, or a gap that no lost packet
+ * explains (the serials are in sequence). */
+static void
+burst_check_number(const eglink_burst_t *b, eglink_frame_t *fd, guint16 pn, guint16 expected)
+{
+    if (pn == expected || !b->have_prev)
+        return;
+    if (pn == b->prev_number)
+        add_finding(fd, FND_VRPO_NUMBER, b->prev_frame, expected, VRPO_BREAK_REPEAT);
+    else if ((guint16)(pn - expected) >= 0x8000 || pn < expected)
+        add_finding(fd, FND_VRPO_NUMBER, b->prev_frame, expected, VRPO_BREAK_BACK);
+    else if (fd->serial_status != SERIAL_LOST)
+        add_finding(fd, FND_VRPO_NUMBER, b->prev_frame, expected, VRPO_BREAK_GAP);
+}
+
+/* TS-0006 5.1.2: the bursts come every 50 to 200 ms (recommended); longer
+ * than the VRPO gap threshold is the gap error instead. */
+static void
+burst_check_interval(eglink_burst_t *b, eglink_frame_t *fd, packet_info *pinfo)
+{
+    gint64 iv;
+
+    if (b->have_start_ts) {
+        iv = ns_between(&pinfo->abs_ts, &b->start_ts);
+        if ((iv < ms_to_ns(EGLINK_VRPO_INTERVAL_MIN_MS) || iv > ms_to_ns(EGLINK_VRPO_INTERVAL_MAX_MS)) &&
+            iv <= ms_to_ns(pref_vrpo_gap_ms))
+            add_finding(fd, FND_VRPO_INTERVAL, 0, 0, iv);
+    }
+    b->have_start_ts = TRUE;
+    b->start_ts = pinfo->abs_ts;
+}
+
+/* TS-0006 5.1.2: the packets of a split burst are sent without delay. */
+static void
+burst_check_spread(const eglink_burst_t *b, eglink_frame_t *fd, packet_info *pinfo)
+{
+    gint64 delay = ns_between(&pinfo->abs_ts, &b->prev_ts);
+
+    if (delay > ms_to_ns(pref_burst_spread_ms))
+        add_finding(fd, FND_BURST_SPREAD, b->prev_frame, 0, delay);
+}
+
+static void
+burst_open(eglink_burst_t *b, eglink_frame_t *fd, packet_info *pinfo, const eglink_info_t *info)
 {
     int len = info->periodic_len;
     guint16 pn = info->packet_number;
 
-    if (pn == 0 && b->open) {
-        /* The previous burst did not show its end. */
-        if (!b->broken && pref_periodic_size == 0) {
-            add_finding(fd, FND_BURST_DONE, b->first_frame, b->id, 0);
-        } else {
-            add_finding(fd, FND_BURST_INCOMPLETE, b->first_frame,
-                        b->broken ? b->missing | (b->missing_cut ? EGLINK_BURST_CUT : 0) : b->next, 0);
-        }
+    b->open = TRUE;
+    b->broken = FALSE;
+    b->quiet = FALSE;
+    b->first_frame = pinfo->num;
+    b->start = pn;
+    b->next = (guint16)(pn + 1);
+    b->bytes = (guint32)len;
+    if (burst_ends_here(b, len)) {
+        /* One packet: nothing to reassemble. */
+        burst_check_size(b, fd);
+        fd->flags |= FF_BURST_ONE;
         b->open = FALSE;
-    }
-
-    if (pn == 0) {
-        b->open = TRUE;
-        b->broken = FALSE;
-        b->first_frame = pinfo->num;
-        b->next = 1;
-        b->bytes = (guint32)len;
-        if (burst_ends_here(b, len)) {
-            /* One packet: nothing to reassemble. */
-            burst_check_size(b, fd);
-            b->open = FALSE;
-            return;
-        }
-        if (info->cut) {
-            /* its data is not all in the capture: no reassembly */
-            b->broken = b->missing_cut = TRUE;
-            b->missing = 0;
-            b->id = 0;
-            return;
-        }
-        b->id = ++eglink_burst_count;
-        fd->burst_id = b->id;
         return;
     }
-
-    if (!b->open) {
-        /* Its packet 0 was not captured (or lost). */
-        b->open = TRUE;
-        b->broken = TRUE;
-        b->missing_cut = FALSE;
-        b->missing = 0;
+    if (info->cut) {
+        /* its data is not all in the capture: no reassembly */
+        b->broken = b->missing_cut = TRUE;
+        b->missing = pn;
         b->id = 0;
-        b->first_frame = pinfo->num;
-        b->bytes = 0;
-    } else if (!b->broken && pn != b->next) {
+        return;
+    }
+    b->id = ++eglink_burst_count;
+    fd->burst_id = b->id;
+    fd->burst_seq = 0;
+}
+
+/* A burst whose first packets were not captured (or lost), or the tail of
+ * one that ended at a short packet (quiet). */
+static void
+burst_open_broken(eglink_burst_t *b, packet_info *pinfo, guint16 missing, gboolean quiet)
+{
+    b->open = TRUE;
+    b->broken = TRUE;
+    b->quiet = quiet;
+    b->missing_cut = FALSE;
+    b->missing = missing;
+    b->id = 0;
+    b->first_frame = pinfo->num;
+    b->bytes = 0;
+}
+
+/* A packet of the open burst after its first one. */
+static void
+burst_continue(eglink_burst_t *b, eglink_frame_t *fd, const eglink_info_t *info)
+{
+    int len = info->periodic_len;
+    guint16 pn = info->packet_number;
+
+    if (!b->broken && pn != b->next) {
         b->broken = TRUE;
         b->missing_cut = FALSE;
         b->missing = b->next;
@@ -1206,10 +1449,14 @@ track_burst(eglink_burst_t *b, eglink_frame_t *fd, packet_info *pinfo, const egl
     }
     b->next = (guint16)(pn + 1);
     b->bytes += (guint32)len;
-    if (!b->broken)
+    if (!b->broken) {
         fd->burst_id = b->id;
+        fd->burst_seq = (guint16)(pn - b->start);
+    }
     if (burst_ends_here(b, len)) {
-        if (b->broken) {
+        if (b->quiet) {
+            /* said already */
+        } else if (b->broken) {
             add_finding(fd, FND_BURST_INCOMPLETE, b->first_frame,
                         b->missing | (b->missing_cut ? EGLINK_BURST_CUT : 0), 0);
         } else {
@@ -1218,6 +1465,69 @@ track_burst(eglink_burst_t *b, eglink_frame_t *fd, packet_info *pinfo, const egl
         }
         b->open = FALSE;
     }
+}
+
+/* VRPO packet numbers count up by one for each packet (TS-0006 4.2), from 0
+ * or from 1 in each burst, or on across bursts (learned per controller); all
+ * packets of a burst but the last carry 488 bytes. A burst ends at a short
+ * packet, when it reaches the configured periodic data size, or when the
+ * next burst starts. */
+static void
+track_burst(eglink_burst_t *b, eglink_frame_t *fd, packet_info *pinfo, const eglink_info_t *info)
+{
+    guint16 pn = info->packet_number;
+    gint32 start;
+
+    if (fd->serial_status == SERIAL_RESTART) {
+        /* a controller restarting may number afresh */
+        burst_close_open(b, fd);
+        b->numbering = VRPO_NUM_UNKNOWN;
+        b->have_prev = FALSE;
+    }
+    if (b->open && b->have_prev && pn == (guint16)(b->prev_number + 1)) {
+        burst_check_spread(b, fd, pinfo);
+        burst_continue(b, fd, info);
+    } else if (!b->open && b->have_prev && pn == (guint16)(b->prev_number + 1) &&
+               b->prev_len < EGLINK_VRPO_FRAGMENT_MAX &&
+               (b->numbering == VRPO_NUM_FROM0 || b->numbering == VRPO_NUM_FROM1) &&
+               ns_between(&pinfo->abs_ts, &b->prev_ts) <= ms_to_ns(pref_burst_spread_ms)) {
+        /* The short packet before was not the last of its burst. */
+        add_finding(fd, FND_VRPO_NOT_FULL, b->prev_frame, b->prev_number | (b->prev_len << 16), 0);
+        burst_open_broken(b, pinfo, 0, TRUE);
+        burst_continue(b, fd, info);
+    } else {
+        /* (within the first burst, only its first number again starts the second) */
+        if (!b->open || (pn == b->first_start && pn <= 1))
+            burst_learn_numbering(b, pn);
+        start = burst_expected_start(b);
+        if (b->open && (gint32)pn != start) {
+            /* Within the open burst: a number out of sequence. */
+            burst_check_number(b, fd, pn, (guint16)(b->prev_number + 1));
+            burst_check_spread(b, fd, pinfo);
+            burst_continue(b, fd, info);
+        } else {
+            burst_close_open(b, fd);
+            if (start >= 0)
+                burst_check_number(b, fd, pn, (guint16)start);
+            if (!b->have_prev)
+                b->first_start = pn;
+            burst_check_interval(b, fd, pinfo);
+            if (start >= 0 && b->numbering != VRPO_NUM_RUNNING && pn > start &&
+                (guint16)(pn - start) < 0x100) {
+                /* its first packets were not captured (or lost) */
+                burst_open_broken(b, pinfo, (guint16)start, FALSE);
+                b->start = (guint16)start;
+                burst_continue(b, fd, info);
+            } else {
+                burst_open(b, fd, pinfo, info);
+            }
+        }
+    }
+    b->have_prev = TRUE;
+    b->prev_number = pn;
+    b->prev_frame = pinfo->num;
+    b->prev_len = (guint32)MAX(info->periodic_len, 0);
+    b->prev_ts = pinfo->abs_ts;
 }
 
 /* VRPI of a BU or VRPO of a controller: the interval since the previous one. */
@@ -1271,6 +1581,17 @@ check_shared(eglink_chan_t *chan, eglink_sender_t *s, eglink_frame_t *fd)
     add_finding(fd, FND_SHARED_GROUP, 0, chan->n_bus, chan->n_ctrls);
 }
 
+/* TS-0006 5.1.5: a receiver ignores packets with unsupported header values.
+ * A packet of another revision (another layout) is kept out of the
+ * analysis; its serial is the sender's, so it is counted. */
+static void
+track_revision(eglink_sender_t *s, eglink_frame_t *fd, packet_info *pinfo, const eglink_info_t *info)
+{
+    fd->flags |= FF_REVISION;
+    add_finding(fd, FND_REVISION, 0, info->revision, 0);
+    track_serial(s, fd, pinfo, info->serial);
+}
+
 static void
 analyse_packet(packet_info *pinfo, const eglink_info_t *info, eglink_frame_t *fd)
 {
@@ -1306,6 +1627,10 @@ analyse_packet(packet_info *pinfo, const eglink_info_t *info, eglink_frame_t *fd
     }
     if (expected_port)
         add_finding(fd, FND_WRONG_PORT, 0, expected_port, 0);
+    if (info->revision != 0) {
+        track_revision(s, fd, pinfo, info);
+        return;
+    }
 
     if (input && !bu->origin_known) {
         /* Known so far only from packets that failed their check: no origin
@@ -1325,6 +1650,8 @@ analyse_packet(packet_info *pinfo, const eglink_info_t *info, eglink_frame_t *fd
     track_serial(s, fd, pinfo, info->serial);
     if (fd->serial_status == SERIAL_REPEAT)
         return;
+    if (fd->serial_status == SERIAL_RESTART || fd->serial_status == SERIAL_FIRST)
+        s->have_cmd_id = FALSE;     /* a sender (re)starting numbers its commands afresh */
 
     /* An acknowledgement may tell which BU a controller talks to. */
     if (info->type == EGLINK_TYPE_VRAO && info->has_command_id) {
@@ -1340,7 +1667,7 @@ analyse_packet(packet_info *pinfo, const eglink_info_t *info, eglink_frame_t *fd
     }
 
     check_shared(chan, s, fd);
-    check_deadlines(chan, fd->bu, ctrl, fd, pinfo, info->type);
+    check_deadlines(chan, fd->bu, ctrl, fd, pinfo, info);
 
     switch (info->type) {
     case EGLINK_TYPE_VRPI:
@@ -1560,6 +1887,85 @@ show_time_backwards(proto_tree *at, tvbuff_t *tvb, packet_info *pinfo, const egl
     col_append_fstr(pinfo->cinfo, COL_INFO, " [time backwards %s]", t);
 }
 
+static const char *const vrpo_break_names[] = { "a gap with no packet lost", "a repeat", "a step back" };
+
+/* The VRPO rules of TS-0006 4.2 and 5.1.2. */
+static void
+show_vrpo_rule(proto_item *aitem, packet_info *pinfo, const eglink_info_t *info, const eglink_finding_t *f)
+{
+    switch ((eglink_finding_kind_t)f->kind) {
+    case FND_VRPO_NUMBER:
+        expert_add_info_format(pinfo, aitem, &ei_vrpo_number,
+            "VRPO packet number %u, %u expected (%s): TS-0006 §4.2 increments it by one for each packet",
+            info->packet_number, f->value, vrpo_break_names[f->ns < 3 ? f->ns : 0]);
+        break;
+    case FND_VRPO_INTERVAL:
+        expert_add_info_format(pinfo, aitem, &ei_vrpo_interval,
+            "VRPO %s after the previous one: TS-0006 §5.1.2 recommends a VRPO every %u to %u ms",
+            ns_str(pinfo->pool, f->ns), EGLINK_VRPO_INTERVAL_MIN_MS, EGLINK_VRPO_INTERVAL_MAX_MS);
+        break;
+    case FND_BURST_SPREAD:
+        expert_add_info_format(pinfo, aitem, &ei_burst_spread,
+            "VRPO packet %u %s after the packet before it in its burst (more than %u ms): TS-0006 "
+            "§5.1.2 sends the packets of a split VRPO without delay", info->packet_number,
+            ns_str(pinfo->pool, f->ns), pref_burst_spread_ms);
+        break;
+    case FND_VRPO_NOT_FULL:
+        expert_add_info_format(pinfo, aitem, &ei_vrpo_not_full,
+            "VRPO packet %u (frame %u) carried %u bytes but its burst goes on with packet %u: "
+            "TS-0006 §4.2: all packets of a burst but the last are full (%u bytes)",
+            f->value & 0xFFFF, f->frame, f->value >> 16, info->packet_number, EGLINK_VRPO_FRAGMENT_MAX);
+        break;
+    default:
+        break;
+    }
+}
+
+/* The command rules of TS-0006 4.3, 4.5, 5.1.3 and 5.1.4. */
+static void
+show_command_rule(proto_item *aitem, packet_info *pinfo, const eglink_info_t *info, const eglink_finding_t *f)
+{
+    gboolean vrci = (f->value >> 16) == EGLINK_DIR_IN;
+    const char *what = vrci ? "VRCI" : "VRCO";
+    const char *ack = vrci ? "VRAO" : "VRAI";
+    const char *flow = vrci ? "5.1.3" : "5.1.4";
+    guint id = f->value & 0xFFFF;
+
+    switch ((eglink_finding_kind_t)f->kind) {
+    case FND_RESEND_INTERVAL:
+        expert_add_info_format(pinfo, aitem, &ei_resend_interval,
+            "%s command %u resent %s after its previous transmission (frame %u): TS-0006 §%s "
+            "resends it every %u ms (tolerance %u ms)", what, id, ns_str(pinfo->pool, f->ns), f->frame,
+            flow, EGLINK_RESEND_INTERVAL_MS, pref_resend_tolerance_ms);
+        break;
+    case FND_NOT_RESENT:
+        expert_add_info_format(pinfo, aitem, &ei_not_resent,
+            "%s command %u (frame %u) not resent for %s while unacknowledged: TS-0006 §%s "
+            "resends it every %u ms until a %s", what, id, f->frame, ns_str(pinfo->pool, f->ns), flow,
+            EGLINK_RESEND_INTERVAL_MS, ack);
+        break;
+    case FND_RESENT_AFTER_ACK:
+        expert_add_info_format(pinfo, aitem, &ei_resent_after_ack,
+            "%s command %u resent after its %s (frame %u): TS-0006 §%s resends it only until "
+            "acknowledged", what, id, ack, f->frame, flow);
+        break;
+    case FND_RESENT_AFTER_DEADLINE:
+        expert_add_info_format(pinfo, aitem, &ei_resent_after_deadline,
+            "%s command %u resent %s after its first transmission (frame %u), past its %u ms "
+            "deadline: TS-0006 §%s stops resending at the timeout", what, id,
+            ns_str(pinfo->pool, f->ns), f->frame,
+            vrci ? pref_vrci_ack_timeout_ms : pref_vrco_ack_timeout_ms, flow);
+        break;
+    case FND_CMD_ID_SEQUENCE:
+        expert_add_info_format(pinfo, aitem, &ei_command_id_sequence,
+            "%s command ID %u after %u, %u expected: TS-0006 §%s numbers commands sequentially",
+            what, info->command_id, (guint)f->ns, id, vrci ? "4.3" : "4.5");
+        break;
+    default:
+        break;
+    }
+}
+
 static void
 show_findings(proto_tree *at, proto_item *aitem, tvbuff_t *tvb, packet_info *pinfo,
               const eglink_info_t *info, const eglink_frame_t *fd)
@@ -1669,13 +2075,32 @@ show_findings(proto_tree *at, proto_item *aitem, tvbuff_t *tvb, packet_info *pin
         case FND_WRONG_PORT:
             ti = add_generated_uint(at, hf_expected_port, tvb, f->value);
             expert_add_info_format(pinfo, ti, &ei_wrong_port,
-                "%s sent to UDP port %u: the machine controller sends VRPO, VRCO and VRAO to the "
-                "BU's input port + 2 (%u here, TS-0006); analysed with this controller's packets",
-                type_names[info->type], pinfo->destport, f->value);
+                "%s sent to UDP port %u%s: the machine controller sends VRPO, VRCO and VRAO to the "
+                "BU's input port + 2 (%u here, TS-0006 §2.2); analysed with this controller's packets",
+                type_names[info->type], pinfo->destport,
+                pinfo->destport + 2 == f->value ? ", the BU's input port" : "", f->value);
             col_append_str(pinfo->cinfo, COL_INFO, " [wrong port]");
             break;
         case FND_TIME_BACKWARDS:
             show_time_backwards(at, tvb, pinfo, f);
+            break;
+        case FND_VRPO_NUMBER:
+        case FND_VRPO_INTERVAL:
+        case FND_BURST_SPREAD:
+        case FND_VRPO_NOT_FULL:
+            show_vrpo_rule(aitem, pinfo, info, f);
+            break;
+        case FND_RESEND_INTERVAL:
+        case FND_NOT_RESENT:
+        case FND_RESENT_AFTER_ACK:
+        case FND_RESENT_AFTER_DEADLINE:
+        case FND_CMD_ID_SEQUENCE:
+            show_command_rule(aitem, pinfo, info, f);
+            break;
+        case FND_REVISION:
+            expert_add_info_format(pinfo, aitem, &ei_revision_ignored,
+                "Revision %u: kept out of the analysis, as TS-0006 §5.1.5 has receivers ignore "
+                "unsupported header values (its serial is counted)", f->value);
             break;
         case FND_LATE_ACK:      /* shown with the command link */
         case FND_BURST_DONE:    /* shown with the reassembly */
@@ -1728,7 +2153,8 @@ show_reassembly(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, const eglin
     if (info->type != EGLINK_TYPE_VRPO)
         return;
     /* A burst of one packet is complete as it is. */
-    if (info->packet_number == 0 && !fd->burst_id && !(fd->flags & FF_INVALID) && info->periodic_len > 0 &&
+    if (((fd->flags & FF_BURST_ONE) || (fd->serial_status == SERIAL_REPEAT && info->packet_number == 0)) &&
+        !(fd->flags & FF_INVALID) && info->periodic_len > 0 &&
         tvb_bytes_exist(tvb, info->periodic_offset, info->periodic_len))
         eglink_data_dissect(tvb_new_subset_length(tvb, info->periodic_offset, info->periodic_len),
                             pinfo, tree, "vrpo", info->origin, data_bu_origin(fd));
@@ -1743,7 +2169,7 @@ show_reassembly(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, const eglin
     }
     if (fd->burst_id && tvb_bytes_exist(tvb, info->periodic_offset, info->periodic_len)) {
         fh = fragment_add_seq_check(&eglink_reassembly_table, tvb, info->periodic_offset, pinfo,
-                                    fd->burst_id, NULL, info->packet_number,
+                                    fd->burst_id, NULL, fd->burst_seq,
                                     (guint32)info->periodic_len, !(fd->flags & FF_BURST_LAST));
         show_reassembled(tvb, pinfo, tree, info, fh, data_bu_origin(fd));
     }
@@ -2057,6 +2483,36 @@ eglink_analysis_register(int proto, module_t *prefs)
         { &ei_time_backwards,
           { "eglink.analysis.time_backwards", PI_SEQUENCE, PI_WARN,
             "Time went backwards (clock step): rules restart here", EXPFILL } },
+        { &ei_vrpo_number,
+          { "eglink.analysis.vrpo_number", PI_SEQUENCE, PI_WARN,
+            "VRPO packet number breaks the controller's numbering (TS-0006 4.2)", EXPFILL } },
+        { &ei_vrpo_interval,
+          { "eglink.analysis.vrpo_interval", PI_SEQUENCE, PI_NOTE,
+            "VRPO interval outside the recommended 50 to 200 ms (TS-0006 5.1.2)", EXPFILL } },
+        { &ei_burst_spread,
+          { "eglink.analysis.burst_spread", PI_SEQUENCE, PI_NOTE,
+            "Packets of a split VRPO burst spread out (TS-0006 5.1.2)", EXPFILL } },
+        { &ei_vrpo_not_full,
+          { "eglink.analysis.vrpo_not_full", PI_PROTOCOL, PI_WARN,
+            "A VRPO packet that is not the last of its burst is not full (TS-0006 4.2)", EXPFILL } },
+        { &ei_resend_interval,
+          { "eglink.analysis.resend_interval", PI_SEQUENCE, PI_NOTE,
+            "Command resent at another interval than 100 ms (TS-0006 5.1.3, 5.1.4)", EXPFILL } },
+        { &ei_not_resent,
+          { "eglink.analysis.not_resent", PI_SEQUENCE, PI_WARN,
+            "Unacknowledged command not resent within 100 ms (TS-0006 5.1.3, 5.1.4)", EXPFILL } },
+        { &ei_resent_after_ack,
+          { "eglink.analysis.resent_after_ack", PI_SEQUENCE, PI_NOTE,
+            "Command resent after its acknowledgement (TS-0006 5.1.3, 5.1.4)", EXPFILL } },
+        { &ei_resent_after_deadline,
+          { "eglink.analysis.resent_after_deadline", PI_SEQUENCE, PI_NOTE,
+            "Command resent after its acknowledgement timeout (TS-0006 5.1.3, 5.1.4)", EXPFILL } },
+        { &ei_command_id_sequence,
+          { "eglink.analysis.command_id_sequence", PI_SEQUENCE, PI_WARN,
+            "Command ID not the previous one + 1 (TS-0006 4.3, 4.5)", EXPFILL } },
+        { &ei_revision_ignored,
+          { "eglink.analysis.revision_ignored", PI_PROTOCOL, PI_NOTE,
+            "Packet of another header revision kept out of the analysis (TS-0006 5.1.5)", EXPFILL } },
     };
     expert_module_t *expert;
 
@@ -2084,6 +2540,15 @@ eglink_analysis_register(int proto, module_t *prefs)
         "Configured size of the VRPO periodic data; a split burst ends when it reaches this size. "
         "0: a burst ends with a packet shorter than 488 bytes or when the next burst starts",
         10, &pref_periodic_size);
+    prefs_register_uint_preference(prefs, "resend_tolerance_ms", "Command resend tolerance (ms)",
+        "A VRCI or VRCO is resent every 100 ms until acknowledged (TS-0006 5.1.3, 5.1.4): a resend "
+        "further than this from 100 ms after the previous transmission is noted, and an "
+        "unacknowledged command not resent within 100 ms + this is flagged",
+        10, &pref_resend_tolerance_ms);
+    prefs_register_uint_preference(prefs, "burst_spread_ms", "VRPO burst spread limit (ms)",
+        "The packets of a split VRPO are sent without delay (TS-0006 5.1.2): a packet of a burst "
+        "later than this after the one before it is noted",
+        10, &pref_burst_spread_ms);
     prefs_register_bool_preference(prefs, "reassemble_vrpo", "Reassemble split VRPO bursts",
         "Reassemble the periodic data of VRPO bursts split into several packets",
         &pref_reassemble);

@@ -46,6 +46,8 @@ void proto_reg_handoff_eglink(void);
 
 #define EGLINK_BU_STATE_DISARMED    0x10
 #define EGLINK_RU_STATE_STOPPED     4
+#define EGLINK_RU_STATE_DISARMED    1
+#define EGLINK_LINK_PASSIVE         6
 #define EGLINK_JOYSTICK_LIMIT       1000
 
 static int proto_eglink = -1;
@@ -111,6 +113,8 @@ static expert_field ei_eglink_link_status_unknown = EI_INIT;
 static expert_field ei_eglink_vlaps_range = EI_INIT;
 static expert_field ei_eglink_ru_state_stopped = EI_INIT;
 static expert_field ei_eglink_ru_state_unknown = EI_INIT;
+static expert_field ei_eglink_link_status_passive = EI_INIT;
+static expert_field ei_eglink_ru_state_disarmed = EI_INIT;
 static expert_field ei_eglink_ru_battery_range = EI_INIT;
 static expert_field ei_eglink_ru_rssi_range = EI_INIT;
 static expert_field ei_eglink_flag_invalid = EI_INIT;
@@ -439,6 +443,25 @@ eglink_check_link_status(eglink_payload_t *p, proto_item *ti, int hf, const char
         "%s Unknown (0x%02x): defined are 0..6", name, value);
 }
 
+/* TS-0006 4.1.2: Passive (link not in use) is reported on the C-Link only,
+ * and only when no remote is armed. i: 0 EG-Link, 1 EC-Link, 2 C-Link. */
+static void
+eglink_check_passive(eglink_payload_t *p, proto_item *ti, int i, guint32 value, gboolean have_armed,
+                     guint32 armed_ru)
+{
+    static const char *const names[] = { "EG-Link", "EC-Link", "C-Link" };
+
+    if (!ti || value != EGLINK_LINK_PASSIVE)
+        return;
+    if (i != 2)
+        expert_add_info_format(p->pinfo, ti, &ei_eglink_link_status_passive,
+            "%s status Passive: only the C-Link reports Passive", names[i]);
+    else if (have_armed && armed_ru != 0)
+        expert_add_info_format(p->pinfo, ti, &ei_eglink_link_status_passive,
+            "C-Link status Passive while RU 0x%04x is armed: Passive only when no remote is armed",
+            armed_ru);
+}
+
 static void
 eglink_check_percent(eglink_payload_t *p, proto_item *ti, expert_field *ei, const char *name,
                      guint32 value)
@@ -544,8 +567,8 @@ eglink_vrpi_info(const eglink_payload_t *p, guint32 bu_state, gboolean relays_op
 static void
 dissect_eglink_vrpi(eglink_payload_t *p, eglink_info_t *info)
 {
-    proto_item *ti, *bu_ti, *armed_ti, *ru_ti;
-    guint32 bu_state, value, armed_ru, ru_state;
+    proto_item *ti, *bu_ti, *armed_ti, *ru_ti, *link_ti[3] = { NULL, NULL, NULL };
+    guint32 bu_state, value, armed_ru = 0, ru_state, link[3] = { 0, 0, 0 };
     gint32 svalue;
     gboolean have_armed, relays_known, relays_open;
     int i;
@@ -578,18 +601,24 @@ dissect_eglink_vrpi(eglink_payload_t *p, eglink_info_t *info)
     if (eglink_add_uint(p, hf_eglink_vlaps, 1, 1, &value, &ti) && value > 3)
         eglink_undefined(p, ti, &ei_eglink_vlaps_range, "%u VLAPs reported: a BU has at most 3", value);
     eglink_add_uint(p, hf_eglink_unarmed_rus, 2, 1, &value, NULL);
-    if (eglink_add_uint(p, hf_eglink_eg_link_status, 3, 1, &value, &ti))
-        eglink_check_link_status(p, ti, hf_eglink_eg_link_status, "EG-Link status", value);
-    if (eglink_add_uint(p, hf_eglink_ec_link_status, 4, 1, &value, &ti))
-        eglink_check_link_status(p, ti, hf_eglink_ec_link_status, "EC-Link status", value);
-    if (eglink_add_uint(p, hf_eglink_c_link_status, 5, 1, &value, &ti))
-        eglink_check_link_status(p, ti, hf_eglink_c_link_status, "C-Link status", value);
+    if (eglink_add_uint(p, hf_eglink_eg_link_status, 3, 1, &link[0], &link_ti[0]))
+        eglink_check_link_status(p, link_ti[0], hf_eglink_eg_link_status, "EG-Link status", link[0]);
+    if (eglink_add_uint(p, hf_eglink_ec_link_status, 4, 1, &link[1], &link_ti[1]))
+        eglink_check_link_status(p, link_ti[1], hf_eglink_ec_link_status, "EC-Link status", link[1]);
+    if (eglink_add_uint(p, hf_eglink_c_link_status, 5, 1, &link[2], &link_ti[2]))
+        eglink_check_link_status(p, link_ti[2], hf_eglink_c_link_status, "C-Link status", link[2]);
 
     have_armed = eglink_add_uint(p, hf_eglink_armed_ru, 6, 2, &armed_ru, &armed_ti);
+    for (i = 0; i < 3; i++)
+        eglink_check_passive(p, link_ti[i], i, link[i], have_armed, armed_ru);
     if (eglink_add_uint(p, hf_eglink_ru_state, 8, 1, &ru_state, &ru_ti)) {
         if (ru_state == EGLINK_RU_STATE_STOPPED)
             expert_add_info_format(p->pinfo, ru_ti, &ei_eglink_ru_state_stopped,
                 "RU stopped (stop switch, free-fall/shock sensor or RU fault): ES-Link relays open");
+        else if (ru_state == EGLINK_RU_STATE_DISARMED)
+            /* TS-0006 4.1.3: Disarmed is used inside the BU only */
+            expert_add_info_format(p->pinfo, ru_ti, &ei_eglink_ru_state_disarmed,
+                "RU state 1 (Disarmed) on the wire: TS-0006 uses it only inside the BU");
         else if (try_val_to_str(ru_state, eglink_ru_state_vals) == NULL) {
             eglink_show_unknown(ru_ti, hf_eglink_ru_state, ru_state);
             eglink_undefined(p, ru_ti, &ei_eglink_ru_state_unknown,
@@ -1185,6 +1214,12 @@ proto_register_eglink(void)
         { &ei_eglink_ru_state_stopped,
           { "eglink.ru_state.stopped", PI_RESPONSE_CODE, PI_WARN,
             "RU stopped: ES-Link relays open", EXPFILL } },
+        { &ei_eglink_link_status_passive,
+          { "eglink.link_status.passive", PI_PROTOCOL, PI_WARN,
+            "Link status Passive where TS-0006 does not allow it", EXPFILL } },
+        { &ei_eglink_ru_state_disarmed,
+          { "eglink.ru_state.disarmed", PI_PROTOCOL, PI_NOTE,
+            "RU state Disarmed (used inside the BU only)", EXPFILL } },
         { &ei_eglink_ru_state_unknown,
           { "eglink.ru_state.unknown", PI_PROTOCOL, PI_ERROR,
             "RU state is not defined (0..4)", EXPFILL } },

@@ -45,7 +45,8 @@ ECLINK_PNIO_FIDS = (0x8023, 0x8024)  # EC-Link in PROFINET: input, output image 
 ECLINK_MODBUS_SERVER = "192.168.2.71"  # EC-Link in Modbus/TCP: the BU (server)
 
 
-# (t, who, type, payload): the session of the demo, in time order.
+# (t, who, type, payload): the session of the demo, in time order: VRPO every 200 ms
+# (TS-0006 5.1.2), each sender's commands numbered 1, 2, ... (TS-0006 4.3, 4.5).
 def _session():
     return [
         (0.000, "ctrl", "VRPO", state(0, 450, 900, mode=0, cycle=1, wind=3.5, text="READY")),
@@ -59,14 +60,14 @@ def _session():
         (0.510, "ctrl", "VRAO", eglink.ack(3)),
         (0.600, "ctrl", "VRPO", state(5230, 640, 3599, overload=1, mode=3, cycle=4, wind=12.75,
                                       text="OVERLOAD")),
-        (0.700, "ctrl", "VRCO", eglink.command(4, message(1, "LOAD 52.3 T"))),
-        (0.710, "bu", "VRAI", eglink.ack(4)),
-        (0.800, "bu", "VRCI", eglink.command(5, operator(stop=1, gear=3, hoist=-500))),
-        (0.810, "ctrl", "VRAO", eglink.ack(5)),
-        (0.900, "ctrl", "VRPO", state(5230, 200, 0, wind_alarm=1, mode=2, cycle=5, wind=21.0,
+        (0.700, "ctrl", "VRCO", eglink.command(1, message(1, "LOAD 52.3 T"))),
+        (0.710, "bu", "VRAI", eglink.ack(1)),
+        (0.750, "bu", "VRCI", eglink.command(4, operator(stop=1, gear=3, hoist=-500))),
+        (0.760, "ctrl", "VRAO", eglink.ack(4)),
+        (0.800, "ctrl", "VRPO", state(5230, 200, 0, wind_alarm=1, mode=2, cycle=5, wind=21.0,
                                       text="WIND ALARM")),
-        (1.000, "ctrl", "VRCO", eglink.command(6, message(2, "WIND 21 M/S"))),
-        (1.010, "bu", "VRAI", eglink.ack(6)),
+        (1.000, "ctrl", "VRCO", eglink.command(2, message(2, "WIND 21 M/S"))),
+        (1.010, "bu", "VRAI", eglink.ack(2)),
     ]
 
 

@@ -418,6 +418,6 @@ def header_violations():
     link.bu(0.05, "VRAI", ack(1), origin=0)                                    # 6
     link.bu(0.06, "VRCI", command(2, b"\x01"), spare=0x00000100)              # 7
     link.bu(0.07, "VRCI", command(3, b"\x01", spare=b"\x00\xff\x00\x00"))     # 8
-    link.ctrl(0.08, "VRCO", command(4, b"\x01", spare=b"\x01\x00\x00\x00"))   # 9
+    link.ctrl(0.08, "VRCO", command(2, b"\x01", spare=b"\x01\x00\x00\x00"))   # 9
     link.bu(0.125, "VRPI", armed())                                            # 10 clean
     return link.cap

@@ -171,13 +171,15 @@ def vrco_acked():
 
 
 @capture("eglink_analysis_vrco_unacked.pcap", "VRCO command 4 never acknowledged; VRCO "
-         "command 5 acknowledged by VRAI after 2.3 s (late)")
+         "command 5 acknowledged by VRAI after 2.3 s (late); each resent every 100 ms for "
+         "1.9 s, until its 2000 ms timeout (TS-0006 5.1.4)")
 def vrco_unacked():
     link = Link()
-    events = [(0.2 + 0.1 * i, lambda t: link.ctrl(t, "VRCO", command(4, b"\x21\x00ALARM")))
-              for i in range(5)]
+    events = [(round(0.2 + 0.1 * i, 6), lambda t: link.ctrl(t, "VRCO", command(4, b"\x21\x00ALARM")))
+              for i in range(20)]
+    events += [(round(2.5 + 0.1 * i, 6), lambda t: link.ctrl(t, "VRCO", command(5, b"\x22\x00RESET")))
+               for i in range(20)]
     events += [
-        (2.5, lambda t: link.ctrl(t, "VRCO", command(5, b"\x22\x00RESET"))),
         (4.8, lambda t: link.bu(t, "VRAI", ack(5))),
     ]
     timeline(link, 0.0, 5.0, events=events)
@@ -331,10 +333,10 @@ def shared_group():
         (0.61, lambda t: b.ctrl(t, "VRCO", command(2, b"\x10\x00LOAD B"))),
         (0.62, lambda t: a.bu(t, "VRAI", ack(2))),
         (0.64, lambda t: b.bu(t, "VRAI", ack(2))),
-        (0.90, lambda t: a.bu(t, "VRCI", command(1, b"\x01\x00STOP A"))),
-        (0.91, lambda t: b.bu(t, "VRCI", command(1, b"\x01\x00STOP B"))),
-        (0.93, lambda t: b.ctrl(t, "VRAO", ack(1))),
-        (0.95, lambda t: a.ctrl(t, "VRAO", ack(1))),
+        (0.90, lambda t: a.bu(t, "VRCI", command(6, b"\x01\x00STOP A"))),
+        (0.91, lambda t: b.bu(t, "VRCI", command(10, b"\x01\x00STOP B"))),
+        (0.93, lambda t: b.ctrl(t, "VRAO", ack(10))),
+        (0.95, lambda t: a.ctrl(t, "VRAO", ack(6))),
     ]
     play(plan)
     return a.cap
@@ -404,13 +406,15 @@ def wrong_port():
     return link.cap
 
 
-@capture("eglink_analysis_clock_step.pcap", "VRCO 4 at 0.2 s is never acknowledged; at 1.0 s "
-         "the capture's clock is set back 2 s (frame 20 reads -1.000 s): the step is a finding, "
-         "no interval or age is below 0, and the command's deadline counts from the step "
-         "(frame 57)")
+@capture("eglink_analysis_clock_step.pcap", "VRCO 4 at 0.2 s (resent every 100 ms until 0.9 s) "
+         "is never acknowledged; at 1.0 s the capture's clock is set back 2 s (frame 27 reads "
+         "-1.000 s): the step is a finding, no interval or age is below 0, and the command's "
+         "deadline counts from the step (frame 64)")
 def clock_step():
     link = Link()
-    timeline(link, 0.0, 1.0, events=((0.20, lambda t: link.ctrl(t, "VRCO", command(4, b"\x10\x00LOAD"))),))
+    timeline(link, 0.0, 1.0, events=[(round(0.2 + 0.1 * i, 6),
+                                      lambda t: link.ctrl(t, "VRCO", command(4, b"\x10\x00LOAD")))
+                                     for i in range(8)])
     timeline(link, -1.0, 1.5)   # 1.0 s to 3.5 s on a clock 2 s behind
     return link.cap
 
@@ -421,5 +425,58 @@ def clock_step():
          "tell which controller serves which BU")
 def unpaired():
     a, _, plan = shared_pair(40, 40)
+    play(plan)
+    return a.cap
+
+
+def _split_bursts(link, start, count, late=None, short_first=None, gap_after=None, skip_one=None):
+    """VRPO bursts of link's controller, numbered from 0: packet 0 full (488 bytes), packet 1
+    of 100 bytes 200 us later, every 100 ms from start. late: the burst whose packet 1 comes
+    15 ms after packet 0; short_first: the burst whose packet 0 carries 300 bytes; gap_after:
+    the burst that comes 250 ms after the one before; skip_one: the burst numbered 0, 2."""
+    plan, t = [], start
+    for k in range(count):
+        if k == gap_after:
+            t += 0.150
+        first = machine_data(k, size=300 if k == short_first else 488)
+        second = (2 if k == skip_one else 1, machine_data(50 + k, size=100))
+        plan.append((round(t, 6), lambda t, d=first: link.ctrl(t, "VRPO", vrpo(0, d))))
+        plan.append((round(t + (0.015 if k == late else 0.0002), 6),
+                     lambda t, n=second: link.ctrl(t, "VRPO", vrpo(n[0], n[1]))))
+        t += 0.100
+    return plan
+
+
+@capture("eglink_analysis_spec_rules.pcap", "the rules of TS-0006 4.2, 4.3, 4.5, 5.1.2, 5.1.3 "
+         "and 5.1.4 broken once each. BU 0x1001 (239.255.42.20): VRCI 1 resent after 100 and "
+         "50 ms; VRCI 2 never resent, acknowledged after 200 ms; VRCI 3 resent after its VRAO; "
+         "VRCO 1 then VRCO 3; VRCI 4 resent every 100 ms past its 2000 ms timeout. BU 0x1002 "
+         "(239.255.42.21): split VRPO bursts numbered from 0, one spread out, one whose first "
+         "packet is not full, one 250 ms after the one before, one numbered 0, 2")
+def spec_rules():
+    a = Link()
+    b = GroupLink("239.255.42.21", cap=a.cap, origin=0x1002, bu_ip="192.168.32.11")
+    cmd = b"\x01\x00HORN"
+    plan = [(round(0.125 * k, 6), lambda t: a.bu(t, "VRPI", armed())) for k in range(33)]
+    plan += [(round(0.04 + 0.1 * k, 6), lambda t, k=k: a.ctrl(t, "VRPO", vrpo(0, machine_data(k))))
+             for k in range(40)]
+    plan += [(round(0.005 + 0.125 * k, 6), lambda t: b.bu(t, "VRPI", armed())) for k in range(33)]
+    plan += _split_bursts(b, 0.06, 38, late=3, short_first=5, gap_after=7, skip_one=10)
+    plan += [
+        (0.30, lambda t: a.bu(t, "VRCI", command(1, cmd))),
+        (0.40, lambda t: a.bu(t, "VRCI", command(1, cmd))),
+        (0.45, lambda t: a.bu(t, "VRCI", command(1, cmd))),         # 50 ms after the one before
+        (0.46, lambda t: a.ctrl(t, "VRAO", ack(1))),
+        (0.70, lambda t: a.bu(t, "VRCI", command(2, cmd))),         # never resent
+        (0.90, lambda t: a.ctrl(t, "VRAO", ack(2))),
+        (1.00, lambda t: a.bu(t, "VRCI", command(3, cmd))),
+        (1.01, lambda t: a.ctrl(t, "VRAO", ack(3))),
+        (1.10, lambda t: a.bu(t, "VRCI", command(3, cmd))),         # after its VRAO
+        (1.20, lambda t: a.ctrl(t, "VRCO", command(1, b"\x10\x00LOAD"))),
+        (1.21, lambda t: a.bu(t, "VRAI", ack(1))),
+        (1.30, lambda t: a.ctrl(t, "VRCO", command(3, b"\x10\x00WIND"))),   # 2 expected
+        (1.31, lambda t: a.bu(t, "VRAI", ack(3))),
+    ]
+    plan += [(round(1.5 + 0.1 * i, 6), lambda t: a.bu(t, "VRCI", command(4, cmd))) for i in range(22)]
     play(plan)
     return a.cap
