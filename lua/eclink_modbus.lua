@@ -263,8 +263,11 @@ end
 -- once a file.
 local function find_mbtcp_port()
     local found
+    -- (holds() unrolled: 65,535 lookups, most of them nil)
+    local name, get = tostring(mbtcp), tcp_port_table.get_dissector
     for p = 1, 65535 do
-        if holds(p, mbtcp) and (found == nil or found == 502) then found = p end
+        local cur = get(tcp_port_table, p)
+        if cur ~= nil and tostring(cur) == name and (found == nil or found == 502) then found = p end
     end
     return found
 end
@@ -375,10 +378,11 @@ end
 -- An image: its bytes as one string (shared by reference with the per-frame
 -- snapshots while it does not change), which bits of each byte have been
 -- seen (mask) and how many bytes are fully known.
+-- (mask: a byte not written reads 0, from the metatable: every Modbus/TCP
+-- connection gets two images, most of them never written)
+local ZERO_MASK = { __index = function() return 0 end }
 local function new_image(len)
-    local img = { len = len, data = string.rep("\0", len), mask = {}, nknown = 0 }
-    for i = 0, len - 1 do img.mask[i] = 0 end
-    return img
+    return { len = len, data = string.rep("\0", len), mask = setmetatable({}, ZERO_MASK), nknown = 0 }
 end
 
 local sbyte = string.byte
@@ -983,6 +987,11 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb, 
         local port = is_request and pinfo.dst_port or pinfo.src_port
         c.pinned = opt.any_servers and servers.listed(opt.servers, addr, port, pinfo.match_uint) or false
         c.setting = servers.setting(addr, port, proto.prefs.servers)
+    end
+    -- a connection the heuristic gave up on stays Modbus's: nothing more to work out
+    if c.tries >= CANDIDATE_TRIES and not c.accepted and not c.pinned and opt.detection == DETECT_HEURISTIC then
+        last_request = false
+        return NOT_DECODED
     end
     local tkey = (tid * 256 + unit) * 256 + fc
     -- (every rule of the connection goes by a time that never runs

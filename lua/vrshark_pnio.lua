@@ -74,7 +74,8 @@ local fget, fset = framemap.get, framemap.set
 -- With the C front ends the C plugin is "vrshark_pnio"; the carrier is then
 -- called through the front ends' tables under mcmb2's Proto.
 local C = fe.pn_frame_id ~= nil
-local carrier = C and systems.mcmb2_proto() or Proto("vrshark_pnio", "vrshark PROFINET IO cyclic data")
+local mcmb2_proto = systems.mcmb2_proto()
+local carrier = C and mcmb2_proto or Proto("vrshark_pnio", "vrshark PROFINET IO cyclic data")
 local ethertype_table = DissectorTable.get("ethertype")
 local udp_table = DissectorTable.get("udp.port")
 -- Wireshark's PN-RT dissector, called first without the C plugin. Found by
@@ -986,6 +987,10 @@ local function cyclic(tvb, pinfo, tree, view, thrown)
         if not (view and view.quiet) then
             -- (under the decoder's own Proto: pnio_systems.through() says why)
             local dec = owner(rec)
+            -- (without the C front ends MC-MB2-PN makes their view itself: frontends.lua_view())
+            if not C and not thrown and rec.plan and dec.proto == mcmb2_proto then
+                view = fe.lua_view(dec.proto, tree)
+            end
             if dec.proto == carrier then
                 display(rec, tvb, pinfo, tree, view, thrown)
             else

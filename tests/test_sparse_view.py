@@ -160,6 +160,64 @@ def test_filters_select_the_frames_of_the_full_tree(tshark, flt):
     assert matched > 0, flt
 
 
+# Without the C plugin (VRSHARK_NO_C_PLUGIN=1) the carrier makes the view
+# itself for MC-MB2-PN (lua/vrshark/frontends.luam lua_view(), from
+# TreeItem:referenced()); VRSHARK_FULL_TREE=1 turns it off there too.
+LUA_ONLY = {"VRSHARK_NO_C_PLUGIN": "1"}
+
+
+@pytest.mark.parametrize("name", MCMB2_CAPTURES + PUBLIC)
+@pytest.mark.parametrize("two_pass", [False, True])
+def test_lua_only_columns_are_those_of_the_full_tree(tshark, name, two_pass):
+    """Lua plugins alone: every MC-MB2-PN field as a column, Protocol and
+    Info are those of the full tree, frame by frame."""
+    args = ["-n", "-r", str(_capture(name)), "-o", "gui.column.format:" + _columns(_fields(tshark))]
+    args += _prefs(name) + (["-2"] if two_pass else [])
+    sparse = _run(tshark, args, extra_env=LUA_ONLY)
+    assert sparse.splitlines() == _run(tshark, args, full=True, extra_env=LUA_ONLY).splitlines()
+    if "mcmb2" in name and "e010_noconnect" not in name:
+        assert "MC-MB2" in sparse
+
+
+@pytest.mark.parametrize("name", MCMB2_CAPTURES + PUBLIC)
+def test_lua_only_expert_statistics_are_those_of_the_full_tree(tshark, name):
+    args = ["-n", "-q", "-r", str(_capture(name)), "-z", "expert"] + _prefs(name)
+    assert _run(tshark, args, extra_env=LUA_ONLY) == _run(tshark, args, full=True, extra_env=LUA_ONLY)
+
+
+@pytest.mark.parametrize("flt", ["mcmb2.status == 1", "mcmb2.slot.status == 1", "mcmb2.watchdog_age > 0.5",
+                                 "mcmb2.status.e010", "mcmb2.iops", "mcmb2.slot.uplink_data[0] == 0",
+                                 "mcmb2", "mcmb2.status == 1 && mcmb2"])
+def test_lua_only_filters_select_the_frames_of_the_full_tree(tshark, flt):
+    matched = 0
+    for name in MCMB2_CAPTURES:
+        args = ["-n", "-r", str(CAPTURES / name), "-Y", flt] + _prefs(name)
+        sparse = _run(tshark, args, extra_env=LUA_ONLY)
+        assert sparse == _run(tshark, args, full=True, extra_env=LUA_ONLY), (name, flt)
+        matched += len(sparse.splitlines())
+    assert matched > 0, flt
+
+
+# Writes "served FRAME" for every frame the MC-MB2-PN sparse display served
+# (the first part of PROBE: no front-end tables without the C plugin).
+LUA_ONLY_PROBE = PROBE.split("local carrier = ")[0]
+
+
+@pytest.mark.parametrize("args, served", [
+    (["-Y", "mcmb2.status == 1"], True),
+    (["-Y", "pn_rt.frame_id == 0x1234"], True),    # nothing of ours referenced: Protocol and Info only
+    (["-V"], False),                               # a visible tree
+    (["-Y", "mcmb2"], False),                      # the protocol itself
+    (["-Y", "mcmb2.status.e010"], False),          # an expert of it
+])
+def test_lua_only_sparse_display_serves_the_frames(tshark, work_dir, args, served):
+    cyclic = tshark.field(DUPLEX, "frame.number", display_filter="mcmb2 && pn_rt")
+    assert len(cyclic) > 10
+    got = _script_lines(tshark, work_dir, LUA_ONLY_PROBE, DUPLEX, args, extra_env=LUA_ONLY)
+    assert [line.split(" ", 1)[1] for line in got] == (cyclic if served else [])
+    assert _script_lines(tshark, work_dir, LUA_ONLY_PROBE, DUPLEX, args, full=True, extra_env=LUA_ONLY) == []
+
+
 def _script_lines(tshark, work_dir, script_text, capture, args, full=False, extra_env=None):
     """Runs tshark with a probe script (-X lua_script); the lines it wrote."""
     script = work_dir / "probe.lua"

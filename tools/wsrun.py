@@ -20,11 +20,14 @@ ROOT = Path(__file__).resolve().parent.parent
 RUN_UID = int(os.environ.get("VRSHARK_RUN_UID", "65534"))
 
 
-def build(build_dir, cmake_args=""):
-    """tools/build into build_dir (cheap when nothing changed); returns build_dir/wsplugins."""
+def build(build_dir, cmake_args="", lua_only=False):
+    """tools/build into build_dir (cheap when nothing changed); returns build_dir/wsplugins,
+    or with lua_only build_dir/wsplugins-lua-only (the Lua plugins without eglink.so)."""
     env = dict(os.environ)
     if cmake_args:
         env["VRSHARK_CMAKE_ARGS"] = cmake_args
+    if lua_only:
+        env["VRSHARK_NO_C_PLUGIN"] = "1"
     build_dir = Path(build_dir)
     build_dir.mkdir(parents=True, exist_ok=True)
     # One build at a time per folder (the test suite and a manual run may overlap).
@@ -32,7 +35,7 @@ def build(build_dir, cmake_args=""):
         fcntl.flock(lock, fcntl.LOCK_EX)
         subprocess.run([str(ROOT / "tools" / "build"), "--quiet", str(build_dir)], env=env,
                        check=True)
-    return build_dir / "wsplugins"
+    return build_dir / ("wsplugins-lua-only" if lua_only else "wsplugins")
 
 
 def system_plugin_dir(dest):
