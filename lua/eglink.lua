@@ -376,36 +376,70 @@ local function type_sizes(ptype)
     return 0, math.huge
 end
 
--- The packet ID as Wireshark's format_text() shows bytes: printable ASCII
--- as is, C escapes for the usual control characters, octal for the rest;
--- bytes that are no UTF-8 are shown as U+FFFD.
+-- The packet ID as Wireshark's format_text() shows bytes (tvb_format_text()
+-- in the C plugin), for the two bytes after "VR": printable ASCII as is, C
+-- escapes for the usual control characters, octal for the other ones; a
+-- UTF-8 sequence (overlong ones too) decoded, a printable character kept and
+-- any other as \uXXXX; an incomplete or invalid sequence is one U+FFFD.
+-- Printable is GLib's g_unichar_isprint(); of the characters two bytes can
+-- hold (up to U+07FF) these are not, besides the C0 and C1 controls:
+local NOT_PRINTABLE = {}
+for _, r in ipairs({ { 0xAD }, { 0x378, 0x379 }, { 0x380, 0x383 }, { 0x38B }, { 0x38D }, { 0x3A2 }, { 0x530 },
+                     { 0x557, 0x558 }, { 0x58B, 0x58C }, { 0x590 }, { 0x5C8, 0x5CF }, { 0x5EB, 0x5EE },
+                     { 0x5F5, 0x605 }, { 0x61C }, { 0x6DD }, { 0x70E, 0x70F }, { 0x74B, 0x74C },
+                     { 0x7B2, 0x7BF }, { 0x7FB, 0x7FC } }) do
+    for c = r[1], r[2] or r[1] do NOT_PRINTABLE[c] = true end
+end
 local ESCAPES = { [7] = "\\a", [8] = "\\b", [12] = "\\f", [10] = "\\n", [13] = "\\r", [9] = "\\t", [11] = "\\v" }
+local REPLACEMENT = "\239\191\189"
+
+-- continuation bytes a UTF-8 lead byte wants (0: no lead byte)
+local function utf8_wants(b)
+    if b >= 0xC0 and b <= 0xDF then return 1 end
+    if b >= 0xE0 and b <= 0xEF then return 2 end
+    if b >= 0xF0 and b <= 0xF7 then return 3 end
+    if b >= 0xF8 and b <= 0xFB then return 4 end
+    if b >= 0xFC and b <= 0xFD then return 5 end
+    return 0
+end
+
+-- (the payload bits of a lead byte: b % LEAD_MOD[wants])
+local LEAD_MOD = { [0] = 64, 32, 16, 8, 4, 2 }
+
+local function utf8_char(c)
+    if c < 0x80 then return string.char(c) end
+    return string.char(0xC0 + math.floor(c / 64), 0x80 + c % 64)
+end
+
 local function format_text(s)
     local out = {}
     local i, n = 1, #s
     while i <= n do
         local b = s:byte(i)
+        i = i + 1
         if b >= 0x20 and b < 0x7F then
             out[#out + 1] = string.char(b)
         elseif b < 0x80 then
             out[#out + 1] = ESCAPES[b] or string.format("\\%03o", b)
         else
-            -- a well-formed UTF-8 sequence is kept, anything else is U+FFFD
-            local len = (b >= 0xC2 and b <= 0xDF and 2) or (b >= 0xE0 and b <= 0xEF and 3)
-                or (b >= 0xF0 and b <= 0xF4 and 4) or 1
-            local ok = len > 1 and i + len - 1 <= n
-            for k = i + 1, ok and i + len - 1 or i do
-                local c = s:byte(k)
-                if c < 0x80 or c > 0xBF then ok = false end
+            local wants = utf8_wants(b)
+            local c = b % LEAD_MOD[wants]
+            local got = 0
+            while wants > 0 and got < wants and i <= n do
+                local cb = s:byte(i)
+                if cb < 0x80 or cb > 0xBF then break end
+                c = c * 64 + cb % 64
+                got = got + 1
+                i = i + 1
             end
-            if ok then
-                out[#out + 1] = s:sub(i, i + len - 1)
-                i = i + len - 1
+            if wants == 0 or got < wants or c > 0x7FF then
+                out[#out + 1] = REPLACEMENT
+            elseif (c >= 0x20 and c < 0x7F) or (c >= 0xA0 and not NOT_PRINTABLE[c]) then
+                out[#out + 1] = utf8_char(c)
             else
-                out[#out + 1] = "\239\191\189"
+                out[#out + 1] = string.format("\\u%04X", c)
             end
         end
-        i = i + 1
     end
     return table.concat(out)
 end
@@ -825,8 +859,9 @@ local function dissect(tvb, pinfo, tree)
     p.cap = math.max(0, math.min(p.len, captured - HEADER_LEN))
     info.size_ok = true
     -- (the C plugin files these under the Size item; with the Size not
-    -- captured, under the protocol item)
-    local size_item = size_ti or eglink_item
+    -- captured, under no item: only the expert list has them. The nearest
+    -- a Lua dissector comes is the frame's top tree.)
+    local size_item = size_ti or tree
     if info.size ~= p.len then
         info.size_ok = false
         size_item:add_proto_expert_info(ei.size_mismatch, string.format(
