@@ -207,14 +207,10 @@ for _, f in ipairs({ pf.encoder, pf.encoder_switch, pf.packet_number, pf.periodi
                      pf.command_data }) do
     field_list[#field_list + 1] = f
 end
-if analysis then
-    analysis.fields(field_list)
-    -- what the analysis takes from the dissector (eglink_is_input_port(),
-    -- eglink_data_dissect() and hf_eglink_periodic_data in C)
-    analysis.is_input_port = function(port) return handoff.is_input_port(port) end
-    analysis.data_dissect = handoff.dissect
-    analysis.periodic_data_field = pf.periodic_data
-end
+if analysis then analysis.fields(field_list) end
+-- (what the analysis takes from the dissector through vrshark/eglink_data.luam:
+-- hf_eglink_periodic_data, eglink_is_input_port() and eglink_data_dissect() in C)
+handoff.periodic_data_field = pf.periodic_data
 proto.fields = field_list
 
 -- (the field names, for set_text as proto_registrar_get_name() gives them)
