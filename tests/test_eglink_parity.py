@@ -104,7 +104,7 @@ def test_capture_parity(c_tshark, lua_tshark, name, two_pass):
 
 def test_capture_list():
     """Every EG-Link capture of the generator is compared."""
-    assert len(CAPTURE_NAMES) >= 34
+    assert len(CAPTURE_NAMES) >= 33
     assert "crane_eglink.pcap" in CAPTURE_NAMES and "eglink_truncated.pcap" in CAPTURE_NAMES
 
 
@@ -248,3 +248,18 @@ def test_random_bytes(c_tshark, lua_tshark, work_dir):
     path = write_session(work_dir / "random-bytes.pcap", packets)
     lua_tshark.run(["-n", "-r", str(path), "-V", "-2"])  # (run() fails on a Lua Error)
     assert_same(c_tshark, lua_tshark, path, False)
+
+
+def test_c_plugin_decodes_where_both_are_loaded(c_tshark, lua_tshark):
+    """Where the C plugin is loaded, eglink.lua registers nothing and says
+    nothing (no duplicate protocol, nothing on stderr); without it, the Lua
+    EG-Link is the protocol eglink."""
+    proc = c_tshark.run(["-G", "protocols"])
+    assert "VisionRemote EG-Link\tEG-Link\teglink" in proc.stdout.splitlines() and proc.stderr == ""
+    proc = c_tshark.run(["-n", "-r", str(CAPTURES / "eglink_armed.pcap"), "-c", "1"])
+    assert " EG-Link " in proc.stdout and proc.stderr == ""
+    plugins = c_tshark.run(["-G", "plugins"]).stdout
+    assert "eglink.so" in plugins and "eglink.lua" in plugins
+    proc = lua_tshark.run(["-G", "protocols"])
+    assert "VisionRemote EG-Link\tEGLINK\teglink" in proc.stdout.splitlines() and proc.stderr == ""
+    assert "eglink.so" not in lua_tshark.run(["-G", "plugins"]).stdout
