@@ -28,8 +28,11 @@ local iodata = require("vrshark.iodata")
 -- plugin hands both over in pinfo.match_uint (the packet's origin in the low
 -- 16 bits, the analysis' BU origin in the high 16, 0: not known), not as
 -- Lua Fields: once any Lua Field exists, Wireshark builds the frame tree of
--- every frame of every protocol to feed it. Without the EG-Link C plugin (a
--- Lua-only install) there is no table: the EG-Link hook is then left out.
+-- every frame of every protocol to feed it. Without the EG-Link C plugin the
+-- Lua EG-Link (eglink.lua, loaded before this file) owns the table and hands
+-- the same number over in vrshark/eglink_data.luam's match; without either
+-- there is no table: the EG-Link hook is then left out.
+local eglink_data = require("vrshark.eglink_data")
 local have_eglink, eglink_table = pcall(DissectorTable.get, "eglink.data")
 have_eglink = have_eglink and eglink_table ~= nil
 -- The controller's packets are matched to their BU's origin by the group
@@ -41,7 +44,7 @@ local frame_origin = {}   -- frame number -> origin
 local function origin(pinfo, from_bu)
     local known = frame_origin[pinfo.number]
     if known then return known end
-    local handed = pinfo.match_uint or 0
+    local handed = eglink_data.match or pinfo.match_uint or 0
     local value = handed % 65536
     if from_bu then
         if value ~= 0 then

@@ -254,13 +254,15 @@ def test_foreign_modbus_keeps_wiresharks_layers(tshark, work_dir):
 
 
 def test_lua_only_run_leaves_the_c_plugin_out(tshark, capture_file):
-    """VRSHARK_NO_C_PLUGIN=1: no vrshark.so; the Lua plugins wrap PN-RT and mbtcp themselves."""
+    """VRSHARK_NO_C_PLUGIN=1: no vrshark.so; the Lua plugins wrap PN-RT and mbtcp themselves, and
+    EG-Link is the Lua one."""
     env = dict(tshark.env, VRSHARK_NO_C_PLUGIN="1")
     out = subprocess.run([tshark.cmd, "-G", "protocols"], env=env, capture_output=True, text=True,
                          timeout=600).stdout
     names = {line.split("\t")[2] for line in out.splitlines() if line.count("\t") >= 2}
     assert "vrshark_pnio" in names and "mcmb2" in names and "eclink_modbus" in names
-    assert "vrshark_mbtcp" not in names and "eglink" not in names
+    assert "vrshark_mbtcp" not in names
+    assert "eglink" in names  # the Lua EG-Link (lua/eglink.lua), only without the C plugin
     rows = subprocess.run([tshark.cmd, "-n", "-r", str(capture_file("mcmb2_duplex_connect.pcap")), "-T", "fields",
                            "-e", "frame.protocols", "-e", "mcmb2.direction", "-c", "4"], env=env,
                           capture_output=True, text=True, timeout=600).stdout.splitlines()

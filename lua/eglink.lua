@@ -1,0 +1,993 @@
+--[[ eglink.lua -- VisionRemote EG-Link (VM-110 UDP EG-Link, TS-0006), protocol
+"eglink", for a Wireshark without the EG-Link C plugin (plugins/eglink): the
+same fields, expert infos, columns, heuristic, ports and preferences as
+plugins/eglink/packet-eglink.c, which stays the reference. Where the C plugin
+is loaded it decodes EG-Link and this file registers nothing.
+
+Every EG-Link packet is one UDP datagram, all integers little-endian:
+
+  0   4  Packet ID   "VR" + P/C/A (periodic, command, acknowledge)
+                          + I/O (input = BU to machine controller,
+                                 output = machine controller to BU)
+  4   2  Revision    0 = the layout decoded here
+  6   2  Origin      unique ID of the sending BU, 0 from the controller
+  8   2  Serial      sequential per sender
+ 10   2  Size        payload length (= UDP payload length - 20)
+ 12   4  Spare       0
+ 16   n  Payload     VRPI 46, VRPO 2..490, VRCI/VRCO 22, VRAI/VRAO 2
+16+n  4  CRC         CRC-32/MPEG-2 over ID + header + payload
+
+Input port 5825 (configurable), output port = input port + 2, multicast
+239.255.42.20. The per-BU conversation analysis, command links and VRPO
+reassembly live in vrshark/eglink_analysis.luam (as eglink-analysis.c), the
+"eglink.data" hand-off in vrshark/eglink_data.luam. The statistics tree of
+the C plugin (-z eglink,tree) has no Lua counterpart (docs/eglink.md).
+]]
+
+local dir = debug.getinfo(1, "S").source:match("^@(.*)[/\\]")
+package.path = dir .. "/?.luam;" .. package.path
+
+-- The C plugin (eglink.so) registers before the Lua plugins load: its
+-- transport front ends (vrshark/frontends.luam) and its "eglink.data" table
+-- are there. Then EG-Link is the C plugin's, silently.
+local fe = require("vrshark.frontends")
+local version = require("vrshark.version")
+local function have_table(name)
+    local ok, t = pcall(DissectorTable.get, name)
+    return ok and t ~= nil
+end
+if fe.pn_frame_id ~= nil or have_table("eglink.data") then
+    set_plugin_info(version.info("VisionRemote EG-Link (TS-0006) in Lua: idle, the C plugin decodes EG-Link"))
+    return
+end
+set_plugin_info(version.info("VisionRemote EG-Link (TS-0006) in Lua, for a Wireshark without the C plugin"))
+local handoff = require("vrshark.eglink_data")
+
+-- The conversation analysis (eglink-analysis.c in Lua). Without it (a copy
+-- of this file alone) the packets are decoded, not analysed.
+local analysis
+if package.searchpath and package.searchpath("vrshark.eglink_analysis", package.path) then
+    analysis = require("vrshark.eglink_analysis")
+end
+
+local band, bor, bxor, lshift, rshift = bit.band, bit.bor, bit.bxor, bit.lshift, bit.rshift
+
+local HEADER_LEN = 16
+local CRC_LEN = 4
+local MIN_LEN = HEADER_LEN + CRC_LEN
+local VRPO_FRAGMENT_MAX = 488
+local VRPI_LEN = 46
+local VRPO_MIN_LEN = 2
+local VRPO_MAX_LEN = 2 + VRPO_FRAGMENT_MAX
+local CMD_LEN = 22
+local ACK_LEN = 2
+local BU_STATE_DISARMED = 0x10
+local RU_STATE_STOPPED = 4
+local JOYSTICK_LIMIT = 1000
+local OUTPUT_PORT_OFFSET = 2
+local DEFAULT_INPUT_PORTS = "5825"
+
+local proto = Proto("eglink", "VisionRemote EG-Link")
+
+------------------------------------------------------------------------
+-- Value tables
+------------------------------------------------------------------------
+-- Packet types as the C plugin's eglink_type_t, by name.
+local TYPE_OF_ID = {
+    VRPI = "VRPI", VRPO = "VRPO", VRCI = "VRCI", VRCO = "VRCO", VRAI = "VRAI", VRAO = "VRAO",
+}
+local TYPE_DESCR = {
+    VRPI = "Periodic Input, BU to controller",
+    VRPO = "Periodic Output, controller to BU",
+    VRCI = "Command Input, BU to controller",
+    VRCO = "Command Output, controller to BU",
+    VRAI = "Acknowledge Input, BU to controller",
+    VRAO = "Acknowledge Output, controller to BU",
+    UNKNOWN = "unknown packet type",
+}
+local IS_INPUT = { VRPI = true, VRCI = true, VRAI = true }
+
+local BU_STATE = {
+    [0x00] = "Initial", [0x01] = "Stopped", [0x02] = "External link error", [0x03] = "Blocked",
+    [0x04] = "Failed", [0x10] = "Disarmed", [0x11] = "Armed",
+}
+-- Why the ES-Link relays are open, per BU state below Disarmed.
+local BU_STATE_ADVICE = {
+    [0x00] = "the BU is not fully operative yet",
+    [0x01] = "the armed RU asked the BU to stop",
+    [0x02] = "monitoring found an error on the EC-Link or EG-Link",
+    [0x03] = "contact with the armed RU is lost: switch the RU on and arm it again",
+    [0x04] = "the BU self-test found a fatal internal error",
+}
+local LINK_STATUS = {
+    [0] = "Unused", [1] = "Operational", [2] = "No link", [3] = "Link error", [4] = "Interface error",
+    [5] = "Data error", [6] = "Passive",
+}
+local RU_STATE = { [0] = "Initial", [1] = "Disarmed", [2] = "Armed", [3] = "Enabled", [4] = "Stopped" }
+local RU_CABLE = { [0] = "Wireless", [1] = "Cable" }
+local RU_DOCKED = { [0] = "Not docked", [1] = "Docked" }
+local RU_DISABLED = {
+    [0] = "Enabled", [1] = "Disabled (tilted)", [2] = "Disabled (inactivity)", [3] = "Disabled (other cause)",
+}
+local ENCODER_SWITCH = { [0] = "Released", [1] = "Pushed" }
+local RELAYS = { "Open", "Closed" }
+-- Wireshark's proto_checksum_vals
+local CHECKSUM_STATUS = { [0] = "Bad", [1] = "Good", [2] = "Unverified", [3] = "Not present", [4] = "Illegal" }
+local CHECKSUM_BAD, CHECKSUM_GOOD = 0, 1
+-- "87 %": a space before the unit, as everywhere in vrshark
+local UNITS_PERCENT = { " %" }
+
+------------------------------------------------------------------------
+-- Fields (the same filter names, types, bases and value strings as the C plugin)
+------------------------------------------------------------------------
+local PERCENT_BASE = bor(base.DEC, base.UNIT_STRING or 0)
+local pf = {
+    type = ProtoField.string("eglink.type", "Packet ID", base.NONE,
+        "Packet type: VRPI, VRPO, VRCI, VRCO, VRAI or VRAO"),
+    revision = ProtoField.uint16("eglink.revision", "Revision", base.DEC, nil, nil,
+        "Payload layout revision, 0 for TS-0006"),
+    origin = ProtoField.uint16("eglink.origin", "Origin", base.HEX, nil, nil,
+        "Unique ID of the sending BU, 0 from the machine controller"),
+    serial = ProtoField.uint16("eglink.serial", "Serial", base.DEC, nil, nil,
+        "Packet serial number, counted by the sender"),
+    size = ProtoField.uint16("eglink.size", "Size", base.DEC, nil, nil, "Payload size in bytes"),
+    spare = ProtoField.uint32("eglink.spare", "Spare", base.HEX, nil, nil, "Header spare, 0"),
+    payload = ProtoField.none("eglink.payload", "Payload"),
+    payload_spare = ProtoField.bytes("eglink.payload_spare", "Payload spare", base.NONE,
+        "Payload spare bytes, 0"),
+    extra_payload = ProtoField.bytes("eglink.extra_payload", "Extra payload", base.NONE,
+        "Bytes beyond the payload size of this packet type"),
+    unknown_payload = ProtoField.bytes("eglink.unknown_payload", "Payload data", base.NONE,
+        "Payload of an unknown packet type"),
+    crc = ProtoField.uint32("eglink.crc", "CRC", base.HEX, nil, nil, "CRC-32 over packet ID, header and payload"),
+    crc_status = ProtoField.uint8("eglink.crc.status", "CRC status", base.DEC, CHECKSUM_STATUS),
+
+    bu_state = ProtoField.uint8("eglink.bu_state", "BU state", base.HEX, BU_STATE, nil,
+        "State of the BU; below 0x10 the ES-Link relays are open"),
+    relays_open = ProtoField.bool("eglink.relays_open", "ES-Link relays", base.NONE, RELAYS, nil,
+        "Open when the BU state is below Disarmed (0x10) or the armed RU is stopped"),
+    vlaps = ProtoField.uint8("eglink.vlaps", "VLAPs", base.DEC, nil, nil,
+        "Number of VLAPs connected to the BU (0..3)"),
+    unarmed_rus = ProtoField.uint8("eglink.unarmed_rus", "Unarmed RUs", base.DEC, nil, nil,
+        "Number of unarmed RUs talking to this BU"),
+    eg_link_status = ProtoField.uint8("eglink.eg_link_status", "EG-Link status", base.DEC, LINK_STATUS),
+    ec_link_status = ProtoField.uint8("eglink.ec_link_status", "EC-Link status", base.DEC, LINK_STATUS),
+    c_link_status = ProtoField.uint8("eglink.c_link_status", "C-Link status", base.DEC, LINK_STATUS),
+    armed_ru = ProtoField.uint16("eglink.armed_ru", "Armed RU", base.HEX, nil, nil,
+        "Unique ID of the armed RU, 0 when none is armed"),
+    ru_state = ProtoField.uint8("eglink.ru_state", "RU state", base.DEC, RU_STATE, nil, "State of the armed RU"),
+    ru_battery = ProtoField.uint8("eglink.ru_battery", "RU battery", PERCENT_BASE, UNITS_PERCENT, nil,
+        "Battery level of the armed RU (0..100 %)"),
+    ru_rssi = ProtoField.uint8("eglink.ru_rssi", "RU C-Link RSSI", PERCENT_BASE, UNITS_PERCENT, nil,
+        "C-Link signal level of the armed RU (0..100 %)"),
+    ru_cable = ProtoField.uint8("eglink.ru_cable", "RU cable", base.DEC, RU_CABLE, nil,
+        "1 when the RU runs on cable, 0 on wireless VisionLink"),
+    ru_docked = ProtoField.uint8("eglink.ru_docked", "RU docked", base.DEC, RU_DOCKED, nil,
+        "1 when the RU sits in its docking station"),
+    ru_disabled = ProtoField.uint8("eglink.ru_disabled", "RU disabled", base.DEC, RU_DISABLED, nil,
+        "Why the armed RU's movements are disabled (0 = enabled)"),
+    joystick = {},
+    switch = {},
+    encoder = ProtoField.uint8("eglink.encoder", "Encoder", base.DEC, nil, nil,
+        "Encoder value; wraps around as the encoder turns"),
+    encoder_switch = ProtoField.uint8("eglink.encoder_switch", "Encoder switch", base.DEC, ENCODER_SWITCH, nil,
+        "1 while the encoder is pushed down"),
+
+    packet_number = ProtoField.uint16("eglink.packet_number", "Packet number", base.DEC, nil, nil,
+        "Number of this packet within a split periodic output, from 0"),
+    periodic_data = ProtoField.bytes("eglink.periodic_data", "Periodic data", base.NONE,
+        "Periodic process data from the machine controller to the RU application"),
+
+    command_id = ProtoField.uint16("eglink.command_id", "Command ID", base.DEC, nil, nil,
+        "Sequential command number; an acknowledge carries the ID it acknowledges"),
+    command_data = ProtoField.bytes("eglink.command_data", "Command data", base.NONE,
+        "Command data between the RU application and the machine controller"),
+}
+for i = 1, 4 do
+    pf.joystick[i] = ProtoField.int16("eglink.joystick" .. i, "Joystick " .. i, base.DEC, nil, nil,
+        "Position of joystick " .. i .. " (-1000..+1000, 0 = passive)")
+end
+local SWITCH_BLURB = { "State of switch 1 (leftmost)" }
+for i = 1, 8 do
+    pf.switch[i] = ProtoField.int16("eglink.switch" .. i, "Switch " .. i, base.DEC, nil, nil,
+        SWITCH_BLURB[i] or ("State of switch " .. i))
+end
+
+-- In the C plugin's registration order (tshark -G fields lists them so).
+local field_list = {
+    pf.type, pf.revision, pf.origin, pf.serial, pf.size, pf.spare, pf.payload, pf.payload_spare,
+    pf.extra_payload, pf.unknown_payload, pf.crc, pf.crc_status,
+    pf.bu_state, pf.relays_open, pf.vlaps, pf.unarmed_rus, pf.eg_link_status, pf.ec_link_status,
+    pf.c_link_status, pf.armed_ru, pf.ru_state, pf.ru_battery, pf.ru_rssi, pf.ru_cable, pf.ru_docked,
+    pf.ru_disabled,
+}
+for i = 1, 4 do field_list[#field_list + 1] = pf.joystick[i] end
+for i = 1, 8 do field_list[#field_list + 1] = pf.switch[i] end
+for _, f in ipairs({ pf.encoder, pf.encoder_switch, pf.packet_number, pf.periodic_data, pf.command_id,
+                     pf.command_data }) do
+    field_list[#field_list + 1] = f
+end
+if analysis then analysis.fields(field_list) end
+-- (what the analysis takes from the dissector through vrshark/eglink_data.luam:
+-- hf_eglink_periodic_data, eglink_is_input_port() and eglink_data_dissect() in C)
+handoff.periodic_data_field = pf.periodic_data
+proto.fields = field_list
+
+-- (the field names, for set_text as proto_registrar_get_name() gives them)
+local NAME = {
+    bu_state = "BU state", eg_link_status = "EG-Link status", ec_link_status = "EC-Link status",
+    c_link_status = "C-Link status", ru_state = "RU state", ru_cable = "RU cable", ru_docked = "RU docked",
+    ru_disabled = "RU disabled", encoder_switch = "Encoder switch",
+}
+
+------------------------------------------------------------------------
+-- Expert infos (the same names, texts, groups and severities as the C plugin)
+------------------------------------------------------------------------
+local E, G, S = ProtoExpert.new, expert.group, expert.severity
+local ei = {
+    too_short = E("eglink.too_short", "Packet too short for packet ID, header and CRC", G.MALFORMED, S.ERROR),
+    size_mismatch = E("eglink.size.mismatch", "Header Size does not match the UDP payload length - 20",
+        G.MALFORMED, S.ERROR),
+    size_invalid = E("eglink.size.invalid", "Payload size is wrong for this packet type", G.MALFORMED, S.ERROR),
+    type_unknown = E("eglink.type.unknown", "Unknown packet type", G.UNDECODED, S.WARN),
+    revision_unknown = E("eglink.revision.unknown", "Unknown revision: only revision 0 is known",
+        G.PROTOCOL, S.WARN),
+    origin_nonzero = E("eglink.origin.nonzero", "Origin must be 0 in packets from the machine controller",
+        G.PROTOCOL, S.WARN),
+    origin_zero = E("eglink.origin.zero", "Origin is 0 in a packet from the BU", G.PROTOCOL, S.WARN),
+    spare_nonzero = E("eglink.spare.nonzero", "Header spare is not 0", G.PROTOCOL, S.WARN),
+    payload_spare_nonzero = E("eglink.payload_spare.nonzero", "Payload spare bytes are not 0", G.PROTOCOL, S.WARN),
+    crc_bad = E("eglink.crc.bad", "Bad CRC", G.CHECKSUM, S.ERROR),
+    crc_variant = E("eglink.crc.variant", "CRC matches another CRC variant or byte order: set the preference",
+        G.CHECKSUM, S.WARN),
+    relays_open = E("eglink.bu_state.relays_open", "ES-Link relays open", G.RESPONSE_CODE, S.WARN),
+    bu_state_unknown = E("eglink.bu_state.unknown", "BU state is not defined", G.PROTOCOL, S.ERROR),
+    link_status_unknown = E("eglink.link_status.unknown", "Link status is not defined (0..6)", G.PROTOCOL, S.ERROR),
+    vlaps_range = E("eglink.vlaps.range", "More than 3 VLAPs", G.PROTOCOL, S.ERROR),
+    ru_state_stopped = E("eglink.ru_state.stopped", "RU stopped: ES-Link relays open", G.RESPONSE_CODE, S.WARN),
+    ru_state_unknown = E("eglink.ru_state.unknown", "RU state is not defined (0..4)", G.PROTOCOL, S.ERROR),
+    ru_battery_range = E("eglink.ru_battery.range", "RU battery above 100 %", G.PROTOCOL, S.ERROR),
+    ru_rssi_range = E("eglink.ru_rssi.range", "RU C-Link RSSI above 100 %", G.PROTOCOL, S.ERROR),
+    flag_invalid = E("eglink.flag.invalid", "Flag is neither 0 nor 1", G.PROTOCOL, S.ERROR),
+    ru_disabled_unknown = E("eglink.ru_disabled.unknown", "RU disabled reason is not defined (0..3)",
+        G.PROTOCOL, S.ERROR),
+    joystick_range = E("eglink.joystick.range", "Joystick position outside -1000..+1000", G.PROTOCOL, S.ERROR),
+    unarmed_data = E("eglink.armed_ru.unarmed_data", "No RU is armed but RU fields are not 0", G.PROTOCOL, S.ERROR),
+    cut = E("eglink.cut", "Packet cut by the capture (snaplen)", G.UNDECODED, S.NOTE),
+}
+local expert_list = {
+    ei.too_short, ei.size_mismatch, ei.size_invalid, ei.type_unknown, ei.revision_unknown, ei.origin_nonzero,
+    ei.origin_zero, ei.spare_nonzero, ei.payload_spare_nonzero, ei.crc_bad, ei.crc_variant, ei.relays_open,
+    ei.bu_state_unknown, ei.link_status_unknown, ei.vlaps_range, ei.ru_state_stopped, ei.ru_state_unknown,
+    ei.ru_battery_range, ei.ru_rssi_range, ei.flag_invalid, ei.ru_disabled_unknown, ei.joystick_range,
+    ei.unarmed_data, ei.cut,
+}
+if analysis then analysis.experts(expert_list) end
+proto.experts = expert_list
+
+------------------------------------------------------------------------
+-- Preferences (the same names, defaults and values as the C plugin)
+------------------------------------------------------------------------
+local CRC_MPEG2, CRC_BZIP2, CRC_ISO_HDLC, CRC_STM32 = 0, 1, 2, 3
+local CRC_LE, CRC_BE = 0, 1
+local CRC_VARIANTS = {
+    { "mpeg2", "CRC-32/MPEG-2 (TS-0006)", CRC_MPEG2 },
+    { "bzip2", "CRC-32/BZIP2", CRC_BZIP2 },
+    { "iso_hdlc", "CRC-32/ISO-HDLC (Ethernet, zlib)", CRC_ISO_HDLC },
+    { "stm32", "STM32 hardware CRC (32-bit words)", CRC_STM32 },
+}
+-- Names as a field engineer reads them in expert info.
+local CRC_VARIANT_NAMES = { [0] = "CRC-32/MPEG-2", "CRC-32/BZIP2", "CRC-32/ISO-HDLC", "STM32 hardware CRC" }
+local CRC_ORDERS = {
+    { "le", "Little-endian (TS-0006)", CRC_LE },
+    { "be", "Big-endian", CRC_BE },
+}
+
+proto.prefs.input_port = Pref.range("Input UDP port(s)", DEFAULT_INPUT_PORTS,
+    "UDP port(s) the BU sends VRPI, VRCI and VRAI to. The machine controller sends "
+    .. "VRPO, VRCO and VRAO to the port 2 higher, which is registered as well.", 65535)
+proto.prefs.crc_variant = Pref.enum("CRC variant", CRC_MPEG2,
+    "CRC algorithm of the trailing CRC. TS-0006 specifies CRC-32/MPEG-2; some firmware "
+    .. "computes another variant (the expert info names the one that matches).", CRC_VARIANTS, false)
+proto.prefs.crc_byte_order = Pref.enum("CRC byte order", CRC_LE,
+    "Byte order of the stored CRC. TS-0006 specifies little-endian.", CRC_ORDERS, false)
+proto.prefs.heuristic = Pref.bool("Detect EG-Link on any UDP port", true,
+    "Look for EG-Link packets (\"VR\", a known packet type and a matching Size) on UDP "
+    .. "ports other than the configured ones.")
+if analysis then analysis.prefs(proto) end
+
+local opt = { crc_variant = CRC_MPEG2, crc_order = CRC_LE, heuristic = true, input = {} }
+
+------------------------------------------------------------------------
+-- CRC (the C plugin's eglink_crc_compute)
+------------------------------------------------------------------------
+-- Results as unsigned numbers 0..2^32-1 (the bit library's are signed).
+local TWO32 = 4294967296
+local function u32(x) return x % TWO32 end
+
+local MPEG2_TABLE, HDLC_TABLE = {}, {}
+for i = 0, 255 do
+    local c = lshift(i, 24)
+    for _ = 1, 8 do
+        if band(c, 0x80000000) ~= 0 then c = bxor(lshift(c, 1), 0x04C11DB7) else c = lshift(c, 1) end
+    end
+    MPEG2_TABLE[i] = c
+    local r = i
+    for _ = 1, 8 do
+        if band(r, 1) ~= 0 then r = bxor(rshift(r, 1), 0xEDB88320) else r = rshift(r, 1) end
+    end
+    HDLC_TABLE[i] = r
+end
+
+local function crc_mpeg2(s)
+    local crc = -1
+    local byte = string.byte
+    for i = 1, #s do
+        crc = bxor(lshift(crc, 8), MPEG2_TABLE[band(bxor(rshift(crc, 24), byte(s, i)), 0xFF)])
+    end
+    return u32(crc)
+end
+
+local function crc_iso_hdlc(s)
+    local crc = -1
+    local byte = string.byte
+    for i = 1, #s do
+        crc = bxor(rshift(crc, 8), HDLC_TABLE[band(bxor(crc, byte(s, i)), 0xFF)])
+    end
+    return u32(bxor(crc, -1))
+end
+
+-- An STM32 CRC unit fed 32-bit words read from little-endian memory shifts
+-- each word in most significant byte first: CRC-32/MPEG-2 over the bytes of
+-- every 4-byte group in reverse order, a trailing partial word padded with
+-- zero bytes.
+local function crc_stm32(s)
+    local pad = (4 - #s % 4) % 4
+    s = s .. string.rep("\0", pad)
+    local words = {}
+    for i = 1, #s, 4 do words[#words + 1] = s:sub(i, i + 3):reverse() end
+    return crc_mpeg2(table.concat(words))
+end
+
+local function crc_compute(s, variant)
+    if variant == CRC_BZIP2 then return u32(bxor(crc_mpeg2(s), -1)) end
+    if variant == CRC_ISO_HDLC then return crc_iso_hdlc(s) end
+    if variant == CRC_STM32 then return crc_stm32(s) end
+    return crc_mpeg2(s)
+end
+
+------------------------------------------------------------------------
+-- Helpers
+------------------------------------------------------------------------
+local function type_from_id(kind, direction)
+    return TYPE_OF_ID["VR" .. kind .. direction] or "UNKNOWN"
+end
+
+-- Expected payload size per type: min, max.
+local function type_sizes(ptype)
+    if ptype == "VRPI" then return VRPI_LEN, VRPI_LEN end
+    if ptype == "VRPO" then return VRPO_MIN_LEN, VRPO_MAX_LEN end
+    if ptype == "VRCI" or ptype == "VRCO" then return CMD_LEN, CMD_LEN end
+    if ptype == "VRAI" or ptype == "VRAO" then return ACK_LEN, ACK_LEN end
+    return 0, math.huge
+end
+
+-- The packet ID as Wireshark's format_text() shows bytes (tvb_format_text()
+-- in the C plugin), for the two bytes after "VR": printable ASCII as is, C
+-- escapes for the usual control characters, octal for the other ones; a
+-- UTF-8 sequence (overlong ones too) decoded, a printable character kept and
+-- any other as \uXXXX; an incomplete or invalid sequence is one U+FFFD.
+-- Printable is GLib's g_unichar_isprint(); of the characters two bytes can
+-- hold (up to U+07FF) these are not, besides the C0 and C1 controls:
+local NOT_PRINTABLE = {}
+for _, r in ipairs({ { 0xAD }, { 0x378, 0x379 }, { 0x380, 0x383 }, { 0x38B }, { 0x38D }, { 0x3A2 }, { 0x530 },
+                     { 0x557, 0x558 }, { 0x58B, 0x58C }, { 0x590 }, { 0x5C8, 0x5CF }, { 0x5EB, 0x5EE },
+                     { 0x5F5, 0x605 }, { 0x61C }, { 0x6DD }, { 0x70E, 0x70F }, { 0x74B, 0x74C },
+                     { 0x7B2, 0x7BF }, { 0x7FB, 0x7FC } }) do
+    for c = r[1], r[2] or r[1] do NOT_PRINTABLE[c] = true end
+end
+local ESCAPES = { [7] = "\\a", [8] = "\\b", [12] = "\\f", [10] = "\\n", [13] = "\\r", [9] = "\\t", [11] = "\\v" }
+local REPLACEMENT = "\239\191\189"
+
+-- continuation bytes a UTF-8 lead byte wants (0: no lead byte)
+local function utf8_wants(b)
+    if b >= 0xC0 and b <= 0xDF then return 1 end
+    if b >= 0xE0 and b <= 0xEF then return 2 end
+    if b >= 0xF0 and b <= 0xF7 then return 3 end
+    if b >= 0xF8 and b <= 0xFB then return 4 end
+    if b >= 0xFC and b <= 0xFD then return 5 end
+    return 0
+end
+
+-- (the payload bits of a lead byte: b % LEAD_MOD[wants])
+local LEAD_MOD = { [0] = 64, 32, 16, 8, 4, 2 }
+
+local function utf8_char(c)
+    if c < 0x80 then return string.char(c) end
+    return string.char(0xC0 + math.floor(c / 64), 0x80 + c % 64)
+end
+
+local function format_text(s)
+    local out = {}
+    local i, n = 1, #s
+    while i <= n do
+        local b = s:byte(i)
+        i = i + 1
+        if b >= 0x20 and b < 0x7F then
+            out[#out + 1] = string.char(b)
+        elseif b < 0x80 then
+            out[#out + 1] = ESCAPES[b] or string.format("\\%03o", b)
+        else
+            local wants = utf8_wants(b)
+            local c = b % LEAD_MOD[wants]
+            local got = 0
+            while wants > 0 and got < wants and i <= n do
+                local cb = s:byte(i)
+                if cb < 0x80 or cb > 0xBF then break end
+                c = c * 64 + cb % 64
+                got = got + 1
+                i = i + 1
+            end
+            if wants == 0 or got < wants or c > 0x7FF then
+                out[#out + 1] = REPLACEMENT
+            elseif (c >= 0x20 and c < 0x7F) or (c >= 0xA0 and not NOT_PRINTABLE[c]) then
+                out[#out + 1] = utf8_char(c)
+            else
+                out[#out + 1] = string.format("\\u%04X", c)
+            end
+        end
+    end
+    return table.concat(out)
+end
+
+local function value_name(value, vals)
+    return vals[value] or string.format("Unknown (0x%02x)", value)
+end
+
+local function show_unknown(ti, key, value)
+    ti:set_text(string.format("%s: Unknown (0x%02x)", NAME[key], value))
+end
+
+------------------------------------------------------------------------
+-- Payload: p = { tvb, pinfo, tree, base, len, cap, undefined }
+------------------------------------------------------------------------
+-- Adds an unsigned little-endian payload field if it fits: value, item (nil if not).
+local function add_uint(p, field, off, len)
+    if off + len > p.cap then return nil end
+    local range = p.tvb(p.base + off, len)
+    return range:le_uint(), p.tree:add_le(field, range)
+end
+
+local function add_int(p, field, off, len)
+    if off + len > p.cap then return nil end
+    local range = p.tvb(p.base + off, len)
+    return range:le_int(), p.tree:add_le(field, range)
+end
+
+-- Adds a byte block with whatever of it is present and captured: its length, item.
+local function add_bytes(p, field, off, len)
+    if off >= p.cap then return 0 end
+    if off + len > p.cap then len = p.cap - off end
+    if len <= 0 then return 0 end
+    return len, p.tree:add(field, p.tvb(p.base + off, len))
+end
+
+local function check_payload_spare(p, off, len)
+    local present, ti = add_bytes(p, pf.payload_spare, off, len)
+    for i = 0, present - 1 do
+        if p.tvb(p.base + off + i, 1):uint() ~= 0 then
+            ti:add_proto_expert_info(ei.payload_spare_nonzero,
+                "Payload spare bytes are not 0: reserved for future use, the sender "
+                .. "may use a newer layout than TS-0006")
+            break
+        end
+    end
+end
+
+-- An undefined or out-of-range value: an error in the Protocol group, and
+-- the Info tag [undefined].
+local function undefined(p, ti, e, text)
+    ti:add_proto_expert_info(e, text)
+    p.undefined = true
+end
+
+-- A 0/1 field (cable, docked, encoder switch) with its value names.
+local function check_flag(p, ti, key, name, value)
+    if value <= 1 then return end
+    show_unknown(ti, key, value)
+    undefined(p, ti, ei.flag_invalid, string.format("%s Unknown (0x%02x): only 0 and 1 are defined", name, value))
+end
+
+local function check_link_status(p, ti, key, name, value)
+    if LINK_STATUS[value] then return end
+    show_unknown(ti, key, value)
+    undefined(p, ti, ei.link_status_unknown, string.format("%s Unknown (0x%02x): defined are 0..6", name, value))
+end
+
+local function check_percent(p, ti, e, name, value)
+    if value > 100 then undefined(p, ti, e, string.format("%s %d %% is above 100 %%", name, value)) end
+end
+
+-- With Armed RU 0 every RU field after it must be 0: name the ones that are not.
+local RU_FIELDS = {
+    { 8, 1, "RU state" }, { 9, 1, "RU battery" }, { 10, 1, "RU C-Link RSSI" },
+    { 11, 1, "RU cable" }, { 12, 1, "RU docked" }, { 13, 1, "RU disabled" },
+    { 14, 2, "joystick 1" }, { 16, 2, "joystick 2" }, { 18, 2, "joystick 3" },
+    { 20, 2, "joystick 4" }, { 22, 2, "switch 1" }, { 24, 2, "switch 2" },
+    { 26, 2, "switch 3" }, { 28, 2, "switch 4" }, { 30, 2, "switch 5" },
+    { 32, 2, "switch 6" }, { 34, 2, "switch 7" }, { 36, 2, "switch 8" },
+    { 38, 1, "encoder" }, { 39, 1, "encoder switch" },
+}
+local function check_unarmed(p, armed_ti)
+    local names = {}
+    for _, f in ipairs(RU_FIELDS) do
+        if f[1] + f[2] > p.cap then break end
+        if p.tvb(p.base + f[1], f[2]):le_uint() ~= 0 then names[#names + 1] = f[3] end
+    end
+    if #names > 0 then
+        undefined(p, armed_ti, ei.unarmed_data,
+            "No RU is armed (Armed RU 0) but these RU fields are not 0: " .. table.concat(names, ", "))
+    end
+end
+
+-- Whether the ES-Link relays are open: below Disarmed, or with the armed RU
+-- stopped. known false when the capture cannot tell (RU state cut off by the
+-- snap length); a packet without an RU state is judged by its BU state.
+local function vrpi_relays(p, bu_state)
+    local open = bu_state < BU_STATE_DISARMED
+    if open or p.len < 9 then return true, open end
+    if p.cap < 9 then return false, open end
+    return true, p.tvb(p.base + 8, 1):uint() == RU_STATE_STOPPED
+end
+
+-- Info of a VRPI names what each value is: "BU=Armed RU 0xbeef=Enabled
+-- J1=-1000", the unarmed RUs while the BU is Disarmed, then [relays open].
+local function vrpi_info(p, bu_state, relays_open)
+    local have = p.cap
+    local parts = { " BU=" .. value_name(bu_state, BU_STATE) }
+    if have >= 3 and bu_state == BU_STATE_DISARMED then
+        parts[#parts + 1] = " Unarmed RUs=" .. p.tvb(p.base + 2, 1):uint()
+    end
+    if have >= 8 then
+        local armed_ru = p.tvb(p.base + 6, 2):le_uint()
+        local ru_state = have >= 9 and p.tvb(p.base + 8, 1):uint() or 0
+        if armed_ru ~= 0 or ru_state ~= 0 then
+            parts[#parts + 1] = string.format(" RU 0x%04x", armed_ru)
+            if have >= 9 then parts[#parts + 1] = "=" .. value_name(ru_state, RU_STATE) end
+        end
+    end
+    for i = 0, 3 do
+        if have < 16 + 2 * i then break end
+        local joystick = p.tvb(p.base + 14 + 2 * i, 2):le_int()
+        if joystick ~= 0 then parts[#parts + 1] = string.format(" J%d=%d", i + 1, joystick) end
+    end
+    if relays_open then parts[#parts + 1] = " [relays open]" end
+    p.pinfo.cols.info:append(table.concat(parts))
+end
+
+-- VRPI: BU status and the armed RU's controls.
+local function dissect_vrpi(p, info)
+    local bu_state, bu_ti = add_uint(p, pf.bu_state, 0, 1)
+    if not bu_state then
+        p.pinfo.cols.info:append(" (truncated)")
+        return
+    end
+    info.has_bu_state = true
+    info.bu_state = bu_state
+    local relays_known, relays_open = vrpi_relays(p, bu_state)
+    vrpi_info(p, bu_state, relays_known and relays_open)
+    if not BU_STATE[bu_state] then
+        show_unknown(bu_ti, "bu_state", bu_state)
+        undefined(p, bu_ti, ei.bu_state_unknown,
+            string.format("BU state Unknown (0x%02x): not defined in TS-0006", bu_state))
+    end
+
+    -- ES-Link relays, right below the BU state
+    if relays_known then
+        p.tree:add(pf.relays_open, p.tvb(p.base, 1), relays_open):set_generated()
+    end
+    if bu_state < BU_STATE_DISARMED then
+        bu_ti:add_proto_expert_info(ei.relays_open, string.format("ES-Link relays open: BU state %s (0x%02x), %s",
+            BU_STATE[bu_state] or "Unknown", bu_state,
+            BU_STATE_ADVICE[bu_state] or "an undefined state below Disarmed"))
+    end
+
+    local value, ti = add_uint(p, pf.vlaps, 1, 1)
+    if value and value > 3 then
+        undefined(p, ti, ei.vlaps_range, string.format("%d VLAPs reported: a BU has at most 3", value))
+    end
+    add_uint(p, pf.unarmed_rus, 2, 1)
+    value, ti = add_uint(p, pf.eg_link_status, 3, 1)
+    if value then check_link_status(p, ti, "eg_link_status", "EG-Link status", value) end
+    value, ti = add_uint(p, pf.ec_link_status, 4, 1)
+    if value then check_link_status(p, ti, "ec_link_status", "EC-Link status", value) end
+    value, ti = add_uint(p, pf.c_link_status, 5, 1)
+    if value then check_link_status(p, ti, "c_link_status", "C-Link status", value) end
+
+    local armed_ru, armed_ti = add_uint(p, pf.armed_ru, 6, 2)
+    local ru_state, ru_ti = add_uint(p, pf.ru_state, 8, 1)
+    if ru_state then
+        if ru_state == RU_STATE_STOPPED then
+            ru_ti:add_proto_expert_info(ei.ru_state_stopped,
+                "RU stopped (stop switch, free-fall/shock sensor or RU fault): ES-Link relays open")
+        elseif not RU_STATE[ru_state] then
+            show_unknown(ru_ti, "ru_state", ru_state)
+            undefined(p, ru_ti, ei.ru_state_unknown,
+                string.format("RU state Unknown (0x%02x): defined are 0..4", ru_state))
+        end
+    end
+
+    value, ti = add_uint(p, pf.ru_battery, 9, 1)
+    if value then check_percent(p, ti, ei.ru_battery_range, "RU battery", value) end
+    value, ti = add_uint(p, pf.ru_rssi, 10, 1)
+    if value then check_percent(p, ti, ei.ru_rssi_range, "RU C-Link RSSI", value) end
+    value, ti = add_uint(p, pf.ru_cable, 11, 1)
+    if value then check_flag(p, ti, "ru_cable", "RU cable", value) end
+    value, ti = add_uint(p, pf.ru_docked, 12, 1)
+    if value then check_flag(p, ti, "ru_docked", "RU docked", value) end
+    value, ti = add_uint(p, pf.ru_disabled, 13, 1)
+    if value and not RU_DISABLED[value] then
+        show_unknown(ti, "ru_disabled", value)
+        undefined(p, ti, ei.ru_disabled_unknown, string.format(
+            "RU disabled reason Unknown (0x%02x): defined are 0 enabled, 1 tilted, 2 inactivity, 3 other", value))
+    end
+
+    for i = 1, 4 do
+        local svalue
+        svalue, ti = add_int(p, pf.joystick[i], 14 + 2 * (i - 1), 2)
+        if not svalue then break end
+        if svalue < -JOYSTICK_LIMIT or svalue > JOYSTICK_LIMIT then
+            undefined(p, ti, ei.joystick_range,
+                string.format("Joystick %d position %d is outside -1000..+1000", i, svalue))
+        end
+    end
+    for i = 1, 8 do
+        if not add_int(p, pf.switch[i], 22 + 2 * (i - 1), 2) then break end
+    end
+    add_uint(p, pf.encoder, 38, 1)
+    value, ti = add_uint(p, pf.encoder_switch, 39, 1)
+    if value then check_flag(p, ti, "encoder_switch", "Encoder switch", value) end
+    check_payload_spare(p, 40, 6)
+
+    if armed_ru == 0 then check_unarmed(p, armed_ti) end
+
+    if p.undefined then p.pinfo.cols.info:append(" [undefined]") end
+end
+
+-- VRPO: one fragment of the controller's periodic data.
+local function dissect_vrpo(p, info)
+    local pkt = add_uint(p, pf.packet_number, 0, 2)
+    if not pkt then
+        p.pinfo.cols.info:append(" (truncated)")
+        return
+    end
+    -- Of a cut packet, the data the capture holds; the burst is tracked by
+    -- the length in the packet.
+    add_bytes(p, pf.periodic_data, 2, p.len - 2)
+    local data_len = math.max(0, p.len - 2)
+    info.has_packet_number = true
+    info.packet_number = pkt
+    info.periodic_offset = p.base + 2
+    info.periodic_len = data_len
+    p.pinfo.cols.info:append(string.format(" Pkt=%d %d bytes", pkt, data_len))
+end
+
+-- VRCI/VRCO (with_data) and VRAI/VRAO: command ID first.
+local function dissect_command(p, info, with_data)
+    local cmd = add_uint(p, pf.command_id, 0, 2)
+    if not cmd then
+        p.pinfo.cols.info:append(" (truncated)")
+        return
+    end
+    info.has_command_id = true
+    info.command_id = cmd
+    p.pinfo.cols.info:append(" Cmd=" .. cmd)
+    if with_data then
+        check_payload_spare(p, 2, 4)
+        if add_bytes(p, pf.command_data, 6, 16) == 16 then
+            handoff.dissect(p.tvb(p.base + 6, 16):tvb(), p.pinfo, p.tree,
+                info.type == "VRCI" and "vrci" or "vrco", info.origin, 0)
+        end
+    end
+end
+
+-- The checksum status as proto_tree_add_checksum() adds it: generated, no
+-- length, "CRC status: Good" (a Lua field with base.NONE is shown "Good (1)").
+local function add_crc_status(tree, tvb, crc_offset, status)
+    local ti = tree:add(pf.crc_status, tvb(crc_offset, 0), status)
+    ti:set_text("CRC status: " .. CHECKSUM_STATUS[status])
+    ti:set_generated()
+end
+
+-- CRC: verify with the configured variant; on failure say which one fits.
+local function dissect_crc(tvb, pinfo, tree, crc_offset)
+    local s = tvb:raw(0, crc_offset)
+    local variant, order = opt.crc_variant, opt.crc_order
+    local computed = { [variant] = crc_compute(s, variant) }
+    local range = tvb(crc_offset, CRC_LEN)
+    local stored_le, stored_be = range:le_uint(), range:uint()
+    local stored = order == CRC_BE and stored_be or stored_le
+    local ti = order == CRC_BE and tree:add(pf.crc, range) or tree:add_le(pf.crc, range)
+    if stored == computed[variant] then
+        ti:append_text(" [correct]")
+        add_crc_status(tree, tvb, crc_offset, CHECKSUM_GOOD)
+        return true
+    end
+    add_crc_status(tree, tvb, crc_offset, CHECKSUM_BAD)
+    ti:append_text(string.format(" incorrect, should be 0x%08x", computed[variant]))
+    ti:add_proto_expert_info(ei.crc_bad, string.format("Bad CRC [should be 0x%08x]", computed[variant]))
+
+    pinfo.cols.info:append(" [bad CRC]")
+    for v = CRC_MPEG2, CRC_STM32 do
+        if v ~= variant then computed[v] = crc_compute(s, v) end
+        if computed[v] == stored_le and (v ~= variant or order ~= CRC_LE) then
+            ti:add_proto_expert_info(ei.crc_variant, string.format(
+                "CRC matches %s, little-endian: set the preference (eglink.crc_variant: %s, eglink.crc_byte_order: le)",
+                CRC_VARIANT_NAMES[v], CRC_VARIANTS[v + 1][1]))
+            break
+        end
+        if computed[v] == stored_be and (v ~= variant or order ~= CRC_BE) then
+            ti:add_proto_expert_info(ei.crc_variant, string.format(
+                "CRC matches %s, big-endian: set the preference (eglink.crc_variant: %s, eglink.crc_byte_order: be)",
+                CRC_VARIANT_NAMES[v], CRC_VARIANTS[v + 1][1]))
+            break
+        end
+    end
+    return false
+end
+
+-- Adds a header field if the packet, and the capture, are long enough for it
+-- (have: the smaller of the two lengths): value, item.
+local function add_header_uint(tree, tvb, field, off, len, have)
+    if off + len > have then return nil end
+    local range = tvb(off, len)
+    return range:le_uint(), tree:add_le(field, range)
+end
+
+local function analyse(tvb, pinfo, tree, item, info)
+    if analysis then analysis.dissect(tvb, pinfo, tree, item, info) end
+end
+
+-- A packet cut by the capture: the C plugin ends it as Wireshark ends every
+-- such packet (an exception that shows "[Packet size limited during
+-- capture]"); a Lua dissector cannot raise that exception, so it writes the
+-- same Info.
+local function end_of_capture(pinfo, captured, reported)
+    if captured < reported then pinfo.cols.info:append("[Packet size limited during capture]") end
+end
+
+local function dissect(tvb, pinfo, tree)
+    local reported, captured = tvb:reported_len(), tvb:len()
+    local have = math.min(reported, captured)   -- bytes in the packet and in the capture
+    if captured < 2 or tvb:raw(0, 2) ~= "VR" then return 0 end
+
+    local info = {
+        type = "UNKNOWN", revision = 0, origin = 0, serial = 0, has_serial = false, size = 0, size_ok = false,
+        crc_ok = false, cut = false, has_bu_state = false, bu_state = 0, has_command_id = false, command_id = 0,
+        has_packet_number = false, packet_number = 0, periodic_offset = 0, periodic_len = 0,
+    }
+
+    pinfo.cols.protocol = "EG-Link"
+    pinfo.cols.info:clear()
+
+    local eglink_item = tree:add(proto, tvb())
+    local eglink_tree = eglink_item
+
+    local id = format_text(tvb:raw(0, math.min(have, 4)))
+    pinfo.cols.info = id
+    eglink_item:append_text(", " .. id)
+    if have >= 4 then
+        info.type = type_from_id(tvb:raw(2, 1), tvb:raw(3, 1))
+        local ti = eglink_tree:add(pf.type, tvb(0, 4))
+        ti:append_text(" (" .. TYPE_DESCR[info.type] .. ")")
+    end
+    if info.type == "UNKNOWN" and (have >= 4 or reported < 4) then
+        pinfo.cols.info:append(" (unknown type)")
+        eglink_item:add_proto_expert_info(ei.type_unknown,
+            "Unknown packet type " .. id .. ": TS-0006 defines VRPI, VRPO, VRCI, VRCO, VRAI and VRAO; "
+            .. "only the header and CRC are decoded")
+    end
+
+    -- Header
+    local value, ti = add_header_uint(eglink_tree, tvb, pf.revision, 4, 2, have)
+    if value then
+        info.revision = value
+        if value ~= 0 then
+            ti:add_proto_expert_info(ei.revision_unknown, string.format(
+                "Revision %d: only revision 0 (the TS-0006 layout) is known, the payload may differ", value))
+        end
+    end
+    value, ti = add_header_uint(eglink_tree, tvb, pf.origin, 6, 2, have)
+    if value then
+        info.origin = value
+        if info.type ~= "UNKNOWN" and not IS_INPUT[info.type] and value ~= 0 then
+            ti:add_proto_expert_info(ei.origin_nonzero, string.format(
+                "Origin is 0x%04x in a %s from the machine controller: it must be 0", value, id))
+        elseif IS_INPUT[info.type] and value == 0 then
+            ti:add_proto_expert_info(ei.origin_zero,
+                "Origin is 0 in a " .. id .. " from the BU: the BU should send its unique ID")
+        end
+    end
+    value = add_header_uint(eglink_tree, tvb, pf.serial, 8, 2, have)
+    if value then
+        info.serial = value
+        info.has_serial = true
+        eglink_item:append_text(", Serial " .. value)
+    end
+    local size_ti
+    value, size_ti = add_header_uint(eglink_tree, tvb, pf.size, 10, 2, have)
+    if value then info.size = value end
+    value, ti = add_header_uint(eglink_tree, tvb, pf.spare, 12, 4, have)
+    if value and value ~= 0 then
+        ti:add_proto_expert_info(ei.spare_nonzero, string.format(
+            "Header spare is 0x%08x, not 0: reserved for future use, the sender may use a "
+            .. "newer layout than TS-0006", value))
+    end
+
+    -- Cut by the capture (snap length): said once, then decoded and analysed
+    -- from what it holds, never from bytes it does not hold.
+    info.cut = captured < reported
+    if info.cut then
+        eglink_item:add_proto_expert_info(ei.cut, string.format(
+            "Packet cut by the capture (snaplen): %d of %d bytes captured; decoded as far as "
+            .. "captured, CRC not checked, counted as received", captured, reported))
+        if reported < MIN_LEN or info.type == "UNKNOWN" or not info.has_serial then
+            info.cut = false   -- too little of it to analyse: as before
+        end
+    end
+    if have < 4 and reported >= 4 then
+        -- not even the packet ID in the capture: nothing to decode
+        end_of_capture(pinfo, captured, reported)
+        return reported
+    end
+
+    if reported < MIN_LEN then
+        eglink_item:add_proto_expert_info(ei.too_short, string.format(
+            "Packet is %d bytes, too short for packet ID, header and CRC (20 bytes)", reported))
+        pinfo.cols.info:append(" (too short)")
+        analyse(tvb, pinfo, eglink_tree, eglink_item, info)
+        end_of_capture(pinfo, captured, reported)
+        return reported
+    end
+
+    -- Payload: everything between the header and the CRC at the end of the datagram.
+    local p = { tvb = tvb, pinfo = pinfo, base = HEADER_LEN, len = reported - MIN_LEN, undefined = false }
+    p.cap = math.max(0, math.min(p.len, captured - HEADER_LEN))
+    info.size_ok = true
+    -- (the C plugin files these under the Size item; with the Size not
+    -- captured, under no item: only the expert list has them. The nearest
+    -- a Lua dissector comes is the frame's top tree.)
+    local size_item = size_ti or tree
+    if info.size ~= p.len then
+        info.size_ok = false
+        size_item:add_proto_expert_info(ei.size_mismatch, string.format(
+            "Size says %d payload bytes but the UDP payload carries %d (UDP payload length - 20)", info.size, p.len))
+    end
+    local min_len, max_len = type_sizes(info.type)
+    if p.len < min_len or p.len > max_len then
+        info.size_ok = false
+        if min_len == max_len then
+            size_item:add_proto_expert_info(ei.size_invalid, string.format(
+                "A %s payload is %d bytes, this one has %d: decoded as far as it goes", id, min_len, p.len))
+        else
+            size_item:add_proto_expert_info(ei.size_invalid, string.format(
+                "A %s payload is %d to %d bytes (packet number + up to 488 bytes of data), "
+                .. "this one has %d: decoded as far as it goes", id, min_len, max_len, p.len))
+        end
+    end
+
+    -- (of a cut packet, the item covers what the capture holds)
+    if captured >= p.base then
+        local pti = eglink_tree:add(pf.payload, tvb(p.base, math.min(p.len, p.cap)))
+        pti:append_text(string.format(" (%d byte%s)", p.len, p.len == 1 and "" or "s"))
+        p.tree = pti
+    else
+        p.tree = eglink_tree
+    end
+    local ptype = info.type
+    if ptype == "VRPI" then
+        dissect_vrpi(p, info)
+    elseif ptype == "VRPO" then
+        dissect_vrpo(p, info)
+    elseif ptype == "VRCI" or ptype == "VRCO" then
+        dissect_command(p, info, true)
+    elseif ptype == "VRAI" or ptype == "VRAO" then
+        dissect_command(p, info, false)
+    else
+        add_bytes(p, pf.unknown_payload, 0, p.len)
+        pinfo.cols.info:append(string.format(" %d bytes", p.len))
+    end
+    if ptype ~= "UNKNOWN" and p.len > max_len then
+        add_bytes(p, pf.extra_payload, max_len, p.len - max_len)
+    end
+
+    if captured >= reported then
+        info.crc_ok = dissect_crc(tvb, pinfo, eglink_tree, reported - CRC_LEN)
+    else
+        info.crc_ok = info.cut   -- not checked: counted as received when analysable
+    end
+
+    analyse(tvb, pinfo, eglink_tree, eglink_item, info)
+    end_of_capture(pinfo, captured, reported)
+    return reported
+end
+
+function proto.dissector(tvb, pinfo, tree)
+    return dissect(tvb, pinfo, tree)
+end
+
+-- Heuristic: "VR", a defined type, and a Size that matches the datagram.
+local function heuristic(tvb, pinfo, tree)
+    if not opt.heuristic then return false end
+    local reported = tvb:reported_len()
+    if tvb:len() < HEADER_LEN or reported < MIN_LEN then return false end
+    if tvb:raw(0, 2) ~= "VR" then return false end
+    local ptype = type_from_id(tvb:raw(2, 1), tvb:raw(3, 1))
+    if ptype == "UNKNOWN" then return false end
+    local payload_len = reported - MIN_LEN
+    if tvb(10, 2):le_uint() ~= payload_len then return false end
+    local min_len, max_len = type_sizes(ptype)
+    if payload_len < min_len or payload_len > max_len then return false end
+    dissect(tvb, pinfo, tree)
+    return true
+end
+
+------------------------------------------------------------------------
+-- Ports: the input ports and the output ports (input + 2) on udp.port
+------------------------------------------------------------------------
+local udp_port = DissectorTable.get("udp.port")
+local registered_ports -- the range string registered, or nil
+
+-- "5825,6000-6001" -> { {5825, 5825}, {6000, 6001} }
+local function parse_ranges(text)
+    local out = {}
+    for part in tostring(text or ""):gmatch("[^,%s]+") do
+        local low, high = part:match("^(%d+)%-(%d+)$")
+        if not low then low = part:match("^(%d+)$") high = low end
+        low, high = tonumber(low), tonumber(high)
+        if low and high and low <= high and high <= 65535 then out[#out + 1] = { low, high } end
+    end
+    return out
+end
+
+local function register_ports()
+    if registered_ports then udp_port:remove(registered_ports, proto) end
+    local parts = {}
+    for _, r in ipairs(opt.input) do
+        parts[#parts + 1] = r[1] .. "-" .. r[2]
+        if r[1] + OUTPUT_PORT_OFFSET <= 65535 then
+            parts[#parts + 1] = (r[1] + OUTPUT_PORT_OFFSET) .. "-" .. math.min(r[2] + OUTPUT_PORT_OFFSET, 65535)
+        end
+    end
+    registered_ports = #parts > 0 and table.concat(parts, ",") or nil
+    if registered_ports then udp_port:add(registered_ports, proto) end
+end
+
+-- Whether a UDP port is one of the input ports of the preference (the BU
+-- sends to it; the controller sends to it + 2): eglink_is_input_port(), for
+-- the analysis (vrshark/eglink_data.luam).
+function handoff.is_input_port(port)
+    for _, r in ipairs(opt.input) do
+        if port >= r[1] and port <= r[2] then return true end
+    end
+    return false
+end
+
+local function prefs_changed()
+    opt.crc_variant = proto.prefs.crc_variant
+    opt.crc_order = proto.prefs.crc_byte_order
+    opt.heuristic = proto.prefs.heuristic
+    opt.input = parse_ranges(proto.prefs.input_port)
+    register_ports()
+    if analysis then analysis.prefs_changed(proto) end
+end
+proto.prefs_changed = prefs_changed
+
+function proto.init()
+    if analysis then analysis.init() end
+end
+
+handoff.table = DissectorTable.new("eglink.data", "EG-Link application data", ftypes.STRING, base.NONE, proto)
+udp_port:add_for_decode_as(proto)
+proto:register_heuristic("udp", heuristic)
+prefs_changed()
