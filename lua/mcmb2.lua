@@ -182,6 +182,9 @@ local ef = {
         expert.group.SEQUENCE, expert.severity.CHAT),
     inferred = expert_new("mcmb2.layout.inferred", "Cyclic data layout inferred from the cyclic frames",
         expert.group.SEQUENCE, expert.severity.NOTE),
+    reopened = expert_new("mcmb2.layout.reopened",
+        "Cyclic data layout inferred from the cyclic frames contradicted: the inference is re-opened",
+        expert.group.SEQUENCE, expert.severity.WARN),
     ambiguous = expert_new("mcmb2.layout.ambiguous",
         "More than one layout fits these cyclic frames: none is decoded until one is left",
         expert.group.SEQUENCE, expert.severity.NOTE),
@@ -201,7 +204,7 @@ mcmb2.experts = { ef.status_undefined, ef.slot_status_undefined, ef.terminal_not
                   ef.layout_mismatch, ef.iops_bad, ef.iocs_bad, ef.reserved_not_zero, ef.short, ef.learned,
                   ef.inferred, ef.ambiguous, ef.pn_malformed, ef.candidate, ef.time_backwards, ef.cut,
                   ef.connect_cut, ef.uplink_slow, ef.downlink_slow, ef.uplink_back, ef.downlink_back,
-                  ef.uplink_jump, ef.downlink_jump }
+                  ef.uplink_jump, ef.downlink_jump, ef.reopened }
 
 ------------------------------------------------------------------------
 -- Preferences
@@ -394,6 +397,12 @@ local function watchdog_pace(rec, st, value, t, frame, what)
     local r = handshake.pace(st, value, t, frame, PACE, 256)
     if not r then return end
     local p = PACE_TEXT[what]
+    -- (a layout inferred from the cyclic frames: a watchdog going back is
+    -- evidence against it, vrshark_pnio.lua reopen())
+    if r.kind == "back" and rec.plan.inferred then
+        rec.contradicts = string.format("%s watchdog went back %d -> %d (SP-14-023 2.4: only incremented, "
+            .. "255 wraps to 0)", what:lower(), r.from, r.to)
+    end
     if r.kind == "slow" then
         add_finding(rec, "wd", p.slow, string.format("%s watchdog not incremented for %.3f s (value %d): %s",
             what, ms(r.age), r.value, p.who))
@@ -456,6 +465,16 @@ local function analyse_duplex(rec, d, ba, t, frame)
         simplex_watchdog(rec, d, byte(ba, h + 2), t, frame, mode)
         simplex_pace(rec, d, byte(ba, h + 2), t, frame, mode)
     else
+        -- (a layout inferred from the cyclic frames: a base unit number that
+        -- moves is evidence against it, SP-14-023 3.2.1: configuration)
+        if plan.inferred then
+            local bu = byte(ba, h + 1)
+            if d.bu ~= nil and d.bu ~= bu then
+                rec.contradicts = string.format("base unit number moved %d -> %d (SP-14-023 3.2.1: "
+                    .. "configuration)", d.bu, bu)
+            end
+            d.bu = bu
+        end
         watchdog(rec, d.down_wd, byte(ba, h + 2), t, frame, down_limit,
             ef.downlink_stalled, "Downlink")
         watchdog_pace(rec, d.down_pace, byte(ba, h + 2), t, frame, "Downlink")
@@ -1014,7 +1033,7 @@ local function show_candidate(rec, tvb, tree)
     local item = tree:add(mcmb2, tvb:range(0, 0))
     item:append_text(": " .. (rec.head or "looks like ours, layout not inferred"))
     for _, s in ipairs(rec.settings) do item:add(pf.candidate_setting, s):set_generated() end
-    item:add_proto_expert_info(ef.candidate, rec.text)
+    item:add_proto_expert_info(rec.reopened and ef.reopened or ef.candidate, rec.text)
     if rec.ambiguous then
         item:add_proto_expert_info(ef.ambiguous, "Layouts that fit these cyclic frames equally: " .. rec.ambiguous
             .. "; none is decoded until one is left (or pin one in mcmb2.layouts)")
@@ -1030,6 +1049,7 @@ local function show_cut_connect(rec, tvb, tree)
 end
 
 systems.register({ "duplex", "polled" }, { proto = mcmb2, short = ef.short, cut = ef.cut, inferred = ef.inferred,
+                                          reopened = ef.reopened,
                                           pn_malformed = ef.pn_malformed,
                                           per_frame = { up = "wd_age", down = "wd_age" },
                                           analyse = analyse, show = show, sparse = sparse,

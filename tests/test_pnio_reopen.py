@@ -1,0 +1,155 @@
+"""PROFINET inference never settles silently on a wrong layout (issue 44
+section 4): evidence that contradicts a layout inferred from the cyclic
+frames (lua/vrshark/pnio_infer.luam) re-opens the inference, with a note
+naming the frame and the evidence, and tshark -2 decodes the whole run with
+the layout that fits it.
+
+The evidence (SP-14-023):
+- a watchdog that goes back: "This watchdog counter is incremented by the
+  MC-MB2-PN" (3.1.2), "shall be incremented by the IO-Controller" (3.2.2,
+  2.4); an 8-bit counter wraps 255 -> 0, and 0 -> 1 goes on, anything else
+  backwards contradicts the layout;
+- the base unit number (3.2.1) written by the controller as configuration,
+  so it does not move from frame to frame;
+- an IOxS byte that is neither GOOD (0x80) nor BAD (0x00, 0x20, 0x40, 0x60).
+
+The frames are built with scapy (tests/pnio_testlib.py); the oracle is the
+decode of the same traffic with its Connect (test_pnio_frame_layouts.py).
+"""
+from pnio_testlib import CaptureFile, Device, mac, mcmb2_submodules
+from test_pnio_midsession import MCMB2_FIELDS, _slots, _spread
+
+FIELDS = ["mcmb2.base_unit", "mcmb2.downlink_watchdog", "mcmb2.downlink_data", "mcmb2.uplink_watchdog",
+          "mcmb2.uplink_data"]
+
+
+def header_after_data(direction, elements):
+    """The controller put the downlink data module before the downlink
+    header (any frame offsets are legal: the IOCR block's)."""
+    if direction != "out":
+        return elements
+    out = list(elements)
+    data = [i for i, e in enumerate(out) if e[0] == "data"]
+    out[data[0]], out[data[1]] = out[data[1]], out[data[0]]
+    return out
+
+
+def stepping_traffic(d, cap, pairs, first_byte=lambda i: 6, bad_iops_pair=None):
+    """A duplex base, 2 bytes up and 2 down: the downlink data module is
+    [first_byte(i), wd % 31 + 1], so its second byte steps with the downlink
+    watchdog wd (every 25 cycles) and goes back from 31 to 1 when wd reaches
+    31 (pair 775, frame 1552 without the Connect). bad_iops_pair: the pair
+    whose uplink frame has 0x81 for the DAP's first IOPS."""
+    ins, outs = _slots(d, "in"), _slots(d, "out")
+    for i in range(pairs):
+        wd_up, wd_down = (i // 10) & 0xFF, (i // 25) & 0xFF
+        up = d.cyclic("in", _spread(ins, "inlen", bytes([0x31, wd_up, 0x11, (i // 40) % 50 + 1])))
+        if i == bad_iops_pair:
+            raw = bytearray(bytes(up))
+            raw[16] = 0x81  # Ethernet 14, FrameID 2: the C-SDU's first byte, the DAP's IOPS
+            up = up.__class__(bytes(raw))
+        cap.add(up, 0.001)
+        cap.add(d.cyclic("out", _spread(outs, "outlen", bytes([0, wd_down, first_byte(i), wd_down % 31 + 1]))),
+                0.001)
+
+
+def stepping_captures(work_dir, name="stepping", order=header_after_data, pairs=1000, **kw):
+    paths = []
+    for connect in (True, False):
+        d = Device(mcmb2_submodules("duplex", 2, 2, 2, 0, 1), mac(0x44), 0x8441, 0x8442, order=order)
+        cap = CaptureFile()
+        if connect:
+            for p in d.connect():
+                cap.add(p)
+        stepping_traffic(d, cap, pairs, **kw)
+        paths.append(cap.write(work_dir / ("%s_%s.pcap" % ("with" if connect else "without", name))))
+    return paths
+
+
+WRONG = "0x8441/0x8442=duplex:2/2@2"
+RIGHT = "0x8441/0x8442=duplex:2/2@2[/2d,2c,2,h]"
+LAYOUT_NOTES = "mcmb2.layout.inferred || mcmb2.layout.reopened"
+
+
+def reopened_text(settled, frame, why, entry=WRONG):
+    return "Layout inferred from frames 1..%d contradicted in frame %d: %s; inference re-opened (was %s)" % (
+        settled, frame, why, entry)
+
+
+def inferred_text(first, last, entry, at=None):
+    return ("Cyclic data layout inferred from frames %d..%d (no Connect in the capture%s); to pin it, add to "
+            "mcmb2.layouts: %s" % (first, last, ", re-opened in frame %d" % at if at else "", entry))
+
+
+WD_BACK = "downlink watchdog went back 31 -> 1 (SP-14-023 2.4: only incremented, 255 wraps to 0)"
+
+
+def test_a_data_module_stepping_with_the_watchdog_is_not_the_header(tshark, work_dir):
+    """SP-14-023 3.2.1/3.2.2: the downlink header is the base unit number
+    (0 here) and the downlink watchdog. A 2-byte data module placed before
+    it whose second byte steps with the watchdog fits as a header until its
+    "watchdog" goes back (31 -> 1, not a wrap 255 -> 0): -2 decodes every
+    frame as with the Connect (base unit 0, the true watchdog)."""
+    with_connect, without = stepping_captures(work_dir)
+    a = tshark.frames(with_connect, MCMB2_FIELDS + FIELDS, two_pass=True)
+    b = tshark.frames(without, MCMB2_FIELDS + FIELDS, two_pass=True)
+    assert len(b) == 2000
+    for n, row in b.items():
+        assert row == a[n + 2], "frame %d" % n
+    # downlink frames: even numbers; pair i is frames 2i+1, 2i+2
+    assert b[2]["mcmb2.base_unit"] == "0" and b[2]["mcmb2.downlink_watchdog"] == "0"
+    assert b[1552]["mcmb2.base_unit"] == "0" and b[1552]["mcmb2.downlink_watchdog"] == "31"
+    assert b[1551]["mcmb2.uplink_watchdog"] == "77"
+
+
+def test_the_contradiction_is_said_by_frame(tshark, work_dir):
+    """Issue 44 section 4: evidence that contradicts a settled layout
+    re-opens the inference "and says so with a note (expert info, naming the
+    frame and the evidence)". One pass: the wrong layout decodes until the
+    frame that contradicts it (SP-14-023 2.4: its watchdog went back), the
+    frames after it are not decoded until the layout settles again, then
+    decode with the new layout; -2: the whole run with the new one."""
+    _, without = stepping_captures(work_dir)
+    after = {1552: [reopened_text(102, 1552, WD_BACK)], 1652: [inferred_text(1552, 1652, RIGHT, 1552)]}
+    assert tshark.experts(without, display_filter=LAYOUT_NOTES) == {102: [inferred_text(1, 102, WRONG)], **after}
+    assert tshark.experts(without, display_filter=LAYOUT_NOTES, two_pass=True) == after
+    one = tshark.frames(without, ["mcmb2.base_unit", "mcmb2.downlink_watchdog", "mcmb2.layout_entry"])
+    assert one[1550] == {"mcmb2.base_unit": "6", "mcmb2.downlink_watchdog": "31", "mcmb2.layout_entry": WRONG}
+    assert all(one[n] == {"mcmb2.base_unit": "", "mcmb2.downlink_watchdog": "", "mcmb2.layout_entry": ""}
+               for n in range(1552, 1652)), "not decoded while re-opened"
+    assert one[1654] == {"mcmb2.base_unit": "0", "mcmb2.downlink_watchdog": "33", "mcmb2.layout_entry": RIGHT}
+    two = tshark.frames(without, ["mcmb2.layout_entry"], two_pass=True)
+    assert {r["mcmb2.layout_entry"] for r in two.values()} == {RIGHT}
+
+
+def test_a_base_unit_number_that_moves(tshark, work_dir):
+    """SP-14-023 3.2.1: the base unit number is written by the IO controller
+    as configured; the one a settled layout reads moving (a data byte, 6 then
+    7 from pair 500) re-opens the inference in that frame, before the
+    watchdog it reads goes back; -2 decodes as with the Connect."""
+    with_connect, without = stepping_captures(work_dir, "base_unit", first_byte=lambda i: 6 if i < 500 else 7)
+    why = "base unit number moved 6 -> 7 (SP-14-023 3.2.1: configuration)"
+    notes = tshark.experts(without, display_filter=LAYOUT_NOTES, two_pass=True)
+    assert notes == {1002: [reopened_text(102, 1002, why)], 1102: [inferred_text(1002, 1102, RIGHT, 1002)]}
+    a = tshark.frames(with_connect, MCMB2_FIELDS + FIELDS, two_pass=True)
+    b = tshark.frames(without, MCMB2_FIELDS + FIELDS, two_pass=True)
+    assert all(row == a[n + 2] for n, row in b.items())
+    assert b[1002]["mcmb2.base_unit"] == "0" and b[1002]["mcmb2.downlink_data"] == "0715"
+
+
+def test_an_iops_neither_good_nor_bad(tshark, work_dir):
+    """IEC 61158-6-10 IOxS: DataState GOOD is 0x80, BAD 0x00/0x20/0x40/0x60
+    (by subslot, slot, device, controller); 0x81 (the extension bit) in a
+    byte a settled layout reads as an IOPS re-opens the inference from the
+    next frame (that frame cuts no layout), and the same layout settles again
+    (nothing else fits): the frame says so; -2 decodes every frame as with
+    the Connect, that one too."""
+    with_connect, without = stepping_captures(work_dir, "iops", order=None, bad_iops_pair=300)
+    entry = "0x8441/0x8442=duplex:2/2@2"
+    why = "IOPS of slot 0/0x1 is 0x81, neither GOOD nor BAD"
+    notes = tshark.experts(without, display_filter=LAYOUT_NOTES, two_pass=True)
+    assert notes == {601: ["IOPS of slot 0/0x1 is not GOOD (0x81)", reopened_text(102, 601, why, entry)],
+                     702: [inferred_text(602, 702, entry, 601)]}
+    a = tshark.frames(with_connect, MCMB2_FIELDS + FIELDS, two_pass=True)
+    b = tshark.frames(without, MCMB2_FIELDS + FIELDS, two_pass=True)
+    assert all(row == a[n + 2] for n, row in b.items())
