@@ -16,7 +16,13 @@ The evidence (SP-14-023):
 The frames are built with scapy (tests/pnio_testlib.py); the oracle is the
 decode of the same traffic with its Connect (test_pnio_frame_layouts.py).
 """
-from pnio_testlib import CaptureFile, Device, mac, mcmb2_submodules
+import random
+
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from pnio_testlib import DATA_MODULES, CaptureFile, Device, largest_first, mac, mcmb2_submodules
+from test_pnio_frame_layouts import captures, module_kinds, order_from
 from test_pnio_midsession import MCMB2_FIELDS, _slots, _spread
 
 FIELDS = ["mcmb2.base_unit", "mcmb2.downlink_watchdog", "mcmb2.downlink_data", "mcmb2.uplink_watchdog",
@@ -153,3 +159,101 @@ def test_an_iops_neither_good_nor_bad(tshark, work_dir):
     a = tshark.frames(with_connect, MCMB2_FIELDS + FIELDS, two_pass=True)
     b = tshark.frames(without, MCMB2_FIELDS + FIELDS, two_pass=True)
     assert all(row == a[n + 2] for n, row in b.items())
+
+
+# -- any legal layout (hypothesis) ---------------------------------------------
+def harsh_traffic(d, cap, pairs, up, data, seed):
+    """Traffic that tempts the inference: every 2-byte data module of the
+    base (up and down) holds [a byte whose low nibble is a legal status,
+    wd % k + 1], stepping with that direction's watchdog and going back
+    when it wraps at k; other data random (not 0x80); the ASCII modules
+    letters; base unit number 0 (SP-14-023 3.2.1)."""
+    rnd = random.Random(seed)
+    ins, outs = _slots(d, "in"), _slots(d, "out")
+    ndata = len(largest_first(data, DATA_MODULES))
+    k_up, k_down = rnd.randint(3, 20), rnd.randint(3, 20)
+    byte = lambda: rnd.choice([b for b in range(1, 256) if b != 0x80])  # noqa: E731
+    fixed_up = [byte() for _ in range(up)]
+    fixed_down = [byte() for _ in range(data)]
+
+    def fill(subs, sizes, wd, k, fixed, first):
+        out, pos = [], 0
+        for s in subs:
+            n = sizes(s)
+            if n == 2 and first.get(s.slot) is not None:
+                out += [first[s.slot], wd % k + 1]
+            else:
+                out += [b if rnd.random() < 0.8 else byte() for b in fixed[pos:pos + n]]
+            pos += n
+        return bytes(out)
+
+    first_up = {s.slot: rnd.choice([0x11, 0x21, 0x02]) for s in ins[1:] if s.inlen == 2}
+    first_down = {s.slot: rnd.choice([6, 0x11, 0x31]) for s in outs[1:1 + ndata] if s.outlen == 2}
+    ascii_ = sum(s.outlen for s in outs[1:]) - data
+    for i in range(pairs):
+        wd_up, wd_down = (i // 3) & 0xFF, (i // 5) & 0xFF
+        payload = fill(ins[1:], lambda s: s.inlen, wd_up, k_up, fixed_up, first_up)
+        cap.add(d.cyclic("in", _spread(ins, "inlen", bytes([0x31, wd_up]) + payload)), 0.002)
+        down = fill(outs[1:1 + ndata], lambda s: s.outlen, wd_down, k_down, fixed_down, first_down)
+        down += (b"CRANEHOIST" * 64)[:ascii_]
+        cap.add(d.cyclic("out", _spread(outs, "outlen", bytes([0, wd_down]) + down)), 0.002)
+
+
+def header_after_two(which):
+    """Slot order, but the header after the last 2-byte data module in the
+    uplink ("in"), the downlink ("out") or both."""
+    def order(direction, elements):
+        out = list(elements)
+        if which in (direction, "both"):
+            data = [i for i, e in enumerate(out) if e[0] == "data" and
+                    (e[1].inlen if direction == "in" else e[1].outlen) == 2 and e[1].slot > 0]
+            if len(data) >= 2:
+                h = out.pop(data[0])
+                out.insert(data[-1], h)
+        return out
+    return order
+
+
+duplex_config = st.tuples(st.just("duplex"), st.integers(1, 8), st.sampled_from([2, 4, 6, 12, 22, 26]),
+                          st.sampled_from([2, 4, 6, 12]), st.sampled_from([0, 2, 8, 20]))
+
+
+@settings(max_examples=10, deadline=None, database=None, derandomize=True,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(cfg=duplex_config, perms=st.fixed_dictionaries({"in": st.permutations(range(40)),
+                                                        "out": st.permutations(range(40))}),
+       swap=st.sampled_from([None, "in", "out", "both"]), seed=st.integers(0, 2 ** 16))
+def test_never_a_silent_wrong_layout(tshark, work_dir, cfg, perms, swap, seed):
+    """Issue 44 section 4, "never a silent wrong layout": any legal duplex
+    layout (SP-14-023 5.3; DAP subslots 1..8; the IOCR's frame offsets in
+    any order, both CRs) with the Connect cut and 2-byte data modules that
+    step with the watchdog: with -2 every frame decodes as with the Connect,
+    or is not decoded and carries a note whose mcmb2.layouts entry decodes
+    it so. A frame decoded otherwise is a silent wrong decode. swap: the
+    usual order but for the header after a 2-byte data module (the order
+    that made a data module pass for the header), else any order."""
+    system, dap, up, data, ascii_ = cfg
+    subs = mcmb2_submodules("duplex", dap, up, data, ascii_, 1)
+    probe = Device(subs, mac(0x4400), 0x8443, 0x8444)
+    assert len(probe.subs) <= 40
+    order = order_from(perms, module_kinds(cfg, probe)) if swap is None else header_after_two(swap)
+    name = "harsh-%d" % len(list(work_dir.glob("with_harsh-*")))
+    with_connect, without = captures(
+        work_dir, name, lambda: Device(subs, mac(0x4400), 0x8443, 0x8444, order=order),
+        lambda d, cap: harsh_traffic(d, cap, 150, up, data, seed))
+    fields = MCMB2_FIELDS + FIELDS
+    a = tshark.frames(with_connect, fields, two_pass=True)
+    b = tshark.frames(without, fields, two_pass=True)
+    wrong = [n for n, row in b.items() if row != a[n + 2]]
+    if not wrong:
+        return
+    decoded_wrong = [n for n in wrong if any(b[n][f] for f in fields if f != "_ws.col.Info")]
+    assert not decoded_wrong, "silent wrong decode in frames %s" % decoded_wrong[:10]
+    offered = tshark.frames(without, ["mcmb2.candidate_setting"], two_pass=True)
+    settings_ = {s for n in wrong for s in offered[n]["mcmb2.candidate_setting"].split(",") if s}
+    assert settings_, "frames %s not decoded and no entry offered" % wrong[:10]
+    for s in sorted(settings_):
+        pinned = tshark.frames(without, fields, prefs={"mcmb2.layouts": s.split(":", 1)[1]}, two_pass=True)
+        if all(row == a[n + 2] for n, row in pinned.items()):
+            return
+    raise AssertionError("no entry offered (%s) decodes as with the Connect" % sorted(settings_))
