@@ -87,6 +87,7 @@ local pf = {
     layout = ProtoField.string("mcmb2.layout", "Layout from"),
     layout_entry = ProtoField.string("mcmb2.layout_entry", "Layout table entry (to pin it: mcmb2.layouts)"),
     candidate_setting = ProtoField.string("mcmb2.candidate_setting", "Setting that decodes it"),
+    layout_order = ProtoField.string("mcmb2.layout_order", "What the cyclic frames cannot tell of the layout"),
     status = ProtoField.uint8("mcmb2.status", "MC-MB2-PN status", base.HEX, STATUS, 0x0F),
     terminal = ProtoField.uint8("mcmb2.terminal", "Terminal number", base.DEC, nil, 0xF0),
     uplink_watchdog = ProtoField.uint8("mcmb2.uplink_watchdog", "Uplink watchdog counter", base.DEC),
@@ -871,6 +872,7 @@ local function show(rec, tvb, pinfo, tree)
     set_generated(add(root, pf.direction, up and "uplink" or "downlink"))
     set_generated(add(root, pf.layout, plan.source))
     if plan.entry then set_generated(add(root, pf.layout_entry, plan.entry)) end
+    if plan.order_note then set_generated(add(root, pf.layout_order, plan.order_note)) end
     add(root, pf.frame_id, range(tvb, 0, 2))
     attach(rec, "top", root)
     if rec.size < plan.need then
@@ -923,6 +925,9 @@ local ADDERS = {
     ["mcmb2.direction"] = function(c) add(c.tree, pf.direction, c.up and "uplink" or "downlink") end,
     ["mcmb2.layout"] = function(c) add(c.tree, pf.layout, c.plan.source) end,
     ["mcmb2.layout_entry"] = function(c) if c.plan.entry then add(c.tree, pf.layout_entry, c.plan.entry) end end,
+    ["mcmb2.layout_order"] = function(c)
+        if c.plan.order_note then add(c.tree, pf.layout_order, c.plan.order_note) end
+    end,
     ["mcmb2.status"] = function(c) if c.up then add_at(c, pf.status, c.h, 1) end end,
     ["mcmb2.terminal"] = function(c) if c.up then add_at(c, pf.terminal, c.h, 1) end end,
     ["mcmb2.uplink_watchdog"] = function(c) if c.up then add_at(c, pf.uplink_watchdog, c.h + 1, 1) end end,

@@ -711,6 +711,13 @@ end
 
 local inferred -- (below)
 
+-- A finding at the top of the record, before the decoder's (the order the
+-- full tree shows them in: "top" first, and the sparse display's).
+local function first_finding(rec, ex, text)
+    record.add_finding(rec, "top", ex, text)
+    table.insert(rec.findings, 1, table.remove(rec.findings))
+end
+
 -- The plans (up, down) of a layout settled by vrshark.pnio_infer.
 local function inferred_plans(res, dev)
     local source = string.format("inferred from cyclic frames %d..%d", res.first, res.last)
@@ -734,6 +741,7 @@ local function settle(res)
         local plan, run = pr[1], pr[2]
         if plan then
             plan.fid, plan.sender, plan.entry, plan.inferred = run.fid, addr_of[run.src], res.entry, res
+            plan.order_note = res.order_note
             register(plan)
             for _, f in ipairs(run.frames) do list[#list + 1] = { f[1], f[2], f[3], plan } end
             for _, old in ipairs(again and again.plans or {}) do
@@ -747,9 +755,7 @@ local function settle(res)
     for _, f in ipairs(list) do
         local rec = analysed(f[4], f[2], f[3], f[1])
         local dec = systems.decoder(f[4].system)
-        if rec and again and f[1] == again.frame then
-            record.add_finding(rec, "top", dec.reopened, again.text)
-        end
+        if rec and again and f[1] == again.frame then first_finding(rec, dec.reopened, again.text) end
         if rec and f[1] == res.last then
             record.add_finding(rec, "top", dec.inferred, string.format(
                 "Cyclic data layout inferred from frames %d..%d (%s%s); to pin it, "
@@ -842,7 +848,7 @@ local function redone(rec0, plan, tvb, pinfo, n)
     if tvb_reported_len(tvb) > len or len - 6 <= 0 then return fget(frames, n) end
     local rec = analysed(plan.redo, tvb_raw(tvb, 2, len - 6), p_abs_ts(pinfo), n)
     local dec = systems.decoder(plan.system)
-    if rec and rec0.was then record.add_finding(rec, "top", dec.reopened, rec0.text) end
+    if rec and rec0.was then first_finding(rec, dec.reopened, rec0.text) end
     if rec and rec0.findings and rec0.findings ~= record.NO_FINDINGS then
         for _, f in ipairs(rec0.findings) do
             if f.ex == dec.reopened or (f.ex == dec.inferred and not superseded) then

@@ -154,7 +154,7 @@ def test_an_iops_neither_good_nor_bad(tshark, work_dir):
     entry = "0x8441/0x8442=duplex:2/2@2"
     why = "IOPS of slot 0/0x1 is 0x81, neither GOOD nor BAD"
     notes = tshark.experts(without, display_filter=LAYOUT_NOTES, two_pass=True)
-    assert notes == {601: ["IOPS of slot 0/0x1 is not GOOD (0x81)", reopened_text(102, 601, why, entry)],
+    assert notes == {601: [reopened_text(102, 601, why, entry), "IOPS of slot 0/0x1 is not GOOD (0x81)"],
                      702: [inferred_text(602, 702, entry, 601)]}
     a = tshark.frames(with_connect, MCMB2_FIELDS + FIELDS, two_pass=True)
     b = tshark.frames(without, MCMB2_FIELDS + FIELDS, two_pass=True)
@@ -257,3 +257,25 @@ def test_never_a_silent_wrong_layout(tshark, work_dir, cfg, perms, swap, seed):
         if all(row == a[n + 2] for n, row in pinned.items()):
             return
     raise AssertionError("no entry offered (%s) decodes as with the Connect" % sorted(settings_))
+
+
+def test_what_the_frames_cannot_tell_is_in_the_tree(tshark, work_dir):
+    """Issue 44 section 4: same-size modules whose order the frames cannot
+    tell are said in the tree, with the setting that decides it. SP-14-023
+    5.3: 40 uplink bytes are two 20-byte modules (which is which: only the
+    Connect), and a downlink of 8 data bytes then 8 ASCII bytes where both
+    hold text: the later is taken for ASCII, a mcmb2.layouts entry's frame
+    order decides it."""
+    d = Device(mcmb2_submodules("duplex", 2, 40, 8, 8, 1), mac(0x45), 0x8451, 0x8452)
+    cap = CaptureFile()
+    ins, outs = _slots(d, "in"), _slots(d, "out")
+    for i in range(100):
+        cap.add(d.cyclic("in", _spread(ins, "inlen", bytes([0x31, i // 5]) + bytes(range(1, 41)))), 0.002)
+        cap.add(d.cyclic("out", _spread(outs, "outlen", bytes([0, i // 5]) + b"ABCDEFGH" + b"HOIST OK")), 0.002)
+    path = cap.write(work_dir / "order.pcap")
+    got = tshark.frames(path, ["mcmb2.layout_entry", "mcmb2.layout_order"], two_pass=True)
+    assert {tuple(r.values()) for r in got.values()} == {(
+        "0x8451/0x8452=duplex:40/8,a8@2",
+        "order of 2 uplink modules of 20 bytes taken in frame order (only the Connect tells); which downlink "
+        "module of 8 bytes is ASCII taken as the later (both or neither hold text): the frame order of a "
+        "mcmb2.layouts entry decides it (a8 where the ASCII one sits)")}
