@@ -77,12 +77,16 @@ eef.learned = ProtoExpert.new("eclink_pnio.layout.learned", "Cyclic data layout 
     expert.group.SEQUENCE, expert.severity.CHAT)
 eef.inferred = ProtoExpert.new("eclink_pnio.layout.inferred", "Cyclic data layout inferred from the cyclic frames",
     expert.group.SEQUENCE, expert.severity.NOTE)
+eef.reopened = ProtoExpert.new("eclink_pnio.layout.reopened",
+    "Cyclic data layout inferred from the cyclic frames contradicted: the inference is re-opened",
+    expert.group.SEQUENCE, expert.severity.WARN)
 eef.pn_malformed = ProtoExpert.new("eclink_pnio.pn_malformed",
     "Malformed to Wireshark's PROFINET dissector, but the layout fits the frame: decoded",
     expert.group.PROTOCOL, expert.severity.NOTE)
 eef.periodic_reassembled = ProtoExpert.new("eclink_pnio.periodic.reassembled", "Periodic data reassembled",
     expert.group.REASSEMBLE, expert.severity.CHAT)
-for _, k in ipairs({ "iops_bad", "short", "learned", "inferred", "pn_malformed", "cut", "periodic_reassembled" }) do
+for _, k in ipairs({ "iops_bad", "short", "learned", "inferred", "reopened", "pn_malformed", "cut",
+                    "periodic_reassembled" }) do
     eclp_experts[#eclp_experts + 1] = eef[k]
 end
 eclp.experts = eclp_experts
@@ -357,6 +361,7 @@ end
 -- (its frames are shown through its own dissector: pnio_systems.through())
 eclp.dissector = systems.dissector
 systems.register({ "eclink" }, { proto = eclp, short = eef.short, cut = eef.cut, inferred = eef.inferred,
+                                 reopened = eef.reopened,
                                  pn_malformed = eef.pn_malformed,
                                  per_frame = { up = "pci_age", down = "pco_age" }, analyse = analyse,
                                  show = show, sparse = sparse,

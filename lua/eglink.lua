@@ -1,7 +1,7 @@
 --[[ eglink.lua -- VisionRemote EG-Link (VM-110 UDP EG-Link, TS-0006), protocol
-"eglink", for a Wireshark without the EG-Link C plugin (plugins/eglink): the
+"eglink", for a Wireshark without the EG-Link C plugin (plugins/vrshark): the
 same fields, expert infos, columns, heuristic, ports and preferences as
-plugins/eglink/packet-eglink.c, which stays the reference. Where the C plugin
+plugins/vrshark/packet-eglink.c, which stays the reference. Where the C plugin
 is loaded it decodes EG-Link and this file registers nothing.
 
 Every EG-Link packet is one UDP datagram, all integers little-endian:
@@ -27,7 +27,7 @@ the C plugin (-z eglink,tree) has no Lua counterpart (docs/eglink.md).
 local dir = debug.getinfo(1, "S").source:match("^@(.*)[/\\]")
 package.path = dir .. "/?.luam;" .. package.path
 
--- The C plugin (eglink.so) registers before the Lua plugins load: its
+-- The C plugin (vrshark.so) registers before the Lua plugins load: its
 -- transport front ends (vrshark/frontends.luam) and its "eglink.data" table
 -- are there. Then EG-Link is the C plugin's, silently.
 local fe = require("vrshark.frontends")

@@ -87,6 +87,7 @@ local pf = {
     layout = ProtoField.string("mcmb2.layout", "Layout from"),
     layout_entry = ProtoField.string("mcmb2.layout_entry", "Layout table entry (to pin it: mcmb2.layouts)"),
     candidate_setting = ProtoField.string("mcmb2.candidate_setting", "Setting that decodes it"),
+    layout_order = ProtoField.string("mcmb2.layout_order", "What the cyclic frames cannot tell of the layout"),
     status = ProtoField.uint8("mcmb2.status", "MC-MB2-PN status", base.HEX, STATUS, 0x0F),
     terminal = ProtoField.uint8("mcmb2.terminal", "Terminal number", base.DEC, nil, 0xF0),
     uplink_watchdog = ProtoField.uint8("mcmb2.uplink_watchdog", "Uplink watchdog counter", base.DEC),
@@ -184,6 +185,9 @@ local ef = {
         expert.group.SEQUENCE, expert.severity.CHAT),
     inferred = expert_new("mcmb2.layout.inferred", "Cyclic data layout inferred from the cyclic frames",
         expert.group.SEQUENCE, expert.severity.NOTE),
+    reopened = expert_new("mcmb2.layout.reopened",
+        "Cyclic data layout inferred from the cyclic frames contradicted: the inference is re-opened",
+        expert.group.SEQUENCE, expert.severity.WARN),
     ambiguous = expert_new("mcmb2.layout.ambiguous",
         "More than one layout fits these cyclic frames: none is decoded until one is left",
         expert.group.SEQUENCE, expert.severity.NOTE),
@@ -203,7 +207,7 @@ mcmb2.experts = { ef.status_undefined, ef.slot_status_undefined, ef.terminal_not
                   ef.layout_mismatch, ef.iops_bad, ef.iocs_bad, ef.reserved_not_zero, ef.short, ef.learned,
                   ef.inferred, ef.ambiguous, ef.pn_malformed, ef.candidate, ef.time_backwards, ef.cut,
                   ef.connect_cut, ef.uplink_slow, ef.downlink_slow, ef.uplink_back, ef.downlink_back,
-                  ef.uplink_jump, ef.downlink_jump }
+                  ef.uplink_jump, ef.downlink_jump, ef.reopened }
 -- the base's display beside the findings it follows from (SP-14-023 2.4): E010
 record.beside[ef.e010] = { pf.display, "E010" }
 record.beside[ef.downlink_stalled] = { pf.display, "E010" }
@@ -399,6 +403,12 @@ local function watchdog_pace(rec, st, value, t, frame, what)
     local r = handshake.pace(st, value, t, frame, PACE, 256)
     if not r then return end
     local p = PACE_TEXT[what]
+    -- (a layout inferred from the cyclic frames: a watchdog going back is
+    -- evidence against it, vrshark_pnio.lua reopen())
+    if r.kind == "back" and rec.plan.inferred then
+        rec.contradicts = string.format("%s watchdog went back %d -> %d (SP-14-023 2.4: only incremented, "
+            .. "255 wraps to 0)", what:lower(), r.from, r.to)
+    end
     if r.kind == "slow" then
         add_finding(rec, "wd", p.slow, string.format("%s watchdog not incremented for %.3f s (value %d): %s",
             what, ms(r.age), r.value, p.who))
@@ -461,6 +471,16 @@ local function analyse_duplex(rec, d, ba, t, frame)
         simplex_watchdog(rec, d, byte(ba, h + 2), t, frame, mode)
         simplex_pace(rec, d, byte(ba, h + 2), t, frame, mode)
     else
+        -- (a layout inferred from the cyclic frames: a base unit number that
+        -- moves is evidence against it, SP-14-023 3.2.1: configuration)
+        if plan.inferred then
+            local bu = byte(ba, h + 1)
+            if d.bu ~= nil and d.bu ~= bu then
+                rec.contradicts = string.format("base unit number moved %d -> %d (SP-14-023 3.2.1: "
+                    .. "configuration)", d.bu, bu)
+            end
+            d.bu = bu
+        end
         watchdog(rec, d.down_wd, byte(ba, h + 2), t, frame, down_limit,
             ef.downlink_stalled, "Downlink")
         watchdog_pace(rec, d.down_pace, byte(ba, h + 2), t, frame, "Downlink")
@@ -857,6 +877,7 @@ local function show(rec, tvb, pinfo, tree)
     set_generated(add(root, pf.direction, up and "uplink" or "downlink"))
     set_generated(add(root, pf.layout, plan.source))
     if plan.entry then set_generated(add(root, pf.layout_entry, plan.entry)) end
+    if plan.order_note then set_generated(add(root, pf.layout_order, plan.order_note)) end
     add(root, pf.frame_id, range(tvb, 0, 2))
     attach(rec, "top", root)
     if rec.size < plan.need then
@@ -909,6 +930,9 @@ local ADDERS = {
     ["mcmb2.direction"] = function(c) add(c.tree, pf.direction, c.up and "uplink" or "downlink") end,
     ["mcmb2.layout"] = function(c) add(c.tree, pf.layout, c.plan.source) end,
     ["mcmb2.layout_entry"] = function(c) if c.plan.entry then add(c.tree, pf.layout_entry, c.plan.entry) end end,
+    ["mcmb2.layout_order"] = function(c)
+        if c.plan.order_note then add(c.tree, pf.layout_order, c.plan.order_note) end
+    end,
     ["mcmb2.status"] = function(c) if c.up then add_at(c, pf.status, c.h, 1) end end,
     ["mcmb2.terminal"] = function(c) if c.up then add_at(c, pf.terminal, c.h, 1) end end,
     ["mcmb2.uplink_watchdog"] = function(c) if c.up then add_at(c, pf.uplink_watchdog, c.h + 1, 1) end end,
@@ -1019,7 +1043,7 @@ local function show_candidate(rec, tvb, tree)
     local item = tree:add(mcmb2, tvb:range(0, 0))
     item:append_text(": " .. (rec.head or "looks like ours, layout not inferred"))
     for _, s in ipairs(rec.settings) do item:add(pf.candidate_setting, s):set_generated() end
-    item:add_proto_expert_info(ef.candidate, rec.text)
+    item:add_proto_expert_info(rec.reopened and ef.reopened or ef.candidate, rec.text)
     if rec.ambiguous then
         item:add_proto_expert_info(ef.ambiguous, "Layouts that fit these cyclic frames equally: " .. rec.ambiguous
             .. "; none is decoded until one is left (or pin one in mcmb2.layouts)")
@@ -1035,6 +1059,7 @@ local function show_cut_connect(rec, tvb, tree)
 end
 
 systems.register({ "duplex", "polled" }, { proto = mcmb2, short = ef.short, cut = ef.cut, inferred = ef.inferred,
+                                          reopened = ef.reopened,
                                           pn_malformed = ef.pn_malformed,
                                           per_frame = { up = "wd_age", down = "wd_age" },
                                           analyse = analyse, show = show, sparse = sparse,

@@ -710,40 +710,156 @@ local function analysed(plan, s, t, frame, cut)
     return rec
 end
 
--- A layout settled by vrshark.pnio_infer: both plans registered, and every
--- frame of the run (this one last) analysed in frame order.
-local function settle(res)
+local inferred -- (below)
+
+-- A finding at the top of the record, before the decoder's (the order the
+-- full tree shows them in: "top" first, and the sparse display's).
+local function first_finding(rec, ex, text)
+    record.add_finding(rec, "top", ex, text)
+    table.insert(rec.findings, 1, table.remove(rec.findings))
+end
+
+-- The plans (up, down) of a layout settled by vrshark.pnio_infer.
+local function inferred_plans(res, dev)
     local source = string.format("inferred from cyclic frames %d..%d", res.first, res.last)
-    local dev = "inferred" .. res.last
-    local up, down
     if res.system == "eclink" then
-        up, down = layout.eclink_plans(res.outlen, res.dap, source, dev, res.order)
-    else
-        up, down = layout.mcmb2_plans("duplex", 1, res.up_mods, res.down_mods, res.dap, source, dev, res.order,
-            res.ascii)
+        return layout.eclink_plans(res.outlen, res.dap, source, dev, res.order)
     end
+    return layout.mcmb2_plans("duplex", 1, res.up_mods, res.down_mods, res.dap, source, dev, res.order, res.ascii)
+end
+
+-- A layout settled by vrshark.pnio_infer: both plans registered, and every
+-- frame of the run (this one last) analysed in frame order. A layout
+-- settled again after a contradiction (reopen()): the frame that re-opened
+-- it carries the note, and the plans of the layout it replaces lead to
+-- these (plan.next: frames decoded by them are decoded again, on a later
+-- pass, by a copy of these, redone()).
+local function settle(res)
+    local up, down = inferred_plans(res, "inferred" .. res.last)
+    local again = res.reopened
     local list = {}
     for _, pr in ipairs({ { up, res.up }, { down, res.down } }) do
         local plan, run = pr[1], pr[2]
         if plan then
-            plan.fid, plan.sender, plan.entry = run.fid, addr_of[run.src], res.entry
+            plan.fid, plan.sender, plan.entry, plan.inferred = run.fid, addr_of[run.src], res.entry, res
+            plan.order_note = res.order_note
             register(plan)
             for _, f in ipairs(run.frames) do list[#list + 1] = { f[1], f[2], f[3], plan } end
+            for _, old in ipairs(again and again.plans or {}) do
+                if old.dir == plan.dir then old.next = plan end
+            end
+            plan.again = again and true
         end
         run.frames = nil
     end
     table.sort(list, function(a, b) return a[1] < b[1] end)
     for _, f in ipairs(list) do
         local rec = analysed(f[4], f[2], f[3], f[1])
+        local dec = systems.decoder(f[4].system)
+        if rec and again and f[1] == again.frame then first_finding(rec, dec.reopened, again.text) end
         if rec and f[1] == res.last then
-            record.add_finding(rec, "top", systems.decoder(f[4].system).inferred, string.format(
-                "Cyclic data layout inferred from frames %d..%d (%s); to pin it, "
+            record.add_finding(rec, "top", dec.inferred, string.format(
+                "Cyclic data layout inferred from frames %d..%d (%s%s); to pin it, "
                 .. "add to mcmb2.layouts: %s", res.first, res.last, cut_connect
                 and string.format("no Connect read: the capture cut the PNIO-CM datagram in frame %d", cut_connect)
-                or "no Connect in the capture", res.entry))
+                or "no Connect in the capture", again and string.format(", re-opened in frame %d", again.frame)
+                or "", res.entry))
         end
         fset(frames, f[1], rec and shared_record(rec, f[1]))
     end
+end
+
+-- Evidence against a layout inferred from the cyclic frames, in a frame it
+-- decoded (rec): the decoder's (rec.contradicts: a watchdog that went back,
+-- a base unit number that moved) or an IOxS byte neither GOOD (0x80) nor
+-- BAD (0x00, 0x20, 0x40, 0x60). Only asked when the decoder set one of
+-- rec.contradicts, rec.ioxs_bad: the settled path costs a field test.
+local IOXS_LEGAL = { [0x80] = true, [0x00] = true, [0x20] = true, [0x40] = true, [0x60] = true }
+local function contradiction(rec, s)
+    if rec.contradicts then return rec.contradicts end
+    for _, x in ipairs(record.ioxs_list(rec.plan)) do
+        local v = string.byte(s, x.off + 1)
+        if v and not IOXS_LEGAL[v] then
+            return string.format("%s of slot %d/0x%x is 0x%02x, neither GOOD nor BAD",
+                x.iocs and "IOCS" or "IOPS", x.slot, x.subslot, v)
+        end
+    end
+    return nil
+end
+
+local function unregister(plan)
+    local t = by_fid[plan.fid] or {}
+    for i = #t, 1, -1 do
+        if t[i] == plan then table.remove(t, i) end
+    end
+end
+
+-- Re-openings of the layouts of one FrameID pair at most (a sender that
+-- restarts again and again is not inferred again each time).
+local MAX_REOPEN = 4
+
+-- A layout inferred from the cyclic frames that frame n contradicts (why):
+-- its plans are taken out, vrshark.pnio_infer starts both runs again from
+-- this frame (the contradicted layout ranked below any other) and this
+-- frame carries the note, until the runs settle again (settle()).
+local function reopen(plan, why, rec_header, fid, s, pinfo, n)
+    local res = plan.inferred
+    local count = (res.reopened and res.reopened.count or 0) + 1
+    if count > MAX_REOPEN then
+        plan.inferred = nil
+        return nil
+    end
+    local plans = {}
+    for _, p in ipairs(by_fid[res.up.fid] or {}) do if p.inferred == res then plans[#plans + 1] = p end end
+    for _, p in ipairs(by_fid[res.down.fid] or {}) do if p.inferred == res then plans[#plans + 1] = p end end
+    for _, p in ipairs(plans) do unregister(p) end
+    local text = string.format("Layout inferred from frames %d..%d contradicted in frame %d: %s; inference "
+        .. "re-opened (was %s)", res.first, res.last, n, why, res.entry)
+    local hdr = plan.header or plan.image
+    infer.reopen(runs, res, { frame = n, text = text, entry = res.entry, plans = plans, count = count },
+        rec_header and hdr and { fid = plan.fid, off = hdr.off })
+    set_hooks()
+    -- (was: on a later pass the frame is decoded by the layout settled again, redone())
+    local note = { kind = "candidate", head = "layout re-opened", settings = {}, text = text, reopened = true,
+                   was = plan }
+    -- (evidence against a header: this frame is the new runs' first; an
+    -- IOxS byte neither GOOD nor BAD: the next one, this frame cuts no layout)
+    if not rec_header then return note end
+    local got = inferred(fid, s, pinfo, n)
+    if got and got.kind ~= "candidate" then return got end
+    return note
+end
+
+-- A frame decoded on the first pass by a layout that was contradicted and
+-- replaced later (plan.next, settle()), or by the layout that replaced it
+-- (plan.again): decoded again, on the later pass, by a copy of the layout
+-- that replaced it, with its own state (the frames come in frame order in
+-- tshark -2: the watchdog ages run on across the contradiction). The
+-- record keeps the notes of the inference (re-opened; inferred, but not
+-- that of the layout contradicted).
+local function redone(rec0, plan, tvb, pinfo, n)
+    local superseded = plan.next ~= nil
+    while plan.next do plan = plan.next end
+    if not plan.redo then
+        local up, down = inferred_plans(plan.inferred, "redo" .. plan.inferred.last)
+        plan.redo = (plan.dir == "up") and up or down
+        plan.redo.fid, plan.redo.sender, plan.redo.entry = plan.fid, plan.sender, plan.entry
+    end
+    local len = tvb_len(tvb)
+    if tvb_reported_len(tvb) > len or len - 6 <= 0 then return fget(frames, n) end
+    local rec = analysed(plan.redo, tvb_raw(tvb, 2, len - 6), p_abs_ts(pinfo), n)
+    local dec = systems.decoder(plan.system)
+    if rec and rec0.was then first_finding(rec, dec.reopened, rec0.text) end
+    if rec and rec0.findings and rec0.findings ~= record.NO_FINDINGS then
+        for _, f in ipairs(rec0.findings) do
+            if f.ex == dec.reopened or (f.ex == dec.inferred and not superseded) then
+                record.add_finding(rec, f.anchor, f.ex, f.text)
+            end
+        end
+    end
+    rec = rec and shared_record(rec, n)
+    fset(frames, n, rec)
+    return rec
 end
 
 -- The record of the frames of a run that looked like ours but has not
@@ -765,7 +881,8 @@ local function candidate(h, frame)
         hint_recs[h] = rec
         for _, list in ipairs(h.lists or {}) do
             for _, f in ipairs(list) do
-                if f[1] ~= frame then fset(frames, f[1], rec) end
+                local was = fget(frames, f[1])
+                if f[1] ~= frame and not (was and was.reopened) then fset(frames, f[1], rec) end
             end
         end
         h.lists = nil
@@ -792,7 +909,7 @@ end
 -- A cyclic frame of no known layout (its C-SDU the string s), fed to
 -- vrshark.pnio_infer; n: the frame number. (A run given up without a hint
 -- takes nothing more: asked first, before the frame's time is made.)
-local function inferred(fid, s, pinfo, n)
+function inferred(fid, s, pinfo, n)
     local addr = p_dl_src(pinfo)
     local src, dst = tostring(addr), tostring(p_dl_dst(pinfo))
     if infer.given_up(runs, fid, src, dst) then return nil end
@@ -859,8 +976,16 @@ local function first_pass(fid, tvb, pinfo, len, n, thrown)
     end
     if not plan then return missed and down_note(missed, fid) end
     if plan.refused then return refused_note(plan) end
-    local rec = analysed(plan, tvb_raw(tvb, base, cut and math.min(len - base, size) or size), p_abs_ts(pinfo), n,
-        cut)
+    local s = tvb_raw(tvb, base, cut and math.min(len - base, size) or size)
+    local rec = analysed(plan, s, p_abs_ts(pinfo), n, cut)
+    -- (a layout inferred from the cyclic frames: evidence against it re-opens it)
+    if rec and plan.inferred and (rec.contradicts or rec.ioxs_bad) and not cut then
+        local why = contradiction(rec, s)
+        if why then
+            local got = reopen(plan, why, rec.contradicts ~= nil, fid, s, pinfo, n)
+            if got then return got end
+        end
+    end
     -- (fresh: nobody else holds rec in a one-pass run)
     if once then return rec, true end
     return rec and shared_record(rec, n)
@@ -963,6 +1088,9 @@ local function cyclic(tvb, pinfo, tree, view, thrown)
     local n = p_number(pinfo)
     if p_visited(pinfo) then
         rec = fget(frames, n)
+        -- (decoded by a layout contradicted later: decoded again by the one that replaced it)
+        local p = rec and (rec.plan or rec.was)
+        if p and (p.next or p.again) then rec = redone(rec, p, tvb, pinfo, n) end
         -- (a one-pass early hint gives way to the hint known at the end)
         if (rec == nil or rec.early) and unsettled ~= false and tvb:len() >= 2 then
             rec = final_candidate(tvb, pinfo) or rec

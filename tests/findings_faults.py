@@ -176,6 +176,9 @@ FAULTS = {
     "eclink_pnio.bu_state_change": ("eclink_pnio_connect.pcap", [7]),
     "eclink_pnio.layout.inferred": ("eclink_pnio_noconnect.pcap", [6]),
     "mcmb2.layout.inferred": ("mcmb2_duplex_noconnect.pcap", [6]),
+    # mcmb2_duplex_reopen_noconnect: inferred in frame 6, the DAP's IOPS 0x81
+    # in frame 9 (the fifth uplink frame) re-opens it
+    "mcmb2.layout.reopened": ("mcmb2_duplex_reopen_noconnect.pcap", [9]),
     # --- looks like ours, not recognised: mcmb2_duplex_e010_noconnect, a
     # base in E010 whose downlink watchdog never moves, without a Connect:
     # never settled, every frame of both directions (second pass)

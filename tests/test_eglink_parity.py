@@ -1,5 +1,5 @@
 """The Lua EG-Link (lua/eglink.lua, vrshark/eglink_analysis.luam), used where
-the C plugin is not loaded, decodes as the C plugin (plugins/eglink): the
+the C plugin is not loaded, decodes as the C plugin (plugins/vrshark): the
 eglink layer of `-T json` (every field, value and expert info, analysis
 included), `-z expert` and the Protocol and Info columns are the same, in
 one pass and two (-2), for every project capture that holds EG-Link and for
@@ -259,7 +259,7 @@ def test_c_plugin_decodes_where_both_are_loaded(c_tshark, lua_tshark):
     proc = c_tshark.run(["-n", "-r", str(CAPTURES / "eglink_armed.pcap"), "-c", "1"])
     assert " EG-Link " in proc.stdout and proc.stderr == ""
     plugins = c_tshark.run(["-G", "plugins"]).stdout
-    assert "eglink.so" in plugins and "eglink.lua" in plugins
+    assert "vrshark.so" in plugins and "eglink.lua" in plugins
     proc = lua_tshark.run(["-G", "protocols"])
     assert "VisionRemote EG-Link\tEGLINK\teglink" in proc.stdout.splitlines() and proc.stderr == ""
-    assert "eglink.so" not in lua_tshark.run(["-G", "plugins"]).stdout
+    assert "vrshark.so" not in lua_tshark.run(["-G", "plugins"]).stdout

@@ -22,7 +22,7 @@ RUN_UID = int(os.environ.get("VRSHARK_RUN_UID", "65534"))
 
 def build(build_dir, cmake_args="", lua_only=False):
     """tools/build into build_dir (cheap when nothing changed); returns build_dir/wsplugins,
-    or with lua_only build_dir/wsplugins-lua-only (the Lua plugins without eglink.so)."""
+    or with lua_only build_dir/wsplugins-lua-only (the Lua plugins without vrshark.so)."""
     env = dict(os.environ)
     if cmake_args:
         env["VRSHARK_CMAKE_ARGS"] = cmake_args

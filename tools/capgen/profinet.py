@@ -467,6 +467,20 @@ def duplex_e010_noconnect():
                          lambda i: ([0x3A, i + 1], bytes(8)), lambda i: ([0, 7], bytes([9, 8, 7, 6])))
 
 
+@capture("mcmb2_duplex_reopen_noconnect.pcap",
+         "MC-MB2-PN duplex without a Connect (FrameIDs 0xC016/0xC017, 8 up / 4 down bytes): its layout, "
+         "inferred in frame 6, is contradicted in frame 9 (the DAP's IOPS is 0x81, neither GOOD nor BAD): the "
+         "inference is re-opened there (mcmb2.layout.reopened) and settles again in frame 15")
+def duplex_reopen_noconnect():
+    d = Mcmb2("duplex", 8, 4, in_fid=0xC016, out_fid=0xC017)
+    cap = Capture()
+    for i in range(8):
+        t = 0.1 * (i + 1)
+        d.uplink(cap, t, [0x31, i + 1], [bytes(range(1, 9))], iops={(0, 1): 0x81} if i == 4 else None)
+        d.downlink(cap, t + 0.001, [0, i + 1], [bytes([9, 8, 7, 6])])
+    return cap
+
+
 # -- EC-Link -------------------------------------------------------------------
 def eclink_input(pci, cci, cai, bu=0x11, pai=0):
     img = bytearray(64)
