@@ -41,8 +41,6 @@ CASES = {
     "crane_mcmb2.pcap": "vrshark_io",
     "crane_eclink_modbus.pcap": "vrshark_io",
 }
-# What needs the C plugin (EG-Link is C only).
-NEEDS_C = {"eglink_analysis_session.pcap", "crane_eglink.pcap"}
 
 
 @pytest.fixture(scope="module", params=["personal", "system", "lua-only"])
@@ -81,8 +79,6 @@ def run_installed(inst, args):
 
 @pytest.mark.parametrize("capture", sorted(CASES))
 def test_decodes_as_the_harness(installed, harness, capture):
-    if installed.kind == "lua-only" and capture in NEEDS_C:
-        pytest.skip("EG-Link needs the C plugin")
     _as_the_harness(installed, harness, capture, CASES[capture])
 
 
@@ -125,7 +121,7 @@ def _as_the_harness(installed, harness, capture, filt, prefs=()):
 # in one pass (first frame past the deadline), with -2 (the commands)).
 FAILED_COMMANDS = {
     "eglink_analysis_vrco_unacked.pcap": ("eglink.analysis.vrci_unacked || eglink.analysis.vrco_unacked",
-                                          [46, 89], [5, 52]),
+                                          [61, 123], [5, 67]),
     "eclink_modbus_faults.pcap": ("eclink_modbus.cmd_from_ru.late || eclink_modbus.cmd_to_ru.late", [28], [17, 18]),
     "eclink_pnio_connect.pcap": ("eclink_pnio.cmd_from_ru.late || eclink_pnio.cmd_to_ru.late", [76], [43]),
 }
@@ -136,8 +132,6 @@ def test_failed_commands_are_warnings_in_one_pass(installed, capture):
     """As CI runs the system tshark on an installed vrshark (issue 27): a
     severity filter finds every failed command in one pass, on the first
     frame past its deadline with [unacked], and with -2 on the command."""
-    if installed.kind == "lua-only" and capture.startswith("eglink"):
-        pytest.skip("EG-Link needs the C plugin")
     fields, one_pass, two_pass = FAILED_COMMANDS[capture]
     for extra, frames in (([], one_pass), (["-2"], two_pass)):
         out = run_installed(installed, ["-n", "-r", str(CAPTURES / capture), "-Y",

@@ -18,7 +18,6 @@ from conftest import CAPTURES, ROOT
 from installed_testlib import Installed
 
 CRANE_CSV = ROOT / "examples" / "crane" / "crane.csv"
-LUA_EGLINK = pytest.mark.xfail(strict=True, reason="until the Lua EG-Link is in")
 
 
 @pytest.fixture(scope="module")
@@ -93,8 +92,7 @@ DECODED = {
 }
 
 
-@pytest.mark.parametrize("capture", [pytest.param(c, marks=LUA_EGLINK) if c.startswith("eglink") else c
-                                     for c in DECODED])
+@pytest.mark.parametrize("capture", sorted(DECODED))
 def test_every_protocol_decoded_with_the_profile(installed, capture):
     frame, protocol, field, value = DECODED[capture]
     proc = installed.tshark(["-C", "vrshark", "-n", "-r", str(CAPTURES / capture), "-Y", "frame.number == %d" % frame,

@@ -19,11 +19,7 @@ import pytest
 from conftest import CAPTURES, PROFILE_DIR
 from installed_testlib import Installed, _folders
 
-LUA_EGLINK = pytest.mark.xfail(strict=True, reason="until the Lua EG-Link is in")
 KINDS = ["personal", "lua-only", "archive"]
-# the installs whose filters compile only with EG-Link's fields registered
-EGLINK_KINDS = [pytest.param("personal"), pytest.param("lua-only", marks=LUA_EGLINK),
-                pytest.param("archive", marks=LUA_EGLINK)]
 
 
 @pytest.fixture(scope="module")
@@ -83,21 +79,21 @@ def test_default_colour_rules_follow_ours(installed):
         assert (profile_of(installed) / name).read_text() == (PROFILE_DIR / name).read_text(), name
 
 
-@pytest.mark.parametrize("installed", EGLINK_KINDS, indirect=True)
+@pytest.mark.parametrize("installed", KINDS, indirect=True)
 def test_columns_compile(installed):
     columns = custom_columns(installed)
     assert [t for t, _ in columns] == ["Device", "BU state", "RU state", "Armed RU", "Watchdog ms"]
     assert errors(installed, columns) == {}
 
 
-@pytest.mark.parametrize("installed", EGLINK_KINDS, indirect=True)
+@pytest.mark.parametrize("installed", KINDS, indirect=True)
 def test_buttons_compile(installed):
     found = buttons(installed)
     assert [label for label, _ in found] == ["Safety", "Faults", "Commands", "EG-Link", "EC-Link", "MC-MB2"]
     assert errors(installed, found) == {}
 
 
-@pytest.mark.parametrize("installed", EGLINK_KINDS, indirect=True)
+@pytest.mark.parametrize("installed", KINDS, indirect=True)
 def test_colour_rules_compile(installed):
     """Each rule's filter compiles, and tshark --color reads the whole file
     without a word on stderr (a rule that does not compile is said there only)."""
@@ -130,7 +126,7 @@ def columns_shown(inst, capture, frame):
     raise AssertionError("no frame %d in %s" % (frame, capture))
 
 
-@pytest.mark.parametrize("installed", EGLINK_KINDS, indirect=True)
+@pytest.mark.parametrize("installed", KINDS, indirect=True)
 def test_frame_45_columns(installed):
     """The BU's input image on Modbus/TCP: its server, BU and RU state and
     armed RU in the columns (eclink_modbus_basic.pcap frame 45)."""
@@ -139,7 +135,7 @@ def test_frame_45_columns(installed):
         "192.168.2.41:502", "Blocked", "Initial", "0x1234"]
 
 
-@pytest.mark.parametrize("installed", EGLINK_KINDS, indirect=True)
+@pytest.mark.parametrize("installed", KINDS, indirect=True)
 def test_every_protocol_shows_its_columns(installed):
     got = {}
     for (capture, frame), want in SHOWN.items():
