@@ -63,6 +63,8 @@ local CMD_LEN = 22
 local ACK_LEN = 2
 local BU_STATE_DISARMED = 0x10
 local RU_STATE_STOPPED = 4
+local RU_STATE_DISARMED = 1
+local LINK_PASSIVE = 6
 local JOYSTICK_LIMIT = 1000
 local OUTPUT_PORT_OFFSET = 2
 local DEFAULT_INPUT_PORTS = "5825"
@@ -245,6 +247,10 @@ local ei = {
     link_status_unknown = E("eglink.link_status.unknown", "Link status is not defined (0..6)", G.PROTOCOL, S.ERROR),
     vlaps_range = E("eglink.vlaps.range", "More than 3 VLAPs", G.PROTOCOL, S.ERROR),
     ru_state_stopped = E("eglink.ru_state.stopped", "RU stopped: ES-Link relays open", G.RESPONSE_CODE, S.WARN),
+    link_status_passive = E("eglink.link_status.passive", "Link status Passive where TS-0006 does not allow it",
+        G.PROTOCOL, S.WARN),
+    ru_state_disarmed = E("eglink.ru_state.disarmed", "RU state Disarmed (used inside the BU only)",
+        G.PROTOCOL, S.NOTE),
     ru_state_unknown = E("eglink.ru_state.unknown", "RU state is not defined (0..4)", G.PROTOCOL, S.ERROR),
     ru_battery_range = E("eglink.ru_battery.range", "RU battery above 100 %", G.PROTOCOL, S.ERROR),
     ru_rssi_range = E("eglink.ru_rssi.range", "RU C-Link RSSI above 100 %", G.PROTOCOL, S.ERROR),
@@ -258,7 +264,8 @@ local ei = {
 local expert_list = {
     ei.too_short, ei.size_mismatch, ei.size_invalid, ei.type_unknown, ei.revision_unknown, ei.origin_nonzero,
     ei.origin_zero, ei.spare_nonzero, ei.payload_spare_nonzero, ei.crc_bad, ei.crc_variant, ei.relays_open,
-    ei.bu_state_unknown, ei.link_status_unknown, ei.vlaps_range, ei.ru_state_stopped, ei.ru_state_unknown,
+    ei.bu_state_unknown, ei.link_status_unknown, ei.vlaps_range, ei.ru_state_stopped, ei.link_status_passive,
+    ei.ru_state_disarmed, ei.ru_state_unknown,
     ei.ru_battery_range, ei.ru_rssi_range, ei.flag_invalid, ei.ru_disabled_unknown, ei.joystick_range,
     ei.unarmed_data, ei.cut,
 }
@@ -504,6 +511,20 @@ local function check_link_status(p, ti, key, name, value)
     undefined(p, ti, ei.link_status_unknown, string.format("%s Unknown (0x%02x): defined are 0..6", name, value))
 end
 
+-- TS-0006 4.1.2: Passive (link not in use) is reported on the C-Link only,
+-- and only when no remote is armed. i: 1 EG-Link, 2 EC-Link, 3 C-Link.
+local LINK_NAMES = { "EG-Link", "EC-Link", "C-Link" }
+local function check_passive(ti, i, value, armed_ru)
+    if not ti or value ~= LINK_PASSIVE then return end
+    if i ~= 3 then
+        ti:add_proto_expert_info(ei.link_status_passive,
+            string.format("%s status Passive: only the C-Link reports Passive", LINK_NAMES[i]))
+    elseif armed_ru and armed_ru ~= 0 then
+        ti:add_proto_expert_info(ei.link_status_passive, string.format(
+            "C-Link status Passive while RU 0x%04x is armed: Passive only when no remote is armed", armed_ru))
+    end
+end
+
 local function check_percent(p, ti, e, name, value)
     if value > 100 then undefined(p, ti, e, string.format("%s %d %% is above 100 %%", name, value)) end
 end
@@ -597,19 +618,26 @@ local function dissect_vrpi(p, info)
         undefined(p, ti, ei.vlaps_range, string.format("%d VLAPs reported: a BU has at most 3", value))
     end
     add_uint(p, pf.unarmed_rus, 2, 1)
-    value, ti = add_uint(p, pf.eg_link_status, 3, 1)
-    if value then check_link_status(p, ti, "eg_link_status", "EG-Link status", value) end
-    value, ti = add_uint(p, pf.ec_link_status, 4, 1)
-    if value then check_link_status(p, ti, "ec_link_status", "EC-Link status", value) end
-    value, ti = add_uint(p, pf.c_link_status, 5, 1)
-    if value then check_link_status(p, ti, "c_link_status", "C-Link status", value) end
+    local eg, eg_ti = add_uint(p, pf.eg_link_status, 3, 1)
+    if eg then check_link_status(p, eg_ti, "eg_link_status", "EG-Link status", eg) end
+    local ec, ec_ti = add_uint(p, pf.ec_link_status, 4, 1)
+    if ec then check_link_status(p, ec_ti, "ec_link_status", "EC-Link status", ec) end
+    local cl, cl_ti = add_uint(p, pf.c_link_status, 5, 1)
+    if cl then check_link_status(p, cl_ti, "c_link_status", "C-Link status", cl) end
 
     local armed_ru, armed_ti = add_uint(p, pf.armed_ru, 6, 2)
+    check_passive(eg_ti, 1, eg, armed_ru)
+    check_passive(ec_ti, 2, ec, armed_ru)
+    check_passive(cl_ti, 3, cl, armed_ru)
     local ru_state, ru_ti = add_uint(p, pf.ru_state, 8, 1)
     if ru_state then
         if ru_state == RU_STATE_STOPPED then
             ru_ti:add_proto_expert_info(ei.ru_state_stopped,
                 "RU stopped (stop switch, free-fall/shock sensor or RU fault): ES-Link relays open")
+        elseif ru_state == RU_STATE_DISARMED then
+            -- TS-0006 4.1.3: Disarmed is used inside the BU only
+            ru_ti:add_proto_expert_info(ei.ru_state_disarmed,
+                "RU state 1 (Disarmed) on the wire: TS-0006 uses it only inside the BU")
         elseif not RU_STATE[ru_state] then
             show_unknown(ru_ti, "ru_state", ru_state)
             undefined(p, ru_ti, ei.ru_state_unknown,

@@ -102,6 +102,25 @@ def test_capture_parity(c_tshark, lua_tshark, name, two_pass):
     assert any(layer for _, layer in layers), "no EG-Link decoded in %s" % name
 
 
+# The preferences of the TS-0006 rules (resend tolerance, burst spread) and
+# the analysis thresholds they meet, away from their defaults.
+RULE_PREFS = [{"eglink.resend_tolerance_ms": "0", "eglink.burst_spread_ms": "0"},
+              {"eglink.resend_tolerance_ms": "150", "eglink.burst_spread_ms": "1000",
+               "eglink.vrpo_gap_ms": "100", "eglink.vrco_ack_timeout_ms": "250"},
+              {"eglink.periodic_size": "976", "eglink.reassemble_vrpo": "FALSE"}]
+
+
+@pytest.mark.parametrize("prefs", RULE_PREFS, ids=["tight", "loose", "sized"])
+@pytest.mark.parametrize("name", ["eglink_analysis_spec_rules.pcap", "eglink_analysis_vrco_unacked.pcap",
+                                  "eglink_analysis_vrpo_split.pcap"])
+def test_rule_prefs_parity(c_tshark, lua_tshark, name, prefs):
+    """TS-0006 4.2, 5.1.2 to 5.1.4: eglink.resend_tolerance_ms and
+    eglink.burst_spread_ms (and the thresholds beside them) move the same
+    findings in both decoders, one pass and two."""
+    for two_pass in (False, True):
+        assert_same(c_tshark, lua_tshark, CAPTURES / name, two_pass, prefs)
+
+
 def test_capture_list():
     """Every EG-Link capture of the generator is compared."""
     assert len(CAPTURE_NAMES) >= 33
@@ -223,7 +242,8 @@ def write_session(path, packets):
 
 
 PREFS = [None, {"eglink.crc_variant": "stm32"}, {"eglink.crc_byte_order": "be"},
-         {"eglink.heuristic": "FALSE"}, {"eglink.input_port": "5825,6825"}]
+         {"eglink.heuristic": "FALSE"}, {"eglink.input_port": "5825,6825"},
+         {"eglink.resend_tolerance_ms": "0", "eglink.burst_spread_ms": "0"}]
 
 
 @settings(max_examples=int(os.environ.get("VRSHARK_PARITY_EXAMPLES", "12")), **SETTINGS)
