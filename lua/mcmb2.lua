@@ -878,6 +878,8 @@ local function show(rec, tvb, pinfo, tree)
     set_generated(add(root, pf.layout, plan.source))
     if plan.entry then set_generated(add(root, pf.layout_entry, plan.entry)) end
     if plan.order_note then set_generated(add(root, pf.layout_order, plan.order_note)) end
+    -- the other layout the frames fit (pnio_infer slot_order()): a setting to apply
+    if plan.alt_entry then set_generated(add(root, pf.candidate_setting, "mcmb2.layouts:" .. plan.alt_entry)) end
     add(root, pf.frame_id, range(tvb, 0, 2))
     attach(rec, "top", root)
     if rec.size < plan.need then
@@ -998,8 +1000,11 @@ local ADDERS = {
     ["mcmb2.iops"] = function(c) record.add_ioxs_sparse(c.tree, c.rec, c.tvb, pf.iops, false) end,
     ["mcmb2.iocs"] = function(c) record.add_ioxs_sparse(c.tree, c.rec, c.tvb, pf.iocs, true) end,
     ["mcmb2.frame_id"] = function(c) add(c.tree, pf.frame_id, range(c.tvb, 0, 2)) end,
-    -- (only a candidate's note has it, and a candidate is always shown whole)
-    ["mcmb2.candidate_setting"] = function() end,
+    -- (a candidate's note, always shown whole; and the other layout a
+    -- settled one offers)
+    ["mcmb2.candidate_setting"] = function(c)
+        if c.plan.alt_entry then add(c.tree, pf.candidate_setting, "mcmb2.layouts:" .. c.plan.alt_entry) end
+    end,
 }
 local SPARSE = { adders = ADDERS, experts = expert_names, prefixes = { "mcmb2", "vrshark_io", "vrshark.io" } }
 

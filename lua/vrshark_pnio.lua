@@ -742,7 +742,7 @@ local function settle(res)
         local plan, run = pr[1], pr[2]
         if plan then
             plan.fid, plan.sender, plan.entry, plan.inferred = run.fid, addr_of[run.src], res.entry, res
-            plan.order_note = res.order_note
+            plan.order_note, plan.alt_entry = res.order_note, res.alt_entry
             register(plan)
             for _, f in ipairs(run.frames) do list[#list + 1] = { f[1], f[2], f[3], plan } end
             for _, old in ipairs(again and again.plans or {}) do
@@ -760,10 +760,11 @@ local function settle(res)
         if rec and f[1] == res.last then
             record.add_finding(rec, "top", dec.inferred, string.format(
                 "Cyclic data layout inferred from frames %d..%d (%s%s); to pin it, "
-                .. "add to mcmb2.layouts: %s", res.first, res.last, cut_connect
+                .. "add to mcmb2.layouts: %s%s", res.first, res.last, cut_connect
                 and string.format("no Connect read: the capture cut the PNIO-CM datagram in frame %d", cut_connect)
                 or "no Connect in the capture", again and string.format(", re-opened in frame %d", again.frame)
-                or "", res.entry))
+                or "", res.entry, res.alt_entry and string.format("; or, text as data (slot order): %s",
+                res.alt_entry) or ""))
         end
         fset(frames, f[1], rec and shared_record(rec, f[1]))
     end
