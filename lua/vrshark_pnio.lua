@@ -115,6 +115,7 @@ local frags       -- fragments of Connects being put together (defragment())
 local runs        -- vrshark.pnio_infer state: the runs of FrameIDs without a layout
 local addr_of     -- station key of pnio_infer (tostring of an Ethernet address) -> Address
 local hint_recs   -- hint of pnio_infer -> the record of its candidate frames
+local reopening  -- FrameID -> the note of its frames while a layout re-opened is inferred again (one pass)
 local unsettled   -- second pass: whether a run was left unsettled (nil: not asked yet)
 local cut_connect -- the first DCE/RPC datagram that may be a Connect the capture cut (cut_datagram()), or nil
 local heuristic, learn -- the preferences mcmb2.heuristic and mcmb2.connect, read in init()
@@ -223,7 +224,7 @@ local function init()
     for port in pairs(cm_ports or {}) do udp_table:remove(port, carrier) end
     by_fid, pending_down, tries, ars, cm_ports, not_ours, frags = {}, {}, {}, {}, {}, {}, {}
     runs = infer.new()
-    addr_of, hint_recs, unsettled, cut_connect = {}, {}, nil, nil
+    addr_of, hint_recs, unsettled, cut_connect, reopening = {}, {}, nil, nil, {}
     -- (packed: vrshark/framemap.luam says why; the ages are rounded to the ms)
     frames, per_frame = framemap.packed_refs(), framemap.packed_ms()
     last_rec, per_frame.n, spare = {}, 0, nil
@@ -736,6 +737,7 @@ end
 -- pass, by a copy of these, redone()).
 local function settle(res)
     local up, down = inferred_plans(res, "inferred" .. res.last)
+    reopening[res.up.fid], reopening[res.down.fid] = nil, nil
     local again = res.reopened
     local list = {}
     for _, pr in ipairs({ { up, res.up }, { down, res.down } }) do
@@ -823,6 +825,14 @@ local function reopen(plan, why, rec_header, fid, s, pinfo, n)
     -- (was: on a later pass the frame is decoded by the layout settled again, redone())
     local note = { kind = "candidate", head = "layout re-opened", settings = {}, text = text, reopened = true,
                    was = plan }
+    -- the frames of both FrameIDs until it settles again (inferred()): not
+    -- decoded in one pass, and not in silence; -2 decodes them (settle());
+    -- early: a hint known at the end of the capture replaces it
+    local wait = { kind = "candidate", head = "layout re-opened, not settled again yet", settings = {}, early = true,
+                   text = string.format("Not decoded: the layout of this FrameID was re-opened in frame %d and is "
+                       .. "not settled again yet (tshark -2 or the packet list after loading decodes it with the "
+                       .. "layout that fits the whole run; mcmb2.layouts pins one)", n) }
+    reopening[res.up.fid], reopening[res.down.fid] = wait, wait
     -- (evidence against a header: this frame is the new runs' first; an
     -- IOxS byte neither GOOD nor BAD: the next one, this frame cuts no layout)
     if not rec_header then return note end
@@ -925,7 +935,7 @@ function inferred(fid, s, pinfo, n)
         end
         runs.watch = {}
     end
-    if not res then return nil end
+    if not res then return reopening[fid] end
     if res.kind == "candidate" then return candidate(res, n) end
     settle(res)
     return fget(frames, n)
@@ -942,6 +952,31 @@ local function refused_note(plan)
                 (plan.dir == "up") and "uplink" or "downlink", plan.refused) }
     end
     return plan.note
+end
+
+-- A frame of ours the capture cut before its layout was known (a polled
+-- base waiting for its header, a FrameID whose layout was inferred only
+-- later): not decoded, since a cut frame never decides a layout, and said
+-- so. when: "known" or "inferred (frames a..b)"; entry: the layout-table
+-- entry that decodes it, where one is known.
+local function cut_note(plan, cut, when, entry)
+    return { kind = "candidate", head = "cut by the capture, layout not known", settings = entry
+                 and { "mcmb2.layouts:" .. entry } or {},
+             text = string.format("Not decoded: cut by the capture at %d of %d bytes before the layout of this %s "
+                 .. "was %s%s", cut.cap, cut.wire, (plan.dir == "up") and "uplink" or "downlink", when,
+                 entry and ("; to decode it: mcmb2.layouts:" .. entry) or "") }
+end
+
+-- On a later pass, a frame the capture cut (no record from the first
+-- pass) of a FrameID and sender whose layout was inferred from the cyclic
+-- frames after it: the note, with the entry that decodes it.
+local function cut_before_inferred(tvb, pinfo)
+    local cands = by_fid[tvb:range(0, 2):uint()]
+    local plan = cands and lookup(cands, p_dl_src(pinfo))
+    local res = plan and plan.inferred
+    if not res then return nil end
+    return cut_note(plan, { cap = pinfo.caplen, wire = pinfo.len }, string.format("inferred (frames %d..%d)",
+        res.first, res.last), plan.entry)
 end
 
 -- tvb: the PN-RT frame from the FrameID on, len bytes captured; n: the
@@ -963,7 +998,11 @@ local function first_pass(fid, tvb, pinfo, len, n, thrown)
     if size <= 0 then return nil end
     local plan = cands and lookup(cands, p_dl_src(pinfo))
     -- (a cut frame is decoded by a layout known, never used to find one)
-    if cut and (not plan or plan.unsettled or plan.deferred or plan.refused) then return nil end
+    if cut and (not plan or plan.unsettled or plan.deferred or plan.refused) then
+        if plan and plan.refused then return refused_note(plan) end
+        if plan then return cut_note(plan, cut, "known") end
+        return reopening[fid]
+    end
     local missed
     if plan and plan.unsettled then
         plan = resettle(plan, fid, tvb, base, size)
@@ -1096,6 +1135,8 @@ local function cyclic(tvb, pinfo, tree, view, thrown)
         if (rec == nil or rec.early) and unsettled ~= false and tvb:len() >= 2 then
             rec = final_candidate(tvb, pinfo) or rec
         end
+        -- (a frame the capture cut before the layout of its run was inferred)
+        if rec == nil and tvb_reported_len(tvb) > tvb_len(tvb) then rec = cut_before_inferred(tvb, pinfo) end
     else
         local len = tvb_len(tvb)
         -- (the FrameID from the bytes: a TvbRange costs more than the frame's other reads)
@@ -1110,6 +1151,11 @@ local function cyclic(tvb, pinfo, tree, view, thrown)
     end
     -- (a cut frame of a FrameID of ours from another sender: PN-RT as always)
     if skipped and not rec then return wrap.call(pn_rt, tvb, pinfo, tree) or tvb_len(tvb) end
+    -- (a note on a cut frame PN-RT did not see: its columns as PN-RT writes them)
+    if skipped and rec and rec.kind == "candidate" then
+        pinfo.cols.protocol = "PN-RT"
+        pinfo.cols.info = "PROFINET Real-Time[Packet size limited during capture]"
+    end
     if rec then
         local per = not once and rec.plan and systems.decoder(rec.plan.system).per_frame
         if per then load_per_frame(per, rec, n) end

@@ -123,6 +123,14 @@ def test_the_contradiction_is_said_by_frame(tshark, work_dir):
     assert one[1550] == {"mcmb2.base_unit": "6", "mcmb2.downlink_watchdog": "31", "mcmb2.layout_entry": WRONG}
     assert all(one[n] == {"mcmb2.base_unit": "", "mcmb2.downlink_watchdog": "", "mcmb2.layout_entry": ""}
                for n in range(1552, 1652)), "not decoded while re-opened"
+    # ... and not in silence: each of those frames says why and what decodes it
+    notes = tshark.frames(without, ["_ws.expert.message", "_ws.expert.severity"], display_filter="frame.number > 1552 "
+                          "&& frame.number < 1652")
+    assert {tuple(r.values()) for r in notes.values()} == {(
+        "Not decoded: the layout of this FrameID was re-opened in frame 1552 and is not settled again yet (tshark -2 "
+        "or the packet list after loading decodes it with the layout that fits the whole run; mcmb2.layouts pins "
+        "one)", "4194304")}
+    assert len(notes) == 99
     assert one[1654] == {"mcmb2.base_unit": "0", "mcmb2.downlink_watchdog": "33", "mcmb2.layout_entry": RIGHT}
     two = tshark.frames(without, ["mcmb2.layout_entry"], two_pass=True)
     assert {r["mcmb2.layout_entry"] for r in two.values()} == {RIGHT}

@@ -171,3 +171,61 @@ def test_cut_frame_too_short_for_its_layout(tshark, work_dir, system, layouts, f
         assert "Lua Error" not in " ".join(v["_ws.expert.message"] for v in got.values())
         assert got[frame]["%s.cut" % system] and "Cut by the capture at 24 of its" in msgs, msgs
         assert short in msgs
+
+
+def cut_frames(path, out, frames, snaplen=30):
+    """The pcap `path` with `frames` (numbers) cut to `snaplen` bytes, their
+    length on the wire kept (as editcap -s does to every frame)."""
+    import struct
+    data = path.read_bytes()
+    res, off, n = bytearray(data[:24]), 24, 0
+    while off < len(data):
+        sec, usec, incl, orig = struct.unpack("<IIII", data[off:off + 16])
+        body = data[off + 16:off + 16 + incl]
+        off, n = off + 16 + incl, n + 1
+        if n in frames:
+            body = body[:snaplen]
+        res += struct.pack("<IIII", sec, usec, len(body), orig) + body
+    out.write_bytes(bytes(res))
+    out.chmod(0o644)
+    return out
+
+
+NOTE_FIELDS = ["_ws.col.Protocol", "mcmb2.candidate_setting", "_ws.expert.message", "mcmb2.cut"]
+
+
+def test_cut_before_the_layout_was_inferred(tshark, work_dir):
+    """Frames the capture cut before the cyclic frames settled their layout
+    (no Connect): a cut frame never decides a layout, so they are not
+    decoded, but with -2 they say so and offer the entry that decodes them;
+    that entry decodes them as cut frames. (In one pass nothing is known of
+    them yet: Wireshark's PN-RT reports the cut.)"""
+    from test_pnio_reopen import stepping_captures
+    _, without = stepping_captures(work_dir, name="cutfirst", order=lambda direction, elements: elements, pairs=200)
+    path = cut_frames(without, work_dir / "cut-first.pcap", {1, 2})
+    entry = "0x8441/0x8442=duplex:2/2@2"
+    got = tshark.frames(path, NOTE_FIELDS, two_pass=True)
+    for n, name in ((1, "uplink"), (2, "downlink")):
+        assert got[n] == {"_ws.col.Protocol": "PN-RT", "mcmb2.candidate_setting": "mcmb2.layouts:" + entry,
+                          "mcmb2.cut": "", "_ws.expert.message": (
+                              "Not decoded: cut by the capture at 30 of 60 bytes before the layout of this %s was "
+                              "inferred (frames 3..102); to decode it: mcmb2.layouts:%s" % (name, entry))}
+    once = tshark.frames(path, NOTE_FIELDS)
+    assert once[1] == {"_ws.col.Protocol": "PN-RT", "mcmb2.candidate_setting": "", "mcmb2.cut": "",
+                       "_ws.expert.message": ""}
+    pinned = tshark.frames(path, NOTE_FIELDS + ["mcmb2.uplink_watchdog"], prefs={"mcmb2.layouts": entry})
+    assert pinned[1]["_ws.col.Protocol"] == "MC-MB2" and pinned[1]["mcmb2.cut"]
+    assert pinned[1]["mcmb2.uplink_watchdog"] == "0"
+
+
+@pytest.mark.parametrize("two_pass", [False, True], ids=["one-pass", "two-pass"])
+def test_cut_frame_of_a_direction_its_connect_does_not_describe(tshark, work_dir, two_pass):
+    """A cut frame of a direction whose Connect could not be learned gets
+    the same note as its whole frames: the setting that decodes it."""
+    from test_pnio_connect_stray import capture
+    path = cut_frames(capture(work_dir, "out", 4), work_dir / "stray-cut.pcap", {4})
+    got = tshark.frames(path, NOTE_FIELDS, two_pass=two_pass)
+    assert got[4]["_ws.col.Protocol"] == "PN-RT" and got[4]["mcmb2.candidate_setting"] == "mcmb2.layouts"
+    assert got[4]["_ws.expert.message"].startswith(
+        "Not decoded: the Connect of an MC-MB2-PN duplex/simplex base does not describe this downlink (")
+    assert got[6]["_ws.expert.message"] == got[4]["_ws.expert.message"]
