@@ -1,6 +1,9 @@
 """Helpers for the EG-Link dissector tests: its own expert names, expert info
 read from -T json so that findings of other EG-Link modules do not get in the
-way, and by-name assertions over several frames."""
+way, by-name assertions over several frames, and what tells the C plugin from
+the Lua EG-Link (tools/test's Lua-only phase, VRSHARK_NO_C_PLUGIN=1)."""
+import copy
+import os
 import sys
 from pathlib import Path
 
@@ -94,3 +97,56 @@ def expect_frames(tshark, capture, expected, **kw):
 def messages(tshark, capture, **kw):
     """{frame number: [message, ...]} of the dissector's own expert info."""
     return {n: [m for _, m in v] for n, v in dissector_experts(tshark, capture, **kw).items()}
+
+
+# --- the C plugin or the Lua EG-Link ------------------------------------------
+# tools/test runs the EG-Link tests a second time with the Lua plugins alone
+# (VRSHARK_NO_C_PLUGIN=1). Where Wireshark's Lua API allows no other way the
+# two differ (docs/eglink.md, "What differs"); these name the difference.
+
+LUA_ONLY = bool(os.environ.get("VRSHARK_NO_C_PLUGIN"))
+
+# The protocol's short name in -z expert and the Expert dialog: a Lua
+# protocol's is its name in capitals.
+EGLINK_SHORT_NAME = "EGLINK" if LUA_ONLY else "EG-Link"
+
+_LUA_STATS = {}
+
+
+def eglink_stats(tshark, capture, two_pass=False, prefs=None):
+    """The text of the EG-Link statistics tree of a capture: the C plugin's
+    -z eglink,stat, or without it the Lua EG-Link's table
+    (VRSHARK_EGLINK_STATS=1, printed at the end of the run; tshark -z cannot
+    name a Lua statistic). The Lua table has the same rows, order, counts,
+    averages, minimums, maximums and percentages, without the Rate and Burst
+    columns (lua_stats_text() turns a C table into it)."""
+    opts = tshark._opts(prefs=prefs, two_pass=two_pass)
+    if not LUA_ONLY:
+        return tshark.run(["-q", "-n", "-r", str(capture), "-z", "eglink,stat"] + opts).stdout
+    if id(tshark) not in _LUA_STATS:
+        t = copy.copy(tshark)
+        t.env = dict(tshark.env, VRSHARK_EGLINK_STATS="1")
+        t._cache = {}
+        _LUA_STATS[id(tshark)] = t
+    return _LUA_STATS[id(tshark)].run(["-q", "-n", "-r", str(capture)] + opts).stdout
+
+
+# Columns of the C table the Lua one has not.
+C_ONLY_STATS_COLUMNS = ("Rate (ms)", "Burst Rate", "Burst Start")
+
+
+def lua_stats_text(c_text):
+    """A C plugin's -z eglink,stat text as the Lua EG-Link prints the same
+    tree: no Rate (ms), Burst Rate and Burst Start columns, no blank lines,
+    the rules as wide as the remaining columns."""
+    lines = [line for line in c_text.splitlines() if line.strip()]
+    header = next(line for line in lines if line.startswith("Topic / Item"))
+    rate, percent, burst = (header.index(t) for t in ("Rate (ms)", "Percent", "Burst Rate"))
+    width = rate + burst - percent
+    out = []
+    for line in lines:
+        if set(line) <= set("=-"):
+            out.append(line[0] * width)
+        else:
+            out.append((line[:rate] + line[percent:burst]).rstrip())
+    return "\n".join(out) + "\n"

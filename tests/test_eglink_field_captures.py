@@ -17,6 +17,7 @@ import subprocess
 import pytest
 
 from conftest import CAPTURES, ROOT, expert_infos
+from eglink_testlib import eglink_stats
 
 REPORT = ROOT / "tools" / "vrshark-report"
 LUA_ONLY = bool(os.environ.get("VRSHARK_NO_C_PLUGIN"))
@@ -184,10 +185,9 @@ def test_paired_controllers_join_their_bus():
     assert [d["first_frame"] for d in rep["devices"]] == [1, 2]
 
 
-@pytest.mark.skipif(LUA_ONLY, reason="-z eglink,stat is the C plugin's statistics tree (docs/eglink.md)")
 def test_unpaired_controllers_in_the_statistics(tshark):
-    text = tshark.run(["-q", "-n", "-r", str(CAPTURES / "eglink_analysis_unpaired.pcap"),
-                       "-z", "eglink,stat"]).stdout
+    """(-z eglink,stat, or the Lua EG-Link's VRSHARK_EGLINK_STATS=1 table)"""
+    text = eglink_stats(tshark, CAPTURES / "eglink_analysis_unpaired.pcap")
     for name in ("BU 0x1001 (10.0.0.1)", "BU 0x2002 (10.0.0.2)", "Controller 10.0.0.11 (BU not known)",
                  "Controller 10.0.0.12 (BU not known)"):
         assert name in text

@@ -9,6 +9,10 @@ after a gap, deeper than eight layers, or with findings keep the full
 record. Every analysis value that is no link to a later frame is compared,
 one pass against two, on every EG-Link capture and on a copy of the lost
 packets capture with the EG-Link header 14 layers deep.
+
+The Lua EG-Link keeps records of its own (a number a frame, a table for a
+frame with findings: lua/vrshark/eglink_analysis.luam); tools/test runs these
+tests with it too (VRSHARK_NO_C_PLUGIN=1), and they read back alike.
 """
 import pytest
 from scapy.all import Dot1Q, Ether, rdpcap, wrpcap
