@@ -7,7 +7,7 @@ read_globals = {
     "Pref", "PI_MALFORMED", "PI_PROTOCOL", "PI_SEQUENCE", "PI_SECURITY", "PI_RESPONSE_CODE",
     "PI_REQUEST_CODE", "PI_UNDECODED", "PI_REASSEMBLE", "PI_DEBUG", "PI_COMMENTS_GROUP",
     "PI_CHAT", "PI_NOTE", "PI_WARN", "PI_ERROR", "PI_COMMENT",
-    "ByteArray", "Tvb", "TvbRange", "UInt64", "Int64", "Address", "NSTime", "Pinfo", "TreeItem",
+    "ByteArray", "Tvb", "TvbRange", "UInt64", "Int64", "Address", "NSTime", "Pinfo", "TreeItem", "Column",
     "base", "ftypes", "frametype", "bit", "wtap", "wtap_encaps", "expert", "register_postdissector",
     "set_plugin_info", "get_version", "register_stat_cmd_arg", "Listener", "GUI_ENABLED",
     "register_menu", "MENU_TOOLS_UNSORTED", "MENU_STAT_GENERIC", "TextWindow", "retap_packets",

@@ -51,6 +51,20 @@ if package.searchpath and package.searchpath("vrshark.eglink_analysis", package.
 end
 
 local band, bor, bxor, lshift, rshift = bit.band, bit.bor, bit.bxor, bit.lshift, bit.rshift
+local byte, sub = string.byte, string.sub
+
+-- Wireshark's Lua methods as plain functions (vrshark/api.luam: obj:method()
+-- looks the method up through the class's __index on every call).
+local api = require("vrshark.api")
+local function method(class, name)
+    local fn = class and rawget(class, name)
+    if type(fn) == "function" then return fn end
+    return function(obj, ...) return obj[name](obj, ...) end
+end
+local t_add, t_add_le, t_append, t_set_text, t_set_generated = api.add, api.add_le, api.append_text,
+    api.set_text, api.set_generated
+local tvb_range, tvb_raw, tvb_len, tvb_reported_len = api.range, api.raw, api.len, api.reported_len
+local col_append, col_clear, col_set = method(Column, "append"), method(Column, "clear"), method(Column, "set")
 
 local HEADER_LEN = 16
 local CRC_LEN = 4
@@ -88,6 +102,9 @@ local TYPE_DESCR = {
     UNKNOWN = "unknown packet type",
 }
 local IS_INPUT = { VRPI = true, VRCI = true, VRAI = true }
+-- what the Packet ID item appends
+local TYPE_LABEL = {}
+for k, v in pairs(TYPE_DESCR) do TYPE_LABEL[k] = " (" .. v .. ")" end
 
 local BU_STATE = {
     [0x00] = "Initial", [0x01] = "Stopped", [0x02] = "External link error", [0x03] = "Blocked",
@@ -209,6 +226,8 @@ for _, f in ipairs({ pf.encoder, pf.encoder_switch, pf.packet_number, pf.periodi
                      pf.command_data }) do
     field_list[#field_list + 1] = f
 end
+local field_list_own = {}
+for i = 1, #field_list do field_list_own[i] = field_list[i] end
 if analysis then analysis.fields(field_list) end
 -- (what the analysis takes from the dissector through vrshark/eglink_data.luam:
 -- hf_eglink_periodic_data, eglink_is_input_port() and eglink_data_dissect() in C)
@@ -326,18 +345,49 @@ for i = 0, 255 do
     HDLC_TABLE[i] = r
 end
 
-local function crc_mpeg2(s)
+-- Two bytes a step with a table of 65536 entries (the CRC of every 16-bit
+-- value, made on the first packet): four bit library calls for two bytes
+-- instead of eight, as a bit library call costs more than the rest of the
+-- step. rshift is logical: rshift(crc, 16) is already 0..65535, as is its
+-- XOR with two bytes, so no band. The bytes are read eight at a time.
+local MPEG2_TABLE16
+local function make_table16()
+    local t = {}
+    for hi = 0, 255 do
+        local th = MPEG2_TABLE[hi]
+        local shifted, top, row = lshift(th, 8), rshift(th, 24), hi * 256
+        for lo = 0, 255 do t[row + lo] = bxor(shifted, MPEG2_TABLE[bxor(top, lo)]) end
+    end
+    return t
+end
+
+local function crc_mpeg2(s, n)
+    local T = MPEG2_TABLE
+    local T2 = MPEG2_TABLE16
+    if not T2 then
+        T2 = make_table16()
+        MPEG2_TABLE16 = T2
+    end
     local crc = -1
-    local byte = string.byte
-    for i = 1, #s do
-        crc = bxor(lshift(crc, 8), MPEG2_TABLE[band(bxor(rshift(crc, 24), byte(s, i)), 0xFF)])
+    n = n or #s
+    local i = 1
+    while i + 7 <= n do
+        local b1, b2, b3, b4, b5, b6, b7, b8 = byte(s, i, i + 7)
+        crc = bxor(lshift(crc, 16), T2[bxor(rshift(crc, 16), b1 * 256 + b2)])
+        crc = bxor(lshift(crc, 16), T2[bxor(rshift(crc, 16), b3 * 256 + b4)])
+        crc = bxor(lshift(crc, 16), T2[bxor(rshift(crc, 16), b5 * 256 + b6)])
+        crc = bxor(lshift(crc, 16), T2[bxor(rshift(crc, 16), b7 * 256 + b8)])
+        i = i + 8
+    end
+    while i <= n do
+        crc = bxor(lshift(crc, 8), T[bxor(rshift(crc, 24), byte(s, i))])
+        i = i + 1
     end
     return u32(crc)
 end
 
 local function crc_iso_hdlc(s)
     local crc = -1
-    local byte = string.byte
     for i = 1, #s do
         crc = bxor(rshift(crc, 8), HDLC_TABLE[band(bxor(crc, byte(s, i)), 0xFF)])
     end
@@ -366,10 +416,6 @@ end
 ------------------------------------------------------------------------
 -- Helpers
 ------------------------------------------------------------------------
-local function type_from_id(kind, direction)
-    return TYPE_OF_ID["VR" .. kind .. direction] or "UNKNOWN"
-end
-
 -- Expected payload size per type: min, max.
 local function type_sizes(ptype)
     if ptype == "VRPI" then return VRPI_LEN, VRPI_LEN end
@@ -447,28 +493,133 @@ local function format_text(s)
     return table.concat(out)
 end
 
+-- " (46 bytes)", what the Payload item appends
+local payload_labels = {}
+local function payload_label(len)
+    local t = payload_labels[len]
+    if not t then
+        t = string.format(" (%d byte%s)", len, len == 1 and "" or "s")
+        if len <= 65535 then payload_labels[len] = t end
+    end
+    return t
+end
+
 local function value_name(value, vals)
     return vals[value] or string.format("Unknown (0x%02x)", value)
 end
 
+------------------------------------------------------------------------
+-- Sparse display: an invisible tree (the packet list, tshark -Y)
+------------------------------------------------------------------------
+-- Wireshark throws away every item of an invisible tree whose field nobody
+-- references (docs/quality.md, "What the decoders add, and when"). On such
+-- a tree the decoder adds only the referenced fields of the list below,
+-- flat under the protocol item, besides the protocol item, the columns and
+-- the expert info (Lua cannot tell whether these are looked at), and the
+-- analysis adds no items. `want` is nil for the full tree (a visible tree,
+-- a Wireshark without TreeItem:referenced(), VRSHARK_FULL_TREE set, the
+-- protocol referenced with none of its fields, or a field referenced that
+-- only the full tree has: the analysis's, the reassembled periodic data),
+-- else the set of the fields to add, this frame's (what is referenced
+-- changes from one dissection to the next). tests/test_sparse_view.py.
+local want
+local referenced = type(TreeItem) == "table" and rawget(TreeItem, "referenced")
+if type(referenced) ~= "function" or os.getenv("VRSHARK_FULL_TREE") then referenced = nil end
+local tree_visible = (function()
+    local reg = type(debug) == "table" and type(debug.getregistry) == "function" and debug.getregistry()
+    local mt = reg and reg.TreeItem
+    local getters = type(mt) == "table" and rawget(mt, "__getters")
+    local fn = type(getters) == "table" and rawget(getters, "visible")
+    if type(fn) == "function" then return fn end
+    return function(tree) return tree.visible end
+end)()
+local SPARSE_FIELDS = {}         -- the fields the sparse display can add
+local FULL_FIELDS = {}           -- referenced, they mean the full tree
+local NOTHING = {}
+local sparse_sets = {}           -- key (a sum of powers of 2) -> { [field] = true }
+local proto_handle
+
+local function sparse_setup(all_fields)
+    local full = { [pf.periodic_data] = true }
+    local own = {}
+    for _, f in ipairs(field_list_own) do own[f] = true end
+    for _, f in ipairs(all_fields) do
+        if own[f] and not full[f] then SPARSE_FIELDS[#SPARSE_FIELDS + 1] = f else FULL_FIELDS[#FULL_FIELDS + 1] = f end
+    end
+end
+
+sparse_setup(field_list)
+
+local function frame_want(tree)
+    if not referenced then return nil end
+    if proto_handle == nil then
+        local ok, h = pcall(Dissector.get, "eglink")
+        proto_handle = ok and h or false
+    end
+    if not proto_handle then return nil end
+    if not referenced(tree, proto_handle) then
+        -- nothing of EG-Link looked at (true on a visible tree)
+        return NOTHING
+    end
+    if tree_visible(tree) then return nil end
+    for i = 1, #FULL_FIELDS do
+        if referenced(tree, FULL_FIELDS[i]) then return nil end
+    end
+    local key, w = 0, 1
+    for i = 1, #SPARSE_FIELDS do
+        if referenced(tree, SPARSE_FIELDS[i]) then key = key + w end
+        w = w + w
+    end
+    if key == 0 then return nil end
+    local set = sparse_sets[key]
+    if not set then
+        set = {}
+        for i = 1, #SPARSE_FIELDS do
+            if math.floor(key / 2 ^ (i - 1)) % 2 == 1 then set[SPARSE_FIELDS[i]] = true end
+        end
+        sparse_sets[key] = set
+    end
+    return set
+end
+
 local function show_unknown(ti, key, value)
+    if want and not want[pf[key]] then return end
     ti:set_text(string.format("%s: Unknown (0x%02x)", NAME[key], value))
 end
 
 ------------------------------------------------------------------------
 -- Payload: p = { tvb, pinfo, tree, base, len, cap, undefined }
 ------------------------------------------------------------------------
+-- (the values are read from p.raw, the packet's bytes in the capture, read
+-- once: raw byte i + 1 is tvb offset i)
+-- An unsigned little-endian value of 1, 2 or 4 bytes at tvb offset pos.
+local function le_uint(raw, pos, len)
+    if len == 1 then return byte(raw, pos + 1) end
+    if len == 2 then
+        local a, b = byte(raw, pos + 1, pos + 2)
+        return a + b * 256
+    end
+    local a, b, c, d = byte(raw, pos + 1, pos + 4)
+    return a + b * 256 + c * 65536 + d * 16777216
+end
+
 -- Adds an unsigned little-endian payload field if it fits: value, item (nil if not).
 local function add_uint(p, field, off, len)
     if off + len > p.cap then return nil end
-    local range = p.tvb(p.base + off, len)
-    return range:le_uint(), p.tree:add_le(field, range)
+    local pos = p.base + off
+    if want and not want[field] then return le_uint(p.raw, pos, len), p.tree end
+    return le_uint(p.raw, pos, len), t_add_le(p.tree, field, tvb_range(p.tvb, pos, len))
 end
 
-local function add_int(p, field, off, len)
-    if off + len > p.cap then return nil end
-    local range = p.tvb(p.base + off, len)
-    return range:le_int(), p.tree:add_le(field, range)
+-- The same for a signed 16-bit field.
+local function add_int(p, field, off)
+    if off + 2 > p.cap then return nil end
+    local pos = p.base + off
+    local a, b = byte(p.raw, pos + 1, pos + 2)
+    local v = a + b * 256
+    if v >= 32768 then v = v - 65536 end
+    if want and not want[field] then return v, p.tree end
+    return v, t_add_le(p.tree, field, tvb_range(p.tvb, pos, 2))
 end
 
 -- Adds a byte block with whatever of it is present and captured: its length, item.
@@ -476,13 +627,15 @@ local function add_bytes(p, field, off, len)
     if off >= p.cap then return 0 end
     if off + len > p.cap then len = p.cap - off end
     if len <= 0 then return 0 end
-    return len, p.tree:add(field, p.tvb(p.base + off, len))
+    if want and not want[field] then return len, p.tree end
+    return len, t_add(p.tree, field, tvb_range(p.tvb, p.base + off, len))
 end
 
 local function check_payload_spare(p, off, len)
     local present, ti = add_bytes(p, pf.payload_spare, off, len)
-    for i = 0, present - 1 do
-        if p.tvb(p.base + off + i, 1):uint() ~= 0 then
+    local raw, first = p.raw, p.base + off
+    for i = 1, present do
+        if byte(raw, first + i) ~= 0 then
             ti:add_proto_expert_info(ei.payload_spare_nonzero,
                 "Payload spare bytes are not 0: reserved for future use, the sender "
                 .. "may use a newer layout than TS-0006")
@@ -543,7 +696,7 @@ local function check_unarmed(p, armed_ti)
     local names = {}
     for _, f in ipairs(RU_FIELDS) do
         if f[1] + f[2] > p.cap then break end
-        if p.tvb(p.base + f[1], f[2]):le_uint() ~= 0 then names[#names + 1] = f[3] end
+        if le_uint(p.raw, p.base + f[1], f[2]) ~= 0 then names[#names + 1] = f[3] end
     end
     if #names > 0 then
         undefined(p, armed_ti, ei.unarmed_data,
@@ -558,7 +711,7 @@ local function vrpi_relays(p, bu_state)
     local open = bu_state < BU_STATE_DISARMED
     if open or p.len < 9 then return true, open end
     if p.cap < 9 then return false, open end
-    return true, p.tvb(p.base + 8, 1):uint() == RU_STATE_STOPPED
+    return true, byte(p.raw, p.base + 9) == RU_STATE_STOPPED
 end
 
 -- Info of a VRPI names what each value is: "BU=Armed RU 0xbeef=Enabled
@@ -567,11 +720,11 @@ local function vrpi_info(p, bu_state, relays_open)
     local have = p.cap
     local parts = { " BU=" .. value_name(bu_state, BU_STATE) }
     if have >= 3 and bu_state == BU_STATE_DISARMED then
-        parts[#parts + 1] = " Unarmed RUs=" .. p.tvb(p.base + 2, 1):uint()
+        parts[#parts + 1] = " Unarmed RUs=" .. byte(p.raw, p.base + 3)
     end
     if have >= 8 then
-        local armed_ru = p.tvb(p.base + 6, 2):le_uint()
-        local ru_state = have >= 9 and p.tvb(p.base + 8, 1):uint() or 0
+        local armed_ru = le_uint(p.raw, p.base + 6, 2)
+        local ru_state = have >= 9 and byte(p.raw, p.base + 9) or 0
         if armed_ru ~= 0 or ru_state ~= 0 then
             parts[#parts + 1] = string.format(" RU 0x%04x", armed_ru)
             if have >= 9 then parts[#parts + 1] = "=" .. value_name(ru_state, RU_STATE) end
@@ -579,18 +732,19 @@ local function vrpi_info(p, bu_state, relays_open)
     end
     for i = 0, 3 do
         if have < 16 + 2 * i then break end
-        local joystick = p.tvb(p.base + 14 + 2 * i, 2):le_int()
+        local joystick = le_uint(p.raw, p.base + 14 + 2 * i, 2)
+        if joystick >= 32768 then joystick = joystick - 65536 end
         if joystick ~= 0 then parts[#parts + 1] = string.format(" J%d=%d", i + 1, joystick) end
     end
     if relays_open then parts[#parts + 1] = " [relays open]" end
-    p.pinfo.cols.info:append(table.concat(parts))
+    col_append(p.cinfo, table.concat(parts))
 end
 
 -- VRPI: BU status and the armed RU's controls.
 local function dissect_vrpi(p, info)
     local bu_state, bu_ti = add_uint(p, pf.bu_state, 0, 1)
     if not bu_state then
-        p.pinfo.cols.info:append(" (truncated)")
+        col_append(p.cinfo, " (truncated)")
         return
     end
     info.has_bu_state = true
@@ -604,8 +758,8 @@ local function dissect_vrpi(p, info)
     end
 
     -- ES-Link relays, right below the BU state
-    if relays_known then
-        p.tree:add(pf.relays_open, p.tvb(p.base, 1), relays_open):set_generated()
+    if relays_known and (not want or want[pf.relays_open]) then
+        t_set_generated(t_add(p.tree, pf.relays_open, tvb_range(p.tvb, p.base, 1), relays_open))
     end
     if bu_state < BU_STATE_DISARMED then
         bu_ti:add_proto_expert_info(ei.relays_open, string.format("ES-Link relays open: BU state %s (0x%02x), %s",
@@ -662,7 +816,7 @@ local function dissect_vrpi(p, info)
 
     for i = 1, 4 do
         local svalue
-        svalue, ti = add_int(p, pf.joystick[i], 14 + 2 * (i - 1), 2)
+        svalue, ti = add_int(p, pf.joystick[i], 14 + 2 * (i - 1))
         if not svalue then break end
         if svalue < -JOYSTICK_LIMIT or svalue > JOYSTICK_LIMIT then
             undefined(p, ti, ei.joystick_range,
@@ -670,7 +824,7 @@ local function dissect_vrpi(p, info)
         end
     end
     for i = 1, 8 do
-        if not add_int(p, pf.switch[i], 22 + 2 * (i - 1), 2) then break end
+        if not add_int(p, pf.switch[i], 22 + 2 * (i - 1)) then break end
     end
     add_uint(p, pf.encoder, 38, 1)
     value, ti = add_uint(p, pf.encoder_switch, 39, 1)
@@ -679,14 +833,14 @@ local function dissect_vrpi(p, info)
 
     if armed_ru == 0 then check_unarmed(p, armed_ti) end
 
-    if p.undefined then p.pinfo.cols.info:append(" [undefined]") end
+    if p.undefined then col_append(p.cinfo, " [undefined]") end
 end
 
 -- VRPO: one fragment of the controller's periodic data.
 local function dissect_vrpo(p, info)
     local pkt = add_uint(p, pf.packet_number, 0, 2)
     if not pkt then
-        p.pinfo.cols.info:append(" (truncated)")
+        col_append(p.cinfo, " (truncated)")
         return
     end
     -- Of a cut packet, the data the capture holds; the burst is tracked by
@@ -697,23 +851,23 @@ local function dissect_vrpo(p, info)
     info.packet_number = pkt
     info.periodic_offset = p.base + 2
     info.periodic_len = data_len
-    p.pinfo.cols.info:append(string.format(" Pkt=%d %d bytes", pkt, data_len))
+    col_append(p.cinfo, string.format(" Pkt=%d %d bytes", pkt, data_len))
 end
 
 -- VRCI/VRCO (with_data) and VRAI/VRAO: command ID first.
 local function dissect_command(p, info, with_data)
     local cmd = add_uint(p, pf.command_id, 0, 2)
     if not cmd then
-        p.pinfo.cols.info:append(" (truncated)")
+        col_append(p.cinfo, " (truncated)")
         return
     end
     info.has_command_id = true
     info.command_id = cmd
-    p.pinfo.cols.info:append(" Cmd=" .. cmd)
+    col_append(p.cinfo, " Cmd=" .. cmd)
     if with_data then
         check_payload_spare(p, 2, 4)
         if add_bytes(p, pf.command_data, 6, 16) == 16 then
-            handoff.dissect(p.tvb(p.base + 6, 16):tvb(), p.pinfo, p.tree,
+            handoff.dissect(tvb_range(p.tvb, p.base + 6, 16):tvb(), p.pinfo, p.tree,
                 info.type == "VRCI" and "vrci" or "vrco", info.origin, 0)
         end
     end
@@ -722,30 +876,43 @@ end
 -- The checksum status as proto_tree_add_checksum() adds it: generated, no
 -- length, "CRC status: Good" (a Lua field with base.NONE is shown "Good (1)").
 local function add_crc_status(tree, tvb, crc_offset, status)
-    local ti = tree:add(pf.crc_status, tvb(crc_offset, 0), status)
-    ti:set_text("CRC status: " .. CHECKSUM_STATUS[status])
-    ti:set_generated()
+    if want and not want[pf.crc_status] then return end
+    local ti = t_add(tree, pf.crc_status, tvb_range(tvb, crc_offset, 0), status)
+    t_set_text(ti, "CRC status: " .. CHECKSUM_STATUS[status])
+    t_set_generated(ti)
 end
 
 -- CRC: verify with the configured variant; on failure say which one fits.
-local function dissect_crc(tvb, pinfo, tree, crc_offset)
-    local s = tvb:raw(0, crc_offset)
+-- raw: the packet's bytes, the CRC's included.
+local function dissect_crc(tvb, raw, pinfo, tree, crc_offset)
     local variant, order = opt.crc_variant, opt.crc_order
-    local computed = { [variant] = crc_compute(s, variant) }
-    local range = tvb(crc_offset, CRC_LEN)
-    local stored_le, stored_be = range:le_uint(), range:uint()
+    local b0, b1, b2, b3 = byte(raw, crc_offset + 1, crc_offset + 4)
+    local stored_le = ((b3 * 256 + b2) * 256 + b1) * 256 + b0
+    local stored_be = ((b0 * 256 + b1) * 256 + b2) * 256 + b3
     local stored = order == CRC_BE and stored_be or stored_le
-    local ti = order == CRC_BE and tree:add(pf.crc, range) or tree:add_le(pf.crc, range)
+    local shown = not want or want[pf.crc]
+    local ti = tree
+    if shown then
+        local range = tvb_range(tvb, crc_offset, CRC_LEN)
+        ti = order == CRC_BE and t_add(tree, pf.crc, range) or t_add_le(tree, pf.crc, range)
+    end
+    if variant == CRC_MPEG2 and stored == crc_mpeg2(raw, crc_offset) then
+        if shown then t_append(ti, " [correct]") end
+        add_crc_status(tree, tvb, crc_offset, CHECKSUM_GOOD)
+        return true
+    end
+    local s = sub(raw, 1, crc_offset)
+    local computed = { [variant] = crc_compute(s, variant) }
     if stored == computed[variant] then
-        ti:append_text(" [correct]")
+        if shown then t_append(ti, " [correct]") end
         add_crc_status(tree, tvb, crc_offset, CHECKSUM_GOOD)
         return true
     end
     add_crc_status(tree, tvb, crc_offset, CHECKSUM_BAD)
-    ti:append_text(string.format(" incorrect, should be 0x%08x", computed[variant]))
+    if shown then ti:append_text(string.format(" incorrect, should be 0x%08x", computed[variant])) end
     ti:add_proto_expert_info(ei.crc_bad, string.format("Bad CRC [should be 0x%08x]", computed[variant]))
 
-    pinfo.cols.info:append(" [bad CRC]")
+    col_append(pinfo.cols.info, " [bad CRC]")
     for v = CRC_MPEG2, CRC_STM32 do
         if v ~= variant then computed[v] = crc_compute(s, v) end
         if computed[v] == stored_le and (v ~= variant or order ~= CRC_LE) then
@@ -766,28 +933,42 @@ end
 
 -- Adds a header field if the packet, and the capture, are long enough for it
 -- (have: the smaller of the two lengths): value, item.
-local function add_header_uint(tree, tvb, field, off, len, have)
+local function add_header_uint(tree, tvb, raw, field, off, len, have)
     if off + len > have then return nil end
-    local range = tvb(off, len)
-    return range:le_uint(), tree:add_le(field, range)
+    if want and not want[field] then return le_uint(raw, off, len), tree end
+    return le_uint(raw, off, len), t_add_le(tree, field, tvb_range(tvb, off, len))
 end
 
 local function analyse(tvb, pinfo, tree, item, info)
-    if analysis then analysis.dissect(tvb, pinfo, tree, item, info) end
+    if analysis then analysis.dissect(tvb, pinfo, tree, item, info, want ~= nil) end
 end
 
 -- A packet cut by the capture: the C plugin ends it as Wireshark ends every
 -- such packet (an exception that shows "[Packet size limited during
 -- capture]"); a Lua dissector cannot raise that exception, so it writes the
 -- same Info.
-local function end_of_capture(pinfo, captured, reported)
-    if captured < reported then pinfo.cols.info:append("[Packet size limited during capture]") end
+local function end_of_capture(cinfo, captured, reported)
+    if captured < reported then col_append(cinfo, "[Packet size limited during capture]") end
+end
+
+-- The packet ID as the Info column and the item show it, per 4 bytes (or fewer).
+local id_texts = {}
+local function id_text(s)
+    local t = id_texts[s]
+    if not t then
+        t = format_text(s)
+        id_texts[s] = t
+    end
+    return t
 end
 
 local function dissect(tvb, pinfo, tree)
-    local reported, captured = tvb:reported_len(), tvb:len()
+    local reported, captured = tvb_reported_len(tvb), tvb_len(tvb)
     local have = math.min(reported, captured)   -- bytes in the packet and in the capture
-    if captured < 2 or tvb:raw(0, 2) ~= "VR" then return 0 end
+    if captured < 2 then return 0 end
+    local raw = tvb_raw(tvb, 0, have)
+    if sub(raw, 1, 2) ~= "VR" then return 0 end
+    want = frame_want(tree)
 
     local info = {
         type = "UNKNOWN", revision = 0, origin = 0, serial = 0, has_serial = false, size = 0, size_ok = false,
@@ -795,29 +976,34 @@ local function dissect(tvb, pinfo, tree)
         has_packet_number = false, packet_number = 0, periodic_offset = 0, periodic_len = 0,
     }
 
-    pinfo.cols.protocol = "EG-Link"
-    pinfo.cols.info:clear()
+    local cols = pinfo.cols
+    cols.protocol = "EG-Link"
+    local cinfo = cols.info
+    col_clear(cinfo)
 
-    local eglink_item = tree:add(proto, tvb())
+    local eglink_item = t_add(tree, proto, tvb_range(tvb))
     local eglink_tree = eglink_item
 
-    local id = format_text(tvb:raw(0, math.min(have, 4)))
-    pinfo.cols.info = id
-    eglink_item:append_text(", " .. id)
+    local id4 = have >= 4 and sub(raw, 1, 4) or raw
+    local id = id_text(id4)
+    col_set(cinfo, id)
+    t_append(eglink_item, ", " .. id)
     if have >= 4 then
-        info.type = type_from_id(tvb:raw(2, 1), tvb:raw(3, 1))
-        local ti = eglink_tree:add(pf.type, tvb(0, 4))
-        ti:append_text(" (" .. TYPE_DESCR[info.type] .. ")")
+        info.type = TYPE_OF_ID[id4] or "UNKNOWN"
+    end
+    if have >= 4 and (not want or want[pf.type]) then
+        local ti = t_add(eglink_tree, pf.type, tvb_range(tvb, 0, 4))
+        t_append(ti, TYPE_LABEL[info.type])
     end
     if info.type == "UNKNOWN" and (have >= 4 or reported < 4) then
-        pinfo.cols.info:append(" (unknown type)")
+        col_append(cinfo, " (unknown type)")
         eglink_item:add_proto_expert_info(ei.type_unknown,
             "Unknown packet type " .. id .. ": TS-0006 defines VRPI, VRPO, VRCI, VRCO, VRAI and VRAO; "
             .. "only the header and CRC are decoded")
     end
 
     -- Header
-    local value, ti = add_header_uint(eglink_tree, tvb, pf.revision, 4, 2, have)
+    local value, ti = add_header_uint(eglink_tree, tvb, raw, pf.revision, 4, 2, have)
     if value then
         info.revision = value
         if value ~= 0 then
@@ -825,7 +1011,7 @@ local function dissect(tvb, pinfo, tree)
                 "Revision %d: only revision 0 (the TS-0006 layout) is known, the payload may differ", value))
         end
     end
-    value, ti = add_header_uint(eglink_tree, tvb, pf.origin, 6, 2, have)
+    value, ti = add_header_uint(eglink_tree, tvb, raw, pf.origin, 6, 2, have)
     if value then
         info.origin = value
         if info.type ~= "UNKNOWN" and not IS_INPUT[info.type] and value ~= 0 then
@@ -836,16 +1022,16 @@ local function dissect(tvb, pinfo, tree)
                 "Origin is 0 in a " .. id .. " from the BU: the BU should send its unique ID")
         end
     end
-    value = add_header_uint(eglink_tree, tvb, pf.serial, 8, 2, have)
+    value = add_header_uint(eglink_tree, tvb, raw, pf.serial, 8, 2, have)
     if value then
         info.serial = value
         info.has_serial = true
-        eglink_item:append_text(", Serial " .. value)
+        t_append(eglink_item, ", Serial " .. value)
     end
     local size_ti
-    value, size_ti = add_header_uint(eglink_tree, tvb, pf.size, 10, 2, have)
+    value, size_ti = add_header_uint(eglink_tree, tvb, raw, pf.size, 10, 2, have)
     if value then info.size = value end
-    value, ti = add_header_uint(eglink_tree, tvb, pf.spare, 12, 4, have)
+    value, ti = add_header_uint(eglink_tree, tvb, raw, pf.spare, 12, 4, have)
     if value and value ~= 0 then
         ti:add_proto_expert_info(ei.spare_nonzero, string.format(
             "Header spare is 0x%08x, not 0: reserved for future use, the sender may use a "
@@ -865,21 +1051,22 @@ local function dissect(tvb, pinfo, tree)
     end
     if have < 4 and reported >= 4 then
         -- not even the packet ID in the capture: nothing to decode
-        end_of_capture(pinfo, captured, reported)
+        end_of_capture(cinfo, captured, reported)
         return reported
     end
 
     if reported < MIN_LEN then
         eglink_item:add_proto_expert_info(ei.too_short, string.format(
             "Packet is %d bytes, too short for packet ID, header and CRC (20 bytes)", reported))
-        pinfo.cols.info:append(" (too short)")
+        col_append(cinfo, " (too short)")
         analyse(tvb, pinfo, eglink_tree, eglink_item, info)
-        end_of_capture(pinfo, captured, reported)
+        end_of_capture(cinfo, captured, reported)
         return reported
     end
 
     -- Payload: everything between the header and the CRC at the end of the datagram.
-    local p = { tvb = tvb, pinfo = pinfo, base = HEADER_LEN, len = reported - MIN_LEN, undefined = false }
+    local p = { tvb = tvb, raw = raw, pinfo = pinfo, cinfo = cinfo, base = HEADER_LEN, len = reported - MIN_LEN,
+                undefined = false }
     p.cap = math.max(0, math.min(p.len, captured - HEADER_LEN))
     info.size_ok = true
     -- (the C plugin files these under the Size item; with the Size not
@@ -905,9 +1092,9 @@ local function dissect(tvb, pinfo, tree)
     end
 
     -- (of a cut packet, the item covers what the capture holds)
-    if captured >= p.base then
-        local pti = eglink_tree:add(pf.payload, tvb(p.base, math.min(p.len, p.cap)))
-        pti:append_text(string.format(" (%d byte%s)", p.len, p.len == 1 and "" or "s"))
+    if captured >= p.base and (not want or want[pf.payload]) then
+        local pti = t_add(eglink_tree, pf.payload, tvb_range(tvb, p.base, math.min(p.len, p.cap)))
+        t_append(pti, payload_label(p.len))
         p.tree = pti
     else
         p.tree = eglink_tree
@@ -923,20 +1110,20 @@ local function dissect(tvb, pinfo, tree)
         dissect_command(p, info, false)
     else
         add_bytes(p, pf.unknown_payload, 0, p.len)
-        pinfo.cols.info:append(string.format(" %d bytes", p.len))
+        col_append(cinfo, string.format(" %d bytes", p.len))
     end
     if ptype ~= "UNKNOWN" and p.len > max_len then
         add_bytes(p, pf.extra_payload, max_len, p.len - max_len)
     end
 
     if captured >= reported then
-        info.crc_ok = dissect_crc(tvb, pinfo, eglink_tree, reported - CRC_LEN)
+        info.crc_ok = dissect_crc(tvb, raw, pinfo, eglink_tree, reported - CRC_LEN)
     else
         info.crc_ok = info.cut   -- not checked: counted as received when analysable
     end
 
     analyse(tvb, pinfo, eglink_tree, eglink_item, info)
-    end_of_capture(pinfo, captured, reported)
+    end_of_capture(cinfo, captured, reported)
     return reported
 end
 
@@ -949,11 +1136,12 @@ local function heuristic(tvb, pinfo, tree)
     if not opt.heuristic then return false end
     local reported = tvb:reported_len()
     if tvb:len() < HEADER_LEN or reported < MIN_LEN then return false end
-    if tvb:raw(0, 2) ~= "VR" then return false end
-    local ptype = type_from_id(tvb:raw(2, 1), tvb:raw(3, 1))
-    if ptype == "UNKNOWN" then return false end
+    local head = tvb_raw(tvb, 0, 12)
+    if sub(head, 1, 2) ~= "VR" then return false end
+    local ptype = TYPE_OF_ID[sub(head, 1, 4)]
+    if not ptype then return false end
     local payload_len = reported - MIN_LEN
-    if tvb(10, 2):le_uint() ~= payload_len then return false end
+    if le_uint(head, 10, 2) ~= payload_len then return false end
     local min_len, max_len = type_sizes(ptype)
     if payload_len < min_len or payload_len > max_len then return false end
     dissect(tvb, pinfo, tree)
