@@ -278,8 +278,18 @@ end
 -- one putting Modbus/TCP back) replaces ours silently, so the ports are taken
 -- again each time. With the C plugin its front end does the same in C
 -- (own_mb_port).
-local function place_on_port()
-    if C then return end
+-- The scan of find_mbtcp_port() (65,535 lookups) is the plugin's largest
+-- start-up cost on a short capture, and tshark made it three times: at
+-- load, at the file's start, and once more after its last frame (the init
+-- routines run again when the file is closed). So: not at load (every file
+-- starts with init(), which places the decoder with the preferences and
+-- Decode As entries of that moment), and in tshark, where neither changes
+-- once the file is open, once: at the first init (`scanned`: its result;
+-- a preference change after load scans again). The GUI scans at each init.
+local loaded = false
+local scanned -- { found = mbtcp's port or false }, tshark only
+local function place_on_port(from_init)
+    if C or not loaded then return end
     local ours = Dissector.get("eclink_modbus")     -- (tostring of a Proto is not its dissector's)
     -- the ports of the last file given back first (to mbtcp where it had
     -- them), so that mbtcp's own port is found in the table as Wireshark set it
@@ -290,7 +300,13 @@ local function place_on_port()
         end
     end
     placed = {}
-    local found = find_mbtcp_port()
+    local found
+    if from_init and scanned then
+        found = scanned.found or nil
+    else
+        found = find_mbtcp_port()
+        scanned = from_init and not gui_enabled() and { found = found or false } or nil
+    end
     mbtcp_port = found or 502
     local want = ports.parse(proto.prefs.port)
     want[mbtcp_port] = true
@@ -532,11 +548,11 @@ local function load_rec(key, n, rl, off, is_request)
     end
     return adus[key], false
 end
--- (the port is taken at each file start; at load, by prefs_changed() below,
--- once the dissector exists)
+-- (the port is taken at each file start, and at each change of the
+-- preferences after load)
 proto.init = function()
     init_state()
-    place_on_port()
+    place_on_port(true)
     place_servers()
 end
 init_state()
@@ -1679,3 +1695,4 @@ else
     proto:register_heuristic("tcp", function(tvb, pinfo, tree) return port_hint(tvb, pinfo, tree) > 0 end)
 end
 prefs_changed()
+loaded = true

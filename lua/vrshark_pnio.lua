@@ -113,6 +113,7 @@ local ars         -- AR UUID -> parsed Connect
 local not_ours    -- expected submodule blocks (connect_blocks' key) -> true: no system of ours
 local frags       -- fragments of Connects being put together (defragment())
 local runs        -- vrshark.pnio_infer state: the runs of FrameIDs without a layout
+local gone        -- FrameID -> { src, dst, src, dst, ... }: Ethernet Addresses of its runs given up (gave_up())
 local addr_of     -- station key of pnio_infer (tostring of an Ethernet address) -> Address
 local hint_recs   -- hint of pnio_infer -> the record of its candidate frames
 local reopening  -- FrameID -> the note of its frames while a layout re-opened is inferred again (one pass)
@@ -223,7 +224,7 @@ local function init()
     if not C then own_ethertype() end
     for port in pairs(cm_ports or {}) do udp_table:remove(port, carrier) end
     by_fid, pending_down, tries, ars, cm_ports, not_ours, frags = {}, {}, {}, {}, {}, {}, {}
-    runs = infer.new()
+    runs, gone = infer.new(), {}
     addr_of, hint_recs, unsettled, cut_connect, reopening = {}, {}, nil, nil, {}
     -- (packed: vrshark/framemap.luam says why; the ages are rounded to the ms)
     frames, per_frame = framemap.packed_refs(), framemap.packed_ms()
@@ -1095,6 +1096,28 @@ local function display(rec, tvb, pinfo, tree, view, thrown)
     end
 end
 
+-- Whether the run of this frame (FrameID fid, its Ethernet addresses) was
+-- given up without a hint (infer.given_up()): it never comes back until the
+-- next file, so its two Addresses are kept and compared with the frame's
+-- (a foreign device's frames, every one of them: no station texts made, no
+-- key built; infer.given_up() is asked once per run).
+local function gave_up(fid, pinfo)
+    local src, dst = p_dl_src(pinfo), p_dl_dst(pinfo)
+    local list = gone[fid]
+    if list then
+        for i = 1, #list, 2 do
+            if list[i] == src and list[i + 1] == dst then return true end
+        end
+    end
+    if not infer.given_up(runs, fid, tostring(src), tostring(dst)) then return false end
+    if not list then
+        list = {}
+        gone[fid] = list
+    end
+    list[#list + 1], list[#list + 2] = src, dst
+    return true
+end
+
 -- EtherType 0x8892: Wireshark's PN-RT first, then our cyclic data. With
 -- the C front end PN-RT has run already; 0 tells it the frame is not ours;
 -- view: what the front end says is looked at (vrshark/frontends.luam view():
@@ -1144,7 +1167,7 @@ local function cyclic(tvb, pinfo, tree, view, thrown)
         local fid = b1 and (b1 * 256 + b2)
         if fid and (by_fid[fid] or (fid >= 0x8000 and fid <= 0xFBFF and heuristic
                     and ((tries[fid] or 0) < HEUR_TRIES or #pending_down > 0
-                         or not infer.given_up(runs, fid, tostring(p_dl_src(pinfo)), tostring(p_dl_dst(pinfo)))))) then
+                         or not gave_up(fid, pinfo)))) then
             rec, fresh = first_pass(fid, tvb, pinfo, len, n, thrown)
             if not once then fset(frames, n, rec) end
         end
