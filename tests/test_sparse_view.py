@@ -11,7 +11,10 @@ frames, ours and the public ones. Probes check what the front end sends and
 that the sparse display really serves the frames.
 """
 import os
+import shutil
 import subprocess
+import tempfile
+from pathlib import Path
 
 import pytest
 
@@ -540,10 +543,10 @@ def test_lua_only_ec_link_expert_statistics_are_those_of_the_full_tree(tshark, n
 
 
 @pytest.fixture(scope="module")
-def merged_eclink(tmp_path_factory):
+def merged_eclink():
     """The EC-Link captures of each carrier that need no preference, one
     after the other in one file (mergecap -a): one run a filter covers them."""
-    folder = tmp_path_factory.mktemp("eclink-merged")
+    folder = Path(tempfile.mkdtemp(prefix="vrshark-merged-"))
     folder.chmod(0o755)
     out = {}
     for proto, names in (("eclink_pnio", ECLINK_PNIO_CAPTURES), ("eclink_modbus", MODBUS_CAPTURES)):
@@ -552,7 +555,8 @@ def merged_eclink(tmp_path_factory):
                        + [str(CAPTURES / n) for n in names if n not in PREFS], check=True)
         path.chmod(0o644)
         out[proto] = path
-    return out
+    yield out
+    shutil.rmtree(folder, ignore_errors=True)
 
 
 FILTER_CHUNKS = 4
