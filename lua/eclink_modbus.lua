@@ -89,6 +89,8 @@ local fget, fset = framemap.get, framemap.set
 
 image.proto()  -- the single Proto("eclink"), shared with the other EC-Link plugins
 local proto = Proto("eclink_modbus", "EC-Link over Modbus/TCP")
+-- the Protos of its fields (frontends.lua_view())
+local LUA_PROTOS = { proto, image.proto() }
 local mbtcp = Dissector.get("mbtcp")
 -- With the C front end (vrshark.frontends) the port gets "vrshark.mbtcp",
 -- which calls mbtcp and hands this plugin only the connections it accepted
@@ -1170,7 +1172,8 @@ end
 -- references: show_adu() given a sparse plan adds only the referenced EC-Link
 -- image fields (vrshark/eclink_image.luam, opts.only) and these facts of the
 -- ADU, flat under the caller's tree, in the occurrences of the full tree
--- (tests/test_sparse_view.py), and works out the Info text. Anything else
+-- (tests/test_sparse_view.py), the expert info when it is looked at (flat,
+-- in the full tree's order), and works out the Info text. Anything else
 -- referenced (an expert, machine data, the protocol itself, ...) means the
 -- full tree. c: { rec, tree, pinfo, is_request }
 local function rec_value(field, key, as_time)
@@ -1228,10 +1231,10 @@ local SPARSE = { adders = SPARSE_ADDERS, experts = {}, prefixes = { "eclink_modb
 
 -- The sparse plan for this view, or nil: the full tree.
 local function sparse_plan(view)
-    if not view or view.quiet or view.experts or opt.assembled then return nil end
+    if not view or view.quiet or opt.assembled then return nil end
     local p = fe.plan(view, SPARSE)
     -- machine data can add findings and Info tags of its own
-    if not p or (p.cols and next(iodata.areas)) then return nil end
+    if not p or ((p.cols or p.experts) and next(iodata.areas)) then return nil end
     p.only = view.fields
     return p
 end
@@ -1296,6 +1299,8 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
             for i = 1, #adders do adders[i](c) end
             c.rec, c.tree, c.pinfo = false, false, false
         end
+        local experts = sp.experts
+        if experts and rec.no_request then tree:add_proto_expert_info(ef.no_request, NO_REQUEST_TEXT) end
         -- (no columns: no Info text, no image summaries; infos: made when
         -- something goes in, which through the C plugin is a tag only)
         local cols = sp.cols
@@ -1309,7 +1314,7 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
             accesses = adu_accesses(tvb, off, adu_len, fcb, false, rec[R_REQUEST] and request_of(rec))
         end
         local o = sparse_opts
-        o.only, o.no_summary = sp.only, not cols
+        o.only, o.no_summary, o.experts = sp.only, not cols, experts
         -- (the C plugin writes the Info text: the summaries as parts, info_parts)
         local as_parts = cols and append_info and true or false
         o.parts = as_parts and info_parts
@@ -1342,6 +1347,13 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
             end
         end
         o.data = false
+        if experts and rec.findings then
+            local visited = p_visited(pinfo)
+            for _, fd in ipairs(rec.findings) do
+                local ex, text = handshake.shown(fd, visited)
+                if ex then tree:add_proto_expert_info(ex, text) end
+            end
+        end
         if not cols then return infos, false end
         local tags = adu_tags(rec, pinfo)
         if tags ~= "" then
@@ -1609,7 +1621,9 @@ function proto.dissector(tvb, pinfo, tree)
     info_np = 0
     local gaps
     local found, nf = found_scratch, 0
-    local sp = sparse_plan(view)
+    -- (made at the first ADU shown; false: the full tree. Without the C
+    -- front end the view is made from what is referenced: frontends.lua_view())
+    local sp
     local n = tvb_len(tvb)
     local off = 0
     local infos
@@ -1652,7 +1666,10 @@ function proto.dissector(tvb, pinfo, tree)
             decoded = true
         elseif shown then
             decoded = true
-            local adu_infos, gap = show_adu(tvb, pinfo, tree, f_off, f_len, rec, is_request, f_fcb, sp)
+            if sp == nil then
+                sp = sparse_plan(view or not C and fe.lua_view(LUA_PROTOS, tree) or nil) or false
+            end
+            local adu_infos, gap = show_adu(tvb, pinfo, tree, f_off, f_len, rec, is_request, f_fcb, sp or nil)
             if not infos or infos == NONE then
                 infos = adu_infos  -- (the usual buffer: one ADU; NONE: nothing to show)
             elseif adu_infos ~= NONE then

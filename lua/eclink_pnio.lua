@@ -275,9 +275,10 @@ end
 -- Sparse display: an invisible tree (the packet list, -T fields, -Y)
 ------------------------------------------------------------------------
 -- As in mcmb2.lua: only the referenced fields, flat, in the occurrences
--- show() gives them (tests/test_sparse_view.py), then the columns. The
--- image adds its own fields (image.dissect, opts.only). Any expert wanted,
--- or a field without an adder here, means show().
+-- show() gives them (tests/test_sparse_view.py), the expert info when it is
+-- looked at (flat, in show()'s order), then the columns. The image adds its
+-- own fields and findings (image.dissect, opts.only, opts.experts). A
+-- referenced expert, or a field without an adder here, means show().
 local function age_adders(field, ms_field, key)
     return function(c) if c.rec[key] then add(c.tree, field, record.nstime(c.rec[key])) end end,
         function(c) if c.rec[key] then add(c.tree, ms_field, record.whole_ms(c.rec[key])) end end
@@ -299,13 +300,17 @@ local SPARSE = { adders = ADDERS, experts = {}, prefixes = { "eclink_pnio", "ecl
 -- image's options, refilled per frame (nobody keeps them).
 local ctx, image_opts = {}, {}
 local function sparse(rec, tvb, pinfo, tree, view)
-    if view.experts or rec.periodic or periodic_in[pinfo.number] then return false end
+    if rec.periodic or periodic_in[pinfo.number] then return false end
     local plan = rec.plan
     local p = fe.plan(view, SPARSE)
     -- machine data can add findings and Info tags of its own
-    if not p or rec.size < plan.need or rec.cut or (p.cols and next(iodata.areas)) then return false end
+    if not p or rec.size < plan.need or rec.cut or ((p.cols or p.experts) and next(iodata.areas)) then
+        return false
+    end
     -- (a tap that walks the tree's top level, -z io,phs, counts the protocol)
     if p.protos then record.root(rec, tvb, tree, eclp, "") end
+    local experts = p.experts
+    if experts then attach(rec, "top", tree) end
     if #p.adders > 0 then
         local c = ctx
         c.rec, c.tvb, c.tree, c.plan = rec, tvb, tree, plan
@@ -316,10 +321,22 @@ local function sparse(rec, tvb, pinfo, tree, view)
     local o = plan.image
     local opts = image_opts
     opts.kind, opts.offset, opts.length, opts.image_len = up and "input" or "output", rec.base + o.off, o.len, o.len
-    opts.only, opts.no_summary = view.fields, not p.cols
+    opts.only, opts.no_summary, opts.experts = view.fields, not p.cols, experts
     -- (the C plugin writes the Info text: the summary as parts)
     opts.parts, opts.np, opts.lead = p.cols and set_cols and info_parts, 0, up and "Input image " or "Output image "
     local info = image.dissect(tvb, pinfo, tree, opts)
+    if experts and (rec.findings ~= record.NO_FINDINGS or rec.passing) then
+        attach(rec, "image", tree)
+        for _, f in ipairs(rec.passing or {}) do
+            local ex, text = eclink_handshake.shown(f, pinfo.visited)
+            if ex then record.expert(tree, ex, text) end
+        end
+        if rec.ioxs_bad then
+            attach(rec, "iops", tree)
+            attach(rec, "iocs", tree)
+        end
+        record.finish(rec, nil)
+    end
     if p.cols then
         -- a command's deadline: in one pass the command's warning, as show()
         local unacked = rec.unacked
@@ -365,4 +382,6 @@ systems.register({ "eclink" }, { proto = eclp, short = eef.short, cut = eef.cut,
                                  pn_malformed = eef.pn_malformed,
                                  per_frame = { up = "pci_age", down = "pco_age" }, analyse = analyse,
                                  show = show, sparse = sparse,
+                                 -- (the Protos of its fields: frontends.lua_view())
+                                 lua_protos = { eclp, image.proto() },
                                  show_connect = show_connect })

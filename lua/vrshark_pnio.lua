@@ -1185,10 +1185,11 @@ local function cyclic(tvb, pinfo, tree, view, thrown)
         if not (view and view.quiet) then
             -- (under the decoder's own Proto: pnio_systems.through() says why)
             local dec = owner(rec)
-            -- (without the C front ends MC-MB2-PN makes their view itself: frontends.lua_view())
-            if not C and not thrown and rec.plan and dec.proto == mcmb2_proto then
-                view = fe.lua_view(dec.proto, tree)
-            end
+            -- (without the C front ends MC-MB2-PN and EC-Link make their view
+            -- themselves: frontends.lua_view(), over the Protos of their fields)
+            local protos = not C and not thrown and rec.plan
+                and (dec.lua_protos or dec.proto == mcmb2_proto and dec.proto)
+            if protos then view = fe.lua_view(protos, tree) end
             if dec.proto == carrier then
                 display(rec, tvb, pinfo, tree, view, thrown)
             else

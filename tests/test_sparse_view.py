@@ -11,7 +11,10 @@ frames, ours and the public ones. Probes check what the front end sends and
 that the sparse display really serves the frames.
 """
 import os
+import shutil
 import subprocess
+import tempfile
+from pathlib import Path
 
 import pytest
 
@@ -478,3 +481,127 @@ def test_protocol_hierarchy_is_that_of_the_full_tree(tshark, name):
                       "eclink_modbus_basic.pcap": ("mbtcp", "eclink_modbus")}[name]
     words = [line.split()[0] for line in sparse.splitlines() if line.strip()]
     assert proto in words[words.index(carrier):], sparse
+
+
+# EC-Link without the C plugin: the PROFINET carrier and eclink_modbus make
+# the view themselves from what is referenced, over the fields of two Protos
+# (eclink_pnio or eclink_modbus, and eclink: frontends.lua_view()), and the
+# sparse display adds the expert info itself (Lua cannot tell whether it is
+# looked at).
+ECLINK_LUA_CASES = [("eclink_pnio", n) for n in ECLINK_PNIO_CAPTURES] + [("eclink_modbus", n) for n in MODBUS_CAPTURES]
+
+
+# The fields the sparse display adds itself, per carrier (eclink.lcd, the
+# BU display beside a finding, means the full tree).
+ECLINK_LUA_SPARSE = {"eclink_pnio": ECLINK_PNIO_SPARSE, "eclink_modbus": MODBUS_SPARSE}
+
+
+def _eclink_lua_fields(tshark, proto, fieldset):
+    if fieldset == "all":
+        return sorted(set(_fields(tshark, "eclink") + _fields(tshark, proto)))
+    return sorted(set(_fields(tshark, "eclink")) - {"eclink.lcd"}) + ECLINK_LUA_SPARSE[proto]
+
+
+@pytest.mark.parametrize("proto,name", ECLINK_LUA_CASES)
+@pytest.mark.parametrize("fieldset", ["sparse", "all"])
+@pytest.mark.parametrize("two_pass", [False, True])
+def test_lua_only_eclink_columns_are_those_of_the_full_tree(tshark, proto, name, fieldset, two_pass):
+    """Lua plugins alone: the fields the sparse display adds (fieldset
+    "sparse") or every field of eclink and of the carrier's EC-Link protocol
+    as columns (all occurrences), Protocol and Info are those of the full
+    tree, frame by frame."""
+    names = _eclink_lua_fields(tshark, proto, fieldset)
+    args = ["-n", "-r", str(CAPTURES / name), "-o", "gui.column.format:" + _columns(names)]
+    args += _prefs(name) + (["-2"] if two_pass else [])
+    sparse = _run(tshark, args, extra_env=LUA_ONLY)
+    assert sparse.splitlines() == _run(tshark, args, full=True, extra_env=LUA_ONLY).splitlines()
+    if name != "modbus_plain_devices.pcap":
+        assert "EC-Link" in sparse
+
+
+@pytest.mark.parametrize("proto,name", ECLINK_LUA_CASES)
+@pytest.mark.parametrize("two_pass", [False, True])
+def test_lua_only_eclink_fields_output_is_that_of_the_full_tree(tshark, proto, name, two_pass):
+    """Lua plugins alone, tshark -T fields with every field of eclink and of
+    the carrier's EC-Link protocol, the columns and the expert messages:
+    every line as with the full tree."""
+    names = _eclink_lua_fields(tshark, proto, "all") + COLUMNS_AND_EXPERTS
+    args = ["-n", "-r", str(CAPTURES / name), "-T", "fields", "-E", "header=y", "-e", "frame.number"]
+    for n in names:
+        args += ["-e", n]
+    args += _prefs(name) + (["-2"] if two_pass else [])
+    sparse = _run(tshark, args, extra_env=LUA_ONLY)
+    assert sparse.splitlines() == _run(tshark, args, full=True, extra_env=LUA_ONLY).splitlines()
+
+
+@pytest.mark.parametrize("name", MODBUS_CAPTURES + ECLINK_PNIO_CAPTURES)
+def test_lua_only_ec_link_expert_statistics_are_those_of_the_full_tree(tshark, name):
+    """Lua plugins alone: -z expert as with the full tree (the sparse display
+    adds every finding, in the full tree's order)."""
+    args = ["-n", "-q", "-r", str(CAPTURES / name), "-z", "expert"] + _prefs(name)
+    assert _run(tshark, args, extra_env=LUA_ONLY) == _run(tshark, args, full=True, extra_env=LUA_ONLY)
+
+
+@pytest.fixture(scope="module")
+def merged_eclink():
+    """The EC-Link captures of each carrier that need no preference, one
+    after the other in one file (mergecap -a): one run a filter covers them."""
+    folder = Path(tempfile.mkdtemp(prefix="vrshark-merged-"))
+    folder.chmod(0o755)
+    out = {}
+    for proto, names in (("eclink_pnio", ECLINK_PNIO_CAPTURES), ("eclink_modbus", MODBUS_CAPTURES)):
+        path = folder / (proto + ".pcap")
+        subprocess.run(["mergecap", "-a", "-F", "pcap", "-w", str(path)]
+                       + [str(CAPTURES / n) for n in names if n not in PREFS], check=True)
+        path.chmod(0o644)
+        out[proto] = path
+    yield out
+    shutil.rmtree(folder, ignore_errors=True)
+
+
+FILTER_CHUNKS = 4
+
+
+@pytest.mark.parametrize("chunk", range(FILTER_CHUNKS))
+@pytest.mark.parametrize("two_pass", [False, True])
+@pytest.mark.parametrize("proto", ["eclink_pnio", "eclink_modbus"])
+def test_lua_only_eclink_filters_select_the_frames_of_the_full_tree(tshark, merged_eclink, proto, two_pass, chunk):
+    """Lua plugins alone: every field of eclink and of the carrier's EC-Link
+    protocol, alone as the -Y filter and as a column: the frames and values
+    of the full tree (each field alone is a view of its own; the fields in
+    FILTER_CHUNKS tests)."""
+    capture = merged_eclink[proto]
+    matched = {}
+    for name in _eclink_lua_fields(tshark, proto, "all")[chunk::FILTER_CHUNKS]:
+        args = ["-n", "-r", str(capture), "-Y", name, "-o", "gui.column.format:" + _columns([name])]
+        args += ["-2"] if two_pass else []
+        sparse = _run(tshark, args, extra_env=LUA_ONLY)
+        assert sparse == _run(tshark, args, full=True, extra_env=LUA_ONLY), name
+        matched[name] = len(sparse.splitlines())
+    assert sum(matched.values()) > 0
+
+
+@pytest.mark.parametrize("capture, args, served", [
+    (ECLINK_PNIO, ["-Y", "eclink.bu_state == 0x11"], True),
+    (ECLINK_PNIO, ["-2", "-Y", "eclink_pnio.pci_age > 0.5"], True),
+    (ECLINK_PNIO, ["-Y", "pn_rt.frame_id == 0x1234"], True),    # nothing of ours referenced
+    (ECLINK_PNIO, ["-V"], False),                               # a visible tree
+    (ECLINK_PNIO, ["-Y", "eclink_pnio"], False),                # the protocol itself
+    (ECLINK_PNIO, ["-Y", "eclink.relays_open"], False),         # an expert
+    (ECLINK_PNIO, ["-Y", "eclink.lcd"], False),                 # a field the sparse display does not add
+    (MODBUS_BASIC, ["-Y", "eclink.bu_state == 0x11"], True),
+    (MODBUS_BASIC, ["-2", "-Y", "eclink_modbus.response_in"], True),
+    (MODBUS_BASIC, ["-Y", "modbus.func_code == 99"], True),
+    (MODBUS_BASIC, ["-V"], False),
+    (MODBUS_BASIC, ["-Y", "eclink_modbus"], False),
+    (MODBUS_BASIC, ["-Y", "eclink_modbus.bits"], False),
+])
+def test_lua_only_sparse_display_serves_the_eclink_frames(tshark, work_dir, capture, args, served):
+    """Lua plugins alone: which ways of running show the EC-Link images
+    sparsely (every decoded image), and none with VRSHARK_FULL_TREE."""
+    decoded = sorted(int(n) for n in tshark.field(capture, "frame.number", display_filter="eclink.image",
+                                                  two_pass="-2" in args))
+    assert len(decoded) > 10
+    lines = _script_lines(tshark, work_dir, IMAGE_PROBE, capture, args, extra_env=LUA_ONLY)
+    assert sorted({int(line.split()[1]) for line in lines}) == (decoded if served else [])
+    assert _script_lines(tshark, work_dir, IMAGE_PROBE, capture, args, full=True, extra_env=LUA_ONLY) == []
