@@ -41,7 +41,9 @@ Layouts (vrshark/pnio_layout.luam) come from, best first:
      IOCS in the frame. Its frames before the settling frame are analysed
      then, in frame order: shown on the second pass (tshark -2, the GUI).
      A run that looked like ours but did not settle carries the candidate
-     note with the layout-table entries that decode it (candidate()).
+     note with the layout-table entries that decode it (candidate()); so
+     do the frames of a layout re-opened (reopen()) whose runs were then
+     given up, naming the re-opening frame and the entry it had.
 
 The decoders register themselves in vrshark/pnio_systems.luam by system
 ("duplex", "polled", "eclink"); the per-frame record they fill is described
@@ -820,7 +822,8 @@ local function reopen(plan, why, rec_header, fid, s, pinfo, n)
     local text = string.format("Layout inferred from frames %d..%d contradicted in frame %d: %s; inference "
         .. "re-opened (was %s)", res.first, res.last, n, why, res.entry)
     local hdr = plan.header or plan.image
-    infer.reopen(runs, res, { frame = n, text = text, entry = res.entry, plans = plans, count = count },
+    infer.reopen(runs, res, { frame = n, text = text, entry = res.entry, plans = plans, count = count,
+                              fids = { res.up.fid, res.down.fid } },
         rec_header and hdr and { fid = plan.fid, off = hdr.off })
     set_hooks()
     -- (was: on a later pass the frame is decoded by the layout settled again, redone())
@@ -874,22 +877,37 @@ local function redone(rec0, plan, tvb, pinfo, n)
     return rec
 end
 
+local SYSTEM_NAME = { duplex = "an MC-MB2-PN duplex/simplex base", polled = "an MC-MB2-PN polled base",
+                      eclink = "an EC-Link BU" }
+
 -- The record of the frames of a run that looked like ours but has not
 -- settled (vrshark/pnio_infer.luam hint()): the candidate note with the
 -- layout-table entries that decode it. The first time a hint is seen,
 -- every earlier frame of its runs gets it too (shown on the second pass);
--- a run that settles later replaces them (settle()).
-local SYSTEM_NAME = { duplex = "an MC-MB2-PN duplex/simplex base", polled = "an MC-MB2-PN polled base",
-                      eclink = "an EC-Link BU" }
-
+-- a run that settles later replaces them (settle()). A layout re-opened
+-- (reopen()) whose runs were given up, no layout fitting any more
+-- (h.reopened, the info of reopen()): the note names the re-opening frame
+-- and the entry of the layout it had, on every frame of both FrameIDs
+-- from then on (reopening[]: the frames the capture cut too), and on the
+-- second pass on those since the re-opening frame.
 local function candidate(h, frame)
     local rec = hint_recs[h]
     if not rec then
         local settings = {}
         for i, e in ipairs(h.entries) do settings[i] = "mcmb2.layouts:" .. e end
-        rec = { kind = "candidate", settings = settings, early = h.early, text = string.format(
-            "Looks like %s, but its layout was not inferred (%s); to decode it now: %s",
-            SYSTEM_NAME[h.system], h.why, table.concat(settings, " or ")) }
+        local again = h.reopened
+        if again then
+            rec = { kind = "candidate", settings = settings, head = "layout re-opened, not inferred again",
+                    -- (short: an expert text is cut at 240 bytes; the entry last, whole in the setting)
+                    text = string.format("Not decoded: layout re-opened in frame %d, not inferred again (%s); a "
+                        .. "Connect in the capture or mcmb2.layouts decides it (it was %s)", again.frame, h.why,
+                        table.concat(settings, " or ")) }
+            for _, f in ipairs(again.fids) do reopening[f] = rec end
+        else
+            rec = { kind = "candidate", settings = settings, early = h.early, text = string.format(
+                "Looks like %s, but its layout was not inferred (%s); to decode it now: %s",
+                SYSTEM_NAME[h.system], h.why, table.concat(settings, " or ")) }
+        end
         hint_recs[h] = rec
         for _, list in ipairs(h.lists or {}) do
             for _, f in ipairs(list) do

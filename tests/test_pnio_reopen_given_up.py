@@ -1,0 +1,103 @@
+"""PROFINET inference re-opened and then given up is never silent (issue 44
+section 4, "never silent"): a layout inferred from the cyclic frames
+(lua/vrshark/pnio_infer.luam), re-opened by a contradiction (SP-14-023 2.4:
+its downlink watchdog went back), whose frames then fit no layout any more:
+both FrameIDs' frames from then on carry the note that the layout was
+re-opened and could not be inferred again, naming the re-opening frame and
+the settings that decide it (a Connect in the capture, the mcmb2.layouts
+entry it had as mcmb2.candidate_setting), in one pass and with -2.
+
+The frames after the contradiction fit no layout because the controller
+stopped: every IOPS and IOCS of its downlink frames BAD (0x00, IEC
+61158-6-10 IOxS DataState), where every layout the inference knows has a
+GOOD (0x80) one. The traffic is test_pnio_reopen.py's stepping traffic,
+built with scapy (tests/pnio_testlib.py).
+"""
+from pnio_testlib import CaptureFile, Device, mac, mcmb2_submodules
+from test_pnio_midsession import _slots, _spread
+from test_pnio_reopen import LAYOUT_NOTES, WD_BACK, WRONG, header_after_data, inferred_text, reopened_text
+
+NOTE = "4194304"  # PI_NOTE: the severity of mcmb2.candidate
+SETTING = "mcmb2.layouts:" + WRONG
+WAIT = ("Not decoded: the layout of this FrameID was re-opened in frame 1552 and is not settled again yet (tshark -2 "
+        "or the packet list after loading decodes it with the layout that fits the whole run; mcmb2.layouts pins one)")
+NOTE_FIELDS = ["_ws.expert.message", "_ws.expert.severity", "mcmb2.candidate_setting", "mcmb2.layout_entry"]
+
+
+def given_up_text(reopened, frame):
+    return ("Not decoded: layout re-opened in frame %d, not inferred again (given up: no layout fits frame %d); a "
+            "Connect in the capture or mcmb2.layouts decides it (it was %s)" % (reopened, frame, SETTING))
+
+
+def stopping_capture(work_dir, name, stop):
+    """test_pnio_reopen.stepping_traffic without the Connect (the downlink
+    data module before its header: the wrong layout settles in frame 102,
+    its watchdog goes back in frame 1552), the controller stopped from pair
+    `stop` on: every IOxS byte of its downlink frames 0x00 (BAD) instead of
+    0x80 (GOOD). Pair i is frames 2i+1 (uplink) and 2i+2 (downlink)."""
+    d = Device(mcmb2_submodules("duplex", 2, 2, 2, 0, 1), mac(0x44), 0x8441, 0x8442, order=header_after_data)
+    cap = CaptureFile()
+    ins, outs = _slots(d, "in"), _slots(d, "out")
+    for i in range(1000):
+        wd_up, wd_down = (i // 10) & 0xFF, (i // 25) & 0xFF
+        cap.add(d.cyclic("in", _spread(ins, "inlen", bytes([0x31, wd_up, 0x11, (i // 40) % 50 + 1]))), 0.001)
+        down = d.cyclic("out", _spread(outs, "outlen", bytes([0, wd_down, 6, wd_down % 31 + 1])))
+        if i >= stop:
+            raw = bytearray(bytes(down))
+            # Ethernet 14, FrameID 2, C-SDU 40: no data byte is 0x80 (watchdogs < 40)
+            raw[16:56] = raw[16:56].replace(b"\x80", b"\x00")
+            down = down.__class__(bytes(raw))
+        cap.add(down, 0.001)
+    return cap.write(work_dir / ("%s.pcap" % name))
+
+
+def notes_after(tshark, path, first, **kw):
+    got = tshark.frames(path, NOTE_FIELDS, display_filter="frame.number >= %d" % first, **kw)
+    assert len(got) == 2001 - first
+    return got
+
+
+def row(text, setting=""):
+    return {"_ws.expert.message": text, "_ws.expert.severity": NOTE, "mcmb2.candidate_setting": setting,
+            "mcmb2.layout_entry": ""}
+
+
+def test_given_up_after_the_re_opening_is_said(tshark, work_dir):
+    """Issue 44 section 4 (never silent) and SP-14-023 2.4: the layout
+    settled in frame 102 is re-opened in frame 1552 (its watchdog went
+    back); the controller stops from pair 790 (frame 1582, its IOxS BAD),
+    and the downlink run, fitting no layout there, is given up, the uplink
+    run with it (it cannot settle without its pair). One pass: until then
+    the note that the layout is not settled again yet, from frame 1582 on,
+    on both FrameIDs, the note that it could not be inferred again, with
+    the entry it had (mcmb2.candidate_setting); -2: that note on every frame
+    since the re-opening. The re-opening frame keeps its warning."""
+    path = stopping_capture(work_dir, "stop_after", 790)
+    layout_notes = {102: [inferred_text(1, 102, WRONG)], 1552: [reopened_text(102, 1552, WD_BACK)]}
+    for two_pass in (False, True):
+        assert tshark.experts(path, display_filter=LAYOUT_NOTES, two_pass=two_pass) == layout_notes
+    given_up = row(given_up_text(1552, 1582), SETTING)
+    one = notes_after(tshark, path, 1553)
+    assert all(one[n] == row(WAIT) for n in range(1553, 1582)), "not settled again yet, until the give-up"
+    assert all(one[n] == given_up for n in range(1582, 2001)), "both FrameIDs, from the give-up on"
+    two = notes_after(tshark, path, 1553, two_pass=True)
+    assert all(two[n] == given_up for n in range(1553, 2001))
+    # the setting offered is the filter that finds them
+    found = tshark.frames(path, ["mcmb2.candidate_setting"], display_filter='mcmb2.candidate_setting == "%s"'
+                          % SETTING)
+    assert sorted(found) == list(range(1582, 2001))
+
+
+def test_given_up_on_the_re_opening_frame(tshark, work_dir):
+    """Issue 44 section 4: the frame that re-opens the layout (SP-14-023
+    2.4: its downlink watchdog went back, frame 1552) fits no layout itself
+    (the controller stopped from that pair: IOxS BAD), so the new downlink
+    run is given up on its first frame, and the uplink run, starting only
+    after it, at once: every frame after 1552 says so, in one pass and -2;
+    frame 1552 keeps its warning."""
+    path = stopping_capture(work_dir, "stop_at", 775)
+    for two_pass in (False, True):
+        notes = tshark.experts(path, display_filter=LAYOUT_NOTES, two_pass=two_pass)
+        assert notes == {102: [inferred_text(1, 102, WRONG)], 1552: [reopened_text(102, 1552, WD_BACK)]}
+        got = notes_after(tshark, path, 1553, two_pass=two_pass)
+        assert all(got[n] == row(given_up_text(1552, 1552), SETTING) for n in range(1553, 2001)), two_pass
