@@ -127,6 +127,38 @@ def _prefs(name):
     return args
 
 
+@pytest.fixture(scope="module")
+def merged_eclink():
+    """The EC-Link captures of each carrier that need no preference, one
+    after the other in one file (mergecap -a): one run a filter covers them."""
+    folder = Path(tempfile.mkdtemp(prefix="vrshark-merged-"))
+    folder.chmod(0o755)
+    out = {}
+    for proto, names in (("eclink_pnio", ECLINK_PNIO_CAPTURES), ("eclink_modbus", MODBUS_CAPTURES)):
+        path = folder / (proto + ".pcap")
+        subprocess.run(["mergecap", "-a", "-F", "pcap", "-w", str(path)]
+                       + [str(CAPTURES / n) for n in names if n not in PREFS], check=True)
+        path.chmod(0o644)
+        out[proto] = path
+    yield out
+    shutil.rmtree(folder, ignore_errors=True)
+
+
+# The EC-Link column comparisons run on the merged file of each carrier and
+# on each capture that needs a preference (one run each instead of one a
+# capture: tshark's start-up is most of a run's time). name None: the merged
+# file.
+def _eclink_groups(names):
+    return [None] + [n for n in names if n in PREFS]
+
+
+def _eclink_input(merged_eclink, proto, name):
+    """(path, preference args) of a comparison: the merged file of proto, or one capture."""
+    if name is None:
+        return merged_eclink[proto], []
+    return CAPTURES / name, _prefs(name)
+
+
 @needs_c
 @pytest.mark.parametrize("name", MCMB2_CAPTURES + PUBLIC)
 @pytest.mark.parametrize("two_pass", [False, True])
@@ -338,27 +370,30 @@ def _image_probe(tshark, work_dir, capture, args, full=False):
     return sorted({int(line.split()[1]) for line in lines})
 
 
-def _same_columns(tshark, name, extra, proto, two_pass):
+def _same_columns(tshark, path, prefs, extra, proto, two_pass):
     """Every EC-Link image field, extra and (if given) every field of proto as
     columns: the sparse display's output (returned) is the full tree's."""
     names = _fields(tshark, "eclink") + extra + (_fields(tshark, proto) if proto else [])
-    args = ["-n", "-r", str(CAPTURES / name), "-o", "gui.column.format:" + _columns(sorted(set(names)))]
-    args += _prefs(name) + (["-2"] if two_pass else [])
+    args = ["-n", "-r", str(path), "-o", "gui.column.format:" + _columns(sorted(set(names)))]
+    args += prefs + (["-2"] if two_pass else [])
     sparse = _run(tshark, args)
     assert sparse.splitlines() == _run(tshark, args, full=True).splitlines()
     return sparse
 
 
 @needs_c
-@pytest.mark.parametrize("name", MODBUS_CAPTURES)
+@pytest.mark.parametrize("name", _eclink_groups(MODBUS_CAPTURES))
 @pytest.mark.parametrize("fieldset", ["sparse", "all"])
 @pytest.mark.parametrize("two_pass", [False, True])
-def test_modbus_columns_are_those_of_the_full_tree(tshark, name, fieldset, two_pass):
+def test_modbus_columns_are_those_of_the_full_tree(tshark, merged_eclink, name, fieldset, two_pass):
     """The EC-Link image fields and the ADU facts the sparse display adds
     (fieldset "sparse"), or every EC-Link field (most of them mean the full
-    tree): the same columns as the full tree, frame by frame."""
-    sparse = _same_columns(tshark, name, MODBUS_SPARSE, "eclink_modbus" if fieldset == "all" else None, two_pass)
-    if name != "modbus_plain_devices.pcap" and two_pass:
+    tree): the same columns as the full tree, frame by frame (every capture:
+    the merged file, and those with a preference)."""
+    path, prefs = _eclink_input(merged_eclink, "eclink_modbus", name)
+    sparse = _same_columns(tshark, path, prefs, MODBUS_SPARSE, "eclink_modbus" if fieldset == "all" else None,
+                           two_pass)
+    if two_pass:
         assert "EC-Link" in sparse
 
 
@@ -390,15 +425,17 @@ def test_modbus_full_tree_for_what_the_sparse_display_does_not_add(tshark, work_
 
 
 @needs_c
-@pytest.mark.parametrize("name", ECLINK_PNIO_CAPTURES)
+@pytest.mark.parametrize("name", _eclink_groups(ECLINK_PNIO_CAPTURES))
 @pytest.mark.parametrize("fieldset", ["sparse", "all"])
 @pytest.mark.parametrize("two_pass", [False, True])
-def test_eclink_pnio_columns_are_those_of_the_full_tree(tshark, name, fieldset, two_pass):
+def test_eclink_pnio_columns_are_those_of_the_full_tree(tshark, merged_eclink, name, fieldset, two_pass):
     """EC-Link over PROFINET: the image fields and the frame facts the sparse
     display adds (fieldset "sparse"), or every field of both protocols: the
-    same columns as the full tree, frame by frame."""
-    assert "EC-Link" in _same_columns(tshark, name, ECLINK_PNIO_SPARSE, "eclink_pnio" if fieldset == "all" else None,
-                                      two_pass)
+    same columns as the full tree, frame by frame (the merged file, and each
+    capture with a preference)."""
+    path, prefs = _eclink_input(merged_eclink, "eclink_pnio", name)
+    assert "EC-Link" in _same_columns(tshark, path, prefs, ECLINK_PNIO_SPARSE,
+                                      "eclink_pnio" if fieldset == "all" else None, two_pass)
 
 
 ECLINK_PNIO = CAPTURES / "eclink_pnio_connect.pcap"
@@ -488,7 +525,8 @@ def test_protocol_hierarchy_is_that_of_the_full_tree(tshark, name):
 # (eclink_pnio or eclink_modbus, and eclink: frontends.lua_view()), and the
 # sparse display adds the expert info itself (Lua cannot tell whether it is
 # looked at).
-ECLINK_LUA_CASES = [("eclink_pnio", n) for n in ECLINK_PNIO_CAPTURES] + [("eclink_modbus", n) for n in MODBUS_CAPTURES]
+ECLINK_LUA_CASES = [("eclink_pnio", n) for n in _eclink_groups(ECLINK_PNIO_CAPTURES)] \
+    + [("eclink_modbus", n) for n in _eclink_groups(MODBUS_CAPTURES)]
 
 
 # The fields the sparse display adds itself, per carrier (eclink.lcd, the
@@ -505,31 +543,33 @@ def _eclink_lua_fields(tshark, proto, fieldset):
 @pytest.mark.parametrize("proto,name", ECLINK_LUA_CASES)
 @pytest.mark.parametrize("fieldset", ["sparse", "all"])
 @pytest.mark.parametrize("two_pass", [False, True])
-def test_lua_only_eclink_columns_are_those_of_the_full_tree(tshark, proto, name, fieldset, two_pass):
+def test_lua_only_eclink_columns_are_those_of_the_full_tree(tshark, merged_eclink, proto, name, fieldset, two_pass):
     """Lua plugins alone: the fields the sparse display adds (fieldset
     "sparse") or every field of eclink and of the carrier's EC-Link protocol
     as columns (all occurrences), Protocol and Info are those of the full
-    tree, frame by frame."""
+    tree, frame by frame (the merged file, and each capture with a preference)."""
     names = _eclink_lua_fields(tshark, proto, fieldset)
-    args = ["-n", "-r", str(CAPTURES / name), "-o", "gui.column.format:" + _columns(names)]
-    args += _prefs(name) + (["-2"] if two_pass else [])
+    path, prefs = _eclink_input(merged_eclink, proto, name)
+    args = ["-n", "-r", str(path), "-o", "gui.column.format:" + _columns(names)]
+    args += prefs + (["-2"] if two_pass else [])
     sparse = _run(tshark, args, extra_env=LUA_ONLY)
     assert sparse.splitlines() == _run(tshark, args, full=True, extra_env=LUA_ONLY).splitlines()
-    if name != "modbus_plain_devices.pcap":
-        assert "EC-Link" in sparse
+    assert "EC-Link" in sparse
 
 
 @pytest.mark.parametrize("proto,name", ECLINK_LUA_CASES)
 @pytest.mark.parametrize("two_pass", [False, True])
-def test_lua_only_eclink_fields_output_is_that_of_the_full_tree(tshark, proto, name, two_pass):
+def test_lua_only_eclink_fields_output_is_that_of_the_full_tree(tshark, merged_eclink, proto, name, two_pass):
     """Lua plugins alone, tshark -T fields with every field of eclink and of
     the carrier's EC-Link protocol, the columns and the expert messages:
-    every line as with the full tree."""
+    every line as with the full tree (the merged file, and each capture with
+    a preference)."""
     names = _eclink_lua_fields(tshark, proto, "all") + COLUMNS_AND_EXPERTS
-    args = ["-n", "-r", str(CAPTURES / name), "-T", "fields", "-E", "header=y", "-e", "frame.number"]
+    path, prefs = _eclink_input(merged_eclink, proto, name)
+    args = ["-n", "-r", str(path), "-T", "fields", "-E", "header=y", "-e", "frame.number"]
     for n in names:
         args += ["-e", n]
-    args += _prefs(name) + (["-2"] if two_pass else [])
+    args += prefs + (["-2"] if two_pass else [])
     sparse = _run(tshark, args, extra_env=LUA_ONLY)
     assert sparse.splitlines() == _run(tshark, args, full=True, extra_env=LUA_ONLY).splitlines()
 
@@ -540,23 +580,6 @@ def test_lua_only_ec_link_expert_statistics_are_those_of_the_full_tree(tshark, n
     adds every finding, in the full tree's order)."""
     args = ["-n", "-q", "-r", str(CAPTURES / name), "-z", "expert"] + _prefs(name)
     assert _run(tshark, args, extra_env=LUA_ONLY) == _run(tshark, args, full=True, extra_env=LUA_ONLY)
-
-
-@pytest.fixture(scope="module")
-def merged_eclink():
-    """The EC-Link captures of each carrier that need no preference, one
-    after the other in one file (mergecap -a): one run a filter covers them."""
-    folder = Path(tempfile.mkdtemp(prefix="vrshark-merged-"))
-    folder.chmod(0o755)
-    out = {}
-    for proto, names in (("eclink_pnio", ECLINK_PNIO_CAPTURES), ("eclink_modbus", MODBUS_CAPTURES)):
-        path = folder / (proto + ".pcap")
-        subprocess.run(["mergecap", "-a", "-F", "pcap", "-w", str(path)]
-                       + [str(CAPTURES / n) for n in names if n not in PREFS], check=True)
-        path.chmod(0o644)
-        out[proto] = path
-    yield out
-    shutil.rmtree(folder, ignore_errors=True)
 
 
 FILTER_CHUNKS = 4
