@@ -346,42 +346,56 @@ for i = 0, 255 do
 end
 
 -- Two bytes a step with a table of 65536 entries (the CRC of every 16-bit
--- value, made on the first packet): four bit library calls for two bytes
--- instead of eight, as a bit library call costs more than the rest of the
--- step. rshift is logical: rshift(crc, 16) is already 0..65535, as is its
--- XOR with two bytes, so no band. The bytes are read eight at a time.
-local MPEG2_TABLE16
+-- value, made on the first packet), kept as its two 16-bit halves (T2H,
+-- T2L), and the CRC as its two halves too: a step is then
+--   hi, lo = bxor(lo, T2H[bxor(hi, word)]), T2L[bxor(hi, word)]
+-- (the 32-bit shift is the move from lo to hi), and two steps, four bytes,
+-- take three bit library calls instead of eight (a bit library call costs
+-- more than the rest of the step; bxor takes three arguments). Every value
+-- is 0..65535: no band, no sign. The bytes are read eight at a time.
+local T2H, T2L
 local function make_table16()
-    local t = {}
+    local th, tl = {}, {}
     for hi = 0, 255 do
-        local th = MPEG2_TABLE[hi]
-        local shifted, top, row = lshift(th, 8), rshift(th, 24), hi * 256
-        for lo = 0, 255 do t[row + lo] = bxor(shifted, MPEG2_TABLE[bxor(top, lo)]) end
+        local t = MPEG2_TABLE[hi]
+        local shifted, top, row = lshift(t, 8), rshift(t, 24), hi * 256
+        for lo = 0, 255 do
+            local v = bxor(shifted, MPEG2_TABLE[bxor(top, lo)])
+            th[row + lo], tl[row + lo] = rshift(v, 16), band(v, 0xFFFF)
+        end
     end
-    return t
+    return th, tl
 end
 
 local function crc_mpeg2(s, n)
-    local T = MPEG2_TABLE
-    local T2 = MPEG2_TABLE16
-    if not T2 then
-        T2 = make_table16()
-        MPEG2_TABLE16 = T2
+    local H, L = T2H, T2L
+    if not H then
+        H, L = make_table16()
+        T2H, T2L = H, L
     end
-    local crc = -1
+    local hi, lo = 0xFFFF, 0xFFFF
     n = n or #s
     local i = 1
     while i + 7 <= n do
         local b1, b2, b3, b4, b5, b6, b7, b8 = byte(s, i, i + 7)
-        crc = bxor(lshift(crc, 16), T2[bxor(rshift(crc, 16), b1 * 256 + b2)])
-        crc = bxor(lshift(crc, 16), T2[bxor(rshift(crc, 16), b3 * 256 + b4)])
-        crc = bxor(lshift(crc, 16), T2[bxor(rshift(crc, 16), b5 * 256 + b6)])
-        crc = bxor(lshift(crc, 16), T2[bxor(rshift(crc, 16), b7 * 256 + b8)])
+        local x = bxor(hi, b1 * 256 + b2)
+        local y = bxor(lo, H[x], b3 * 256 + b4)
+        x = bxor(L[x], H[y], b5 * 256 + b6)
+        lo = L[y]
+        y = bxor(lo, H[x], b7 * 256 + b8)
+        hi, lo = bxor(L[x], H[y]), L[y]
         i = i + 8
     end
-    while i <= n do
+    while i + 1 <= n do
+        local b1, b2 = byte(s, i, i + 1)
+        local x = bxor(hi, b1 * 256 + b2)
+        hi, lo = bxor(lo, H[x]), L[x]
+        i = i + 2
+    end
+    local crc = hi * 65536 + lo
+    if i <= n then
+        local T = MPEG2_TABLE
         crc = bxor(lshift(crc, 8), T[bxor(rshift(crc, 24), byte(s, i))])
-        i = i + 1
     end
     return u32(crc)
 end
