@@ -527,73 +527,56 @@ end
 ------------------------------------------------------------------------
 -- Wireshark throws away every item of an invisible tree whose field nobody
 -- references (docs/quality.md, "What the decoders add, and when"). On such
--- a tree the decoder adds only the referenced fields of the list below,
--- flat under the protocol item, besides the protocol item, the columns and
--- the expert info (Lua cannot tell whether these are looked at), and the
--- analysis adds no items. `want` is nil for the full tree (a visible tree,
--- a Wireshark without TreeItem:referenced(), VRSHARK_FULL_TREE set, the
--- protocol referenced with none of its fields, or a field referenced that
--- only the full tree has: the analysis's, the reassembled periodic data),
--- else the set of the fields to add, this frame's (what is referenced
--- changes from one dissection to the next). tests/test_sparse_view.py.
+-- a tree the decoder adds only the referenced fields of its own (not the
+-- analysis's, not the reassembled periodic data), flat under the protocol
+-- item, besides the protocol item, the columns and the expert info (Lua
+-- cannot tell whether these are looked at), and the analysis adds no items.
+-- `want` is nil for the full tree, else the set of the fields to add,
+-- this frame's (what is referenced changes from one dissection to the
+-- next). It comes from the view frontends.lua_view() makes from
+-- TreeItem:referenced(), as for MC-MB2-PN and EC-Link: nil (the full tree)
+-- on a visible tree, without that method, with VRSHARK_FULL_TREE set, or
+-- with the protocol referenced with none of its fields; the view of no
+-- fields (NOTHING) when nothing of EG-Link is referenced; else the
+-- referenced fields, which mean the full tree when one of them is one the
+-- decoder cannot add alone. tests/test_eglink_sparse_view.py.
 local want
-local referenced = type(TreeItem) == "table" and rawget(TreeItem, "referenced")
-if type(referenced) ~= "function" or os.getenv("VRSHARK_FULL_TREE") then referenced = nil end
-local tree_visible = (function()
-    local reg = type(debug) == "table" and type(debug.getregistry) == "function" and debug.getregistry()
-    local mt = reg and reg.TreeItem
-    local getters = type(mt) == "table" and rawget(mt, "__getters")
-    local fn = type(getters) == "table" and rawget(getters, "visible")
-    if type(fn) == "function" then return fn end
-    return function(tree) return tree.visible end
-end)()
-local SPARSE_FIELDS = {}         -- the fields the sparse display can add
-local FULL_FIELDS = {}           -- referenced, they mean the full tree
 local NOTHING = {}
-local sparse_sets = {}           -- key (a sum of powers of 2) -> { [field] = true }
-local proto_handle
+local sparse_by_name            -- filter name -> ProtoField, the fields the sparse display adds
 
-local function sparse_setup(all_fields)
-    local full = { [pf.periodic_data] = true }
-    local own = {}
-    for _, f in ipairs(field_list_own) do own[f] = true end
-    for _, f in ipairs(all_fields) do
-        if own[f] and not full[f] then SPARSE_FIELDS[#SPARSE_FIELDS + 1] = f else FULL_FIELDS[#FULL_FIELDS + 1] = f end
-    end
-end
-
-sparse_setup(field_list)
-
-local function frame_want(tree)
-    if not referenced then return nil end
-    if proto_handle == nil then
-        local ok, h = pcall(Dissector.get, "eglink")
-        proto_handle = ok and h or false
-    end
-    if not proto_handle then return nil end
-    if not referenced(tree, proto_handle) then
-        -- nothing of EG-Link looked at (true on a visible tree)
-        return NOTHING
-    end
-    if tree_visible(tree) then return nil end
-    for i = 1, #FULL_FIELDS do
-        if referenced(tree, FULL_FIELDS[i]) then return nil end
-    end
-    local key, w = 0, 1
-    for i = 1, #SPARSE_FIELDS do
-        if referenced(tree, SPARSE_FIELDS[i]) then key = key + w end
-        w = w + w
-    end
-    if key == 0 then return nil end
-    local set = sparse_sets[key]
-    if not set then
-        set = {}
-        for i = 1, #SPARSE_FIELDS do
-            if math.floor(key / 2 ^ (i - 1)) % 2 == 1 then set[SPARSE_FIELDS[i]] = true end
+-- What a view (fields by filter name) means here: NOTHING, the set
+-- { [ProtoField] = true }, or false (the full tree).
+local function want_of(view)
+    if not sparse_by_name then
+        local own = {}
+        for _, f in ipairs(field_list_own) do
+            if f ~= pf.periodic_data then own[f] = true end
         end
-        sparse_sets[key] = set
+        sparse_by_name = {}
+        local fields, names = fe.field_names(proto)
+        for i = 1, fields and #fields or 0 do
+            if own[fields[i]] then sparse_by_name[names[i]] = fields[i] end
+        end
+    end
+    if next(view.fields) == nil then return NOTHING end
+    local set = {}
+    for name in pairs(view.fields) do
+        local f = sparse_by_name[name]
+        if not f then return false end
+        set[f] = true
     end
     return set
+end
+
+local function frame_want(tree)
+    local view = fe.lua_view(proto, tree)
+    if not view then return nil end
+    local w = view.eglink_want
+    if w == nil then
+        w = want_of(view)
+        view.eglink_want = w
+    end
+    return w or nil
 end
 
 local function show_unknown(ti, key, value)

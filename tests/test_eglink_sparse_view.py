@@ -13,6 +13,7 @@ import subprocess
 import pytest
 
 from conftest import CAPTURES
+from test_sparse_view import _script_lines
 
 LUA_ONLY = {"VRSHARK_NO_C_PLUGIN": "1"}
 EGLINK_CAPTURES = sorted(p.name for p in CAPTURES.glob("*.pcap") if "eglink" in p.name)
@@ -114,3 +115,48 @@ def test_fields_output_and_protocol_hierarchy_are_those_of_the_full_tree(tshark)
         assert _run(tshark, args) == _run(tshark, args, full=True), name
         args = ["-n", "-q", "-r", str(CAPTURES / name), "-Y", "eglink.serial >= 0", "-z", "io,phs"]
         assert _run(tshark, args) == _run(tshark, args, full=True), name
+
+
+# Writes "sparse FRAME" or "full FRAME" for every EG-Link packet the
+# analysis sees: what the decoder hands it (`want ~= nil`, lua/eglink.lua),
+# so which packets the sparse display served.
+PROBE = r"""
+local out = assert(io.open(os.getenv("VRSHARK_PROBE_OUT"), "w"))
+local analysis = package.loaded["vrshark.eglink_analysis"]
+local dissect = analysis.dissect
+analysis.dissect = function(tvb, pinfo, tree, item, info, sparse)
+    out:write(sparse and "sparse " or "full ", pinfo.number, "\n") out:flush()
+    return dissect(tvb, pinfo, tree, item, info, sparse)
+end
+"""
+
+
+def _served(tshark, work_dir, capture, args, full=False):
+    lines = _script_lines(tshark, work_dir, PROBE, capture, args, full=full, extra_env=LUA_ONLY)
+    return [line.split() for line in lines]
+
+
+@pytest.mark.parametrize("args, sparse", [
+    (["-Y", "eglink.bu_state == 4"], True),
+    # every field the sparse display adds, the first and the last of them
+    (["-Y", "eglink.type == \"VRPO\" || eglink.command_data || eglink.switch8 > 0 || eglink.crc.status == 0"], True),
+    (["-Y", "udp.length == 1"], True),                    # nothing of EG-Link referenced
+    (["-V"], False),                                      # a visible tree
+    (["-Y", "eglink"], False),                            # the protocol itself
+    (["-Y", "eglink.crc.bad"], False),                    # an expert of it
+    (["-Y", "eglink.periodic_data"], False),              # the reassembled periodic data
+    (["-Y", "eglink.analysis.bu_origin"], False),         # an analysis field
+    # an analysis field past the first 48 fields of eglink (frontends.lua_view()'s key groups)
+    (["-Y", "eglink.bu_state == 4 || eglink.reassembled_in"], False),
+])
+def test_which_ways_of_running_serve_the_sparse_display(tshark, work_dir, args, sparse):
+    """Lua plugins alone: every EG-Link packet is served sparsely where it
+    should be, none where a field the sparse display cannot add (or the
+    protocol itself) is referenced, and none with VRSHARK_FULL_TREE."""
+    capture = CAPTURES / "eglink_analysis_spec_rules.pcap"
+    frames = tshark.field(capture, "frame.number", display_filter="eglink")
+    assert len(frames) > 10
+    got = _served(tshark, work_dir, capture, args)
+    assert [n for _, n in got] == frames
+    assert {kind for kind, _ in got} == {"sparse" if sparse else "full"}
+    assert {kind for kind, _ in _served(tshark, work_dir, capture, args, full=True)} == {"full"}
