@@ -127,6 +127,28 @@ def _prefs(name):
     return args
 
 
+def _merge(folder, name, captures):
+    """captures one after the other in folder/name (mergecap -a), readable by the test user."""
+    path = folder / name
+    subprocess.run(["mergecap", "-a", "-F", "pcap", "-w", str(path)] + [str(CAPTURES / n) for n in captures],
+                   check=True)
+    path.chmod(0o644)
+    return path
+
+
+@pytest.fixture(scope="module")
+def mcmb2_inputs():
+    """(path, preference args) covering every MC-MB2-PN capture: those that
+    need no preference merged into one file (mergecap -a: one run a filter
+    covers them; tshark's start-up is most of a run's time), then each
+    capture with a preference."""
+    folder = Path(tempfile.mkdtemp(prefix="vrshark-merged-"))
+    folder.chmod(0o755)
+    yield [(_merge(folder, "mcmb2.pcap", [n for n in MCMB2_CAPTURES if n not in PREFS]), [])] \
+        + [(CAPTURES / n, _prefs(n)) for n in MCMB2_CAPTURES if n in PREFS]
+    shutil.rmtree(folder, ignore_errors=True)
+
+
 @pytest.fixture(scope="module")
 def merged_eclink():
     """The EC-Link captures of each carrier that need no preference, one
@@ -135,11 +157,7 @@ def merged_eclink():
     folder.chmod(0o755)
     out = {}
     for proto, names in (("eclink_pnio", ECLINK_PNIO_CAPTURES), ("eclink_modbus", MODBUS_CAPTURES)):
-        path = folder / (proto + ".pcap")
-        subprocess.run(["mergecap", "-a", "-F", "pcap", "-w", str(path)]
-                       + [str(CAPTURES / n) for n in names if n not in PREFS], check=True)
-        path.chmod(0o644)
-        out[proto] = path
+        out[proto] = _merge(folder, proto + ".pcap", [n for n in names if n not in PREFS])
     yield out
     shutil.rmtree(folder, ignore_errors=True)
 
@@ -185,12 +203,12 @@ def test_expert_statistics_are_those_of_the_full_tree(tshark, name):
 @needs_c
 @pytest.mark.parametrize("flt", ["mcmb2.status == 1", "mcmb2.slot.status == 1", "mcmb2.watchdog_age > 0.5",
                                  "mcmb2.status.e010", "mcmb2.iops", "mcmb2.slot.uplink_data[0] == 0"])
-def test_filters_select_the_frames_of_the_full_tree(tshark, flt):
+def test_filters_select_the_frames_of_the_full_tree(tshark, mcmb2_inputs, flt):
     matched = 0
-    for name in MCMB2_CAPTURES:
-        args = ["-n", "-r", str(CAPTURES / name), "-Y", flt] + _prefs(name)
+    for path, prefs in mcmb2_inputs:
+        args = ["-n", "-r", str(path), "-Y", flt] + prefs
         sparse = _run(tshark, args)
-        assert sparse == _run(tshark, args, full=True), (name, flt)
+        assert sparse == _run(tshark, args, full=True), (path.name, flt)
         matched += len(sparse.splitlines())
     assert matched > 0, flt
 
@@ -223,12 +241,12 @@ def test_lua_only_expert_statistics_are_those_of_the_full_tree(tshark, name):
 @pytest.mark.parametrize("flt", ["mcmb2.status == 1", "mcmb2.slot.status == 1", "mcmb2.watchdog_age > 0.5",
                                  "mcmb2.status.e010", "mcmb2.iops", "mcmb2.slot.uplink_data[0] == 0",
                                  "mcmb2", "mcmb2.status == 1 && mcmb2"])
-def test_lua_only_filters_select_the_frames_of_the_full_tree(tshark, flt):
+def test_lua_only_filters_select_the_frames_of_the_full_tree(tshark, mcmb2_inputs, flt):
     matched = 0
-    for name in MCMB2_CAPTURES:
-        args = ["-n", "-r", str(CAPTURES / name), "-Y", flt] + _prefs(name)
+    for path, prefs in mcmb2_inputs:
+        args = ["-n", "-r", str(path), "-Y", flt] + prefs
         sparse = _run(tshark, args, extra_env=LUA_ONLY)
-        assert sparse == _run(tshark, args, full=True, extra_env=LUA_ONLY), (name, flt)
+        assert sparse == _run(tshark, args, full=True, extra_env=LUA_ONLY), (path.name, flt)
         matched += len(sparse.splitlines())
     assert matched > 0, flt
 
