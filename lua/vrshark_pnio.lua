@@ -118,7 +118,7 @@ local runs        -- vrshark.pnio_infer state: the runs of FrameIDs without a la
 local gone        -- FrameID -> { src, dst, src, dst, ... }: Ethernet Addresses of its runs given up (gave_up())
 local addr_of     -- station key of pnio_infer (tostring of an Ethernet address) -> Address
 local hint_recs   -- hint of pnio_infer -> the record of its candidate frames
-local reopening  -- FrameID -> the note of its frames while a layout re-opened is inferred again (one pass)
+local reopening  -- FrameID -> the note of its frames while a layout re-opened is inferred again, or given up (one pass)
 local unsettled   -- second pass: whether a run was left unsettled (nil: not asked yet)
 local cut_connect -- the first DCE/RPC datagram that may be a Connect the capture cut (cut_datagram()), or nil
 local heuristic, learn -- the preferences mcmb2.heuristic and mcmb2.connect, read in init()
@@ -845,6 +845,15 @@ local function reopen(plan, why, rec_header, fid, s, pinfo, n)
     return note
 end
 
+-- The runs of a layout re-opened (reopen()) given up, no layout fitting
+-- any more (vrshark/pnio_infer.luam: hint h, h.reopened the info of
+-- reopen()): rec, the note of candidate(), replaces the note that it is
+-- not settled again yet (reopening[]) on both FrameIDs, so the frames
+-- the capture cut carry it too. Once per hint, when rec is made.
+local function given_up_again(h, rec)
+    for _, f in ipairs(h.reopened.fids) do reopening[f] = rec end
+end
+
 -- A frame decoded on the first pass by a layout that was contradicted and
 -- replaced later (plan.next, settle()), or by the layout that replaced it
 -- (plan.again): decoded again, on the later pass, by a copy of the layout
@@ -888,8 +897,9 @@ local SYSTEM_NAME = { duplex = "an MC-MB2-PN duplex/simplex base", polled = "an 
 -- (reopen()) whose runs were given up, no layout fitting any more
 -- (h.reopened, the info of reopen()): the note names the re-opening frame
 -- and the entry of the layout it had, on every frame of both FrameIDs
--- from then on (reopening[]: the frames the capture cut too), and on the
--- second pass on those since the re-opening frame.
+-- from then on (given_up_again(): the frames the capture cut too), and on
+-- the second pass on those since the re-opening frame. Only builds the
+-- record (kept per hint: hint_recs).
 local function candidate(h, frame)
     local rec = hint_recs[h]
     if not rec then
@@ -902,7 +912,6 @@ local function candidate(h, frame)
                     text = string.format("Not decoded: layout re-opened in frame %d, not inferred again (%s); a "
                         .. "Connect in the capture or mcmb2.layouts decides it (it was %s)", again.frame, h.why,
                         table.concat(settings, " or ")) }
-            for _, f in ipairs(again.fids) do reopening[f] = rec end
         else
             rec = { kind = "candidate", settings = settings, early = h.early, text = string.format(
                 "Looks like %s, but its layout was not inferred (%s); to decode it now: %s",
@@ -955,7 +964,12 @@ function inferred(fid, s, pinfo, n)
         runs.watch = {}
     end
     if not res then return reopening[fid] end
-    if res.kind == "candidate" then return candidate(res, n) end
+    if res.kind == "candidate" then
+        local fresh = not hint_recs[res]
+        local rec = candidate(res, n)
+        if fresh and res.reopened then given_up_again(res, hint_recs[res]) end
+        return rec
+    end
     settle(res)
     return fget(frames, n)
 end
