@@ -11,8 +11,13 @@ The frames after the contradiction fit no layout because the controller
 stopped: every IOPS and IOCS of its downlink frames BAD (0x00, IEC
 61158-6-10 IOxS DataState), where every layout the inference knows has a
 GOOD (0x80) one. The traffic is test_pnio_reopen.py's stepping traffic,
-built with scapy (tests/pnio_testlib.py).
+built with scapy (tests/pnio_testlib.py). The same when the new runs never
+settle, given up at the frame limit (vrshark/pnio_infer.luam MAX_FRAMES,
+4096 frames of a run).
 """
+from scapy.layers.l2 import Ether
+from scapy.packet import Raw
+
 from pnio_testlib import CaptureFile, Device, mac, mcmb2_submodules
 from test_pnio_midsession import _slots, _spread
 from test_pnio_reopen import LAYOUT_NOTES, WD_BACK, WRONG, header_after_data, inferred_text, reopened_text
@@ -101,3 +106,65 @@ def test_given_up_on_the_re_opening_frame(tshark, work_dir):
         assert notes == {102: [inferred_text(1, 102, WRONG)], 1552: [reopened_text(102, 1552, WD_BACK)]}
         got = notes_after(tshark, path, 1553, two_pass=two_pass)
         assert all(got[n] == row(given_up_text(1552, 1552), SETTING) for n in range(1553, 2001)), two_pass
+
+
+def standing_capture(work_dir, name, pairs):
+    """stopping_capture's traffic with the controller running, but from
+    the re-opening frame on (pair 775, frame 1552: the wrong layout's
+    watchdog went back) both stations repeat that pair's C-SDUs: neither
+    watchdog moves again, nor any data (the base and the controller
+    stalled, the base still reporting "terminal present", no E010), so
+    every layout of the new runs still fits and none is proven."""
+    d = Device(mcmb2_submodules("duplex", 2, 2, 2, 0, 1), mac(0x44), 0x8441, 0x8442, order=header_after_data)
+    cap = CaptureFile()
+    ins, outs = _slots(d, "in"), _slots(d, "out")
+    for i in range(776):
+        wd_up, wd_down = (i // 10) & 0xFF, (i // 25) & 0xFF
+        up = d.cyclic("in", _spread(ins, "inlen", bytes([0x31, wd_up, 0x11, (i // 40) % 50 + 1])))
+        down = d.cyclic("out", _spread(outs, "outlen", bytes([0, wd_down, 6, wd_down % 31 + 1])))
+        cap.add(up, 0.001)
+        cap.add(down, 0.001)
+    # (the same frames as bytes, each with its own cycle counter: the
+    # APDU status, the last 4 bytes, starts with it; scapy builds slowly)
+    frozen = [(p[Ether].src, p[Ether].dst, bytearray(bytes(p[Ether].payload))) for p in (up, down)]
+    for _ in range(776, pairs):
+        for src, dst, raw in frozen:
+            d.cycle = (d.cycle + 32) & 0xFFFF
+            raw[-4:-2] = d.cycle.to_bytes(2, "big")
+            cap.add(Ether(src=src, dst=dst, type=0x8892) / Raw(bytes(raw)), 0.001)
+    return cap.write(work_dir / ("%s.pcap" % name))
+
+
+def test_given_up_past_the_frame_limit_after_the_re_opening(tshark, work_dir):
+    """Issue 44 section 4 (never silent) and SP-14-023 2.4: the layout
+    settled in frame 102 is re-opened in frame 1552 (its watchdog went
+    back); from then on nothing moves (standing_capture), so the new runs
+    neither settle nor lose their last layout. The downlink run, started by
+    the re-opening frame itself, is given up on its 4096th frame, frame
+    9742 (vrshark/pnio_infer.luam MAX_FRAMES = 4096: a run not settled
+    within 4096 frames is given up), 8190 frames after the re-opening, and
+    the uplink run with it. One pass: the note that the layout is not
+    settled again yet up to frame 9741 (frame 9740, the run's 4095th,
+    still waits), from 9742 on, on both FrameIDs, the note that it could
+    not be inferred again, naming the limit and the entry it had
+    (mcmb2.candidate_setting); -2: that note on every frame since the
+    re-opening, whose frame keeps its warning."""
+    path = standing_capture(work_dir, "standing", 4900)
+    layout_notes = {102: [inferred_text(1, 102, WRONG)], 1552: [reopened_text(102, 1552, WD_BACK)]}
+    for two_pass in (False, True):
+        assert tshark.experts(path, display_filter=LAYOUT_NOTES, two_pass=two_pass) == layout_notes
+    given_up = row("Not decoded: layout re-opened in frame 1552, not inferred again (given up: not settled within "
+                   "4096 frames, at frame 9742); a Connect in the capture or mcmb2.layouts decides it (it was %s)"
+                   % SETTING, SETTING)
+    fields = dict(display_filter="frame.number > 1552")
+    one = tshark.frames(path, NOTE_FIELDS, **fields)
+    assert len(one) == 9800 - 1552
+    assert all(one[n] == row(WAIT) for n in range(1553, 9742)), "not settled again yet, up to the limit"
+    assert all(one[n] == given_up for n in range(9742, 9801)), "both FrameIDs, from the give-up on"
+    two = tshark.frames(path, NOTE_FIELDS, two_pass=True, **fields)
+    assert all(two[n] == given_up for n in range(1553, 9801))
+    # the setting offered is the filter that finds them
+    found = tshark.frames(path, ["mcmb2.candidate_setting"], display_filter='mcmb2.candidate_setting == "%s"'
+                          % SETTING)
+    assert sorted(found) == list(range(9742, 9801))
+
