@@ -13,12 +13,14 @@ stopped: every IOPS and IOCS of its downlink frames BAD (0x00, IEC
 GOOD (0x80) one. The traffic is test_pnio_reopen.py's stepping traffic,
 built with scapy (tests/pnio_testlib.py). The same when the new runs never
 settle, given up at the frame limit (vrshark/pnio_infer.luam MAX_FRAMES,
-4096 frames of a run).
+4096 frames of a run), and for an EC-Link BU's layout (TS-0007 4.3),
+re-opened by an IOxS neither GOOD nor BAD.
 """
 from scapy.layers.l2 import Ether
 from scapy.packet import Raw
 
-from pnio_testlib import CaptureFile, Device, mac, mcmb2_submodules
+from pnio_testlib import CaptureFile, Device, eclink_submodules, mac, mcmb2_submodules
+from test_eclink_pnio_modes import input_image, output_image
 from test_pnio_midsession import _slots, _spread
 from test_pnio_reopen import LAYOUT_NOTES, WD_BACK, WRONG, header_after_data, inferred_text, reopened_text
 
@@ -168,3 +170,104 @@ def test_given_up_past_the_frame_limit_after_the_re_opening(tshark, work_dir):
                           % SETTING)
     assert sorted(found) == list(range(9742, 9801))
 
+
+ECLINK_NOTES = LAYOUT_NOTES + " || eclink_pnio.layout.inferred || eclink_pnio.layout.reopened"
+
+
+def eclink_capture(work_dir, name, outlen, pairs, pco_stands=None, stop=None):
+    """An EC-Link BU (TS-0007 4.3: slot 1 "Inputs" 64 bytes, slot 2 an
+    output image of `outlen` bytes) without its Connect, one input and one
+    output frame a cycle (125 ms), its PCI stepping every cycle: the layout
+    settles in frame 6. The DAP's IOPS of pair 20's input frame (frame 41)
+    is 0x81, neither GOOD nor BAD (IEC 61158-6-10 IOxS); the controller
+    stops from pair `stop` on (every IOxS of its output frames BAD, 0x00);
+    pco_stands: the pair from which the PCO of a 224-byte output image
+    stands. Pair i is frames 2i+1 (input) and 2i+2 (output)."""
+    d = Device(eclink_submodules(4, outlen), mac(0x60), 0x8060, 0x8061)
+    cap = CaptureFile()
+    for i in range(pairs):
+        up = d.cyclic("in", {1: input_image(i, 0, 0)})
+        if i == 20:
+            raw = bytearray(bytes(up))
+            raw[16] = 0x81  # Ethernet 14, FrameID 2: the C-SDU's first byte, the DAP's IOPS
+            up = up.__class__(bytes(raw))
+        cap.add(up, 0.124)
+        pco = i if pco_stands is None else min(i, pco_stands)
+        down = d.cyclic("out", {2: output_image(0, 0) if outlen == 20 else bytes([pco & 0xFF]) + bytes(223)})
+        if stop is not None and i >= stop:
+            raw = bytearray(bytes(down))
+            # the C-SDU (no image byte is 0x80), not the APDU status
+            raw[16:-4] = raw[16:-4].replace(b"\x80", b"\x00")
+            down = down.__class__(bytes(raw))
+        cap.add(down, 0.001)
+    return cap.write(work_dir / ("%s.pcap" % name))
+
+
+def eclink_layout_notes(entry):
+    return {6: ["Cyclic data layout inferred from frames 1..6 (no Connect in the capture); to pin it, add to "
+                "mcmb2.layouts: %s" % entry],
+            41: ["Layout inferred from frames 1..6 contradicted in frame 41: IOPS of slot 0/0x1 is 0x81, neither "
+                 "GOOD nor BAD; inference re-opened (was %s)" % entry]}
+
+
+def eclink_notes(tshark, path, entry, want):
+    """The layout notes of eclink_capture() (frames 6 and 41), and on each
+    frame after the re-opening, none decoded, the note want(two_pass, n)."""
+    for two_pass in (False, True):
+        assert tshark.experts(path, display_filter=ECLINK_NOTES, two_pass=two_pass) == eclink_layout_notes(entry)
+        got = tshark.frames(path, NOTE_FIELDS + ["eclink.image"], display_filter="frame.number > 41",
+                            two_pass=two_pass)
+        assert list(got) == list(range(42, 81))
+        for n, fields in got.items():
+            assert fields == dict(want(two_pass, n), **{"eclink.image": ""}), (two_pass, n)
+
+
+def test_eclink_given_up_after_the_re_opening_is_said(tshark, work_dir):
+    """Issue 44 section 4 (never silent), EC-Link over PROFINET (TS-0007
+    4.3): the BU's layout (Input + Commands, a 20-byte output image),
+    inferred in frame 6, is re-opened in frame 41 (an IOPS neither GOOD
+    nor BAD, IEC 61158-6-10: the runs start again from the next frame);
+    the controller stops from pair 22 (frame 46, its IOxS BAD) before the
+    runs settle again, and both are given up. One pass: the note that the
+    layout is not settled again yet on frames 42..45, from 46 on, on both
+    FrameIDs, the note that it could not be inferred again, with the entry
+    it had (mcmb2.candidate_setting: EC-Link's frames carry MC-MB2-PN's
+    candidate note, the layout table is one); -2: that note on every frame
+    after the re-opening, whose frame keeps its warning (mcmb2's, as the
+    frame is not decoded again by a layout settled again)."""
+    entry = "0x8060/0x8061=eclink:/20@4"
+    setting = "mcmb2.layouts:" + entry
+    path = eclink_capture(work_dir, "eclink_stop", 20, 40, stop=22)
+    wait = WAIT.replace("frame 1552", "frame 41")
+    given_up = row("Not decoded: layout re-opened in frame 41, not inferred again (given up: no layout fits frame "
+                   "46); a Connect in the capture or mcmb2.layouts decides it (it was %s)" % setting, setting)
+    eclink_notes(tshark, path, entry, lambda two_pass, n: given_up if two_pass or n >= 46 else row(wait))
+    found = tshark.frames(path, ["mcmb2.candidate_setting"], display_filter='mcmb2.candidate_setting == "%s"'
+                          % setting)
+    # (frame 5: the one-direction note before the layout first settled)
+    assert sorted(found) == [5] + list(range(46, 81))
+
+
+def test_eclink_given_up_after_its_input_image_proved(tshark, work_dir):
+    """Issue 44 section 4 (never silent), EC-Link over PROFINET: the BU's
+    layout (Standard, a 224-byte output image), inferred in frame 6, is
+    re-opened in frame 41 (an IOPS neither GOOD nor BAD); its PCO stands
+    from then on, so the output run gives no evidence, while the input
+    image's PCI chain proves the input run (frame 47): the pair then looks
+    like an EC-Link BU from one direction (docs/profinet.md "Looks like
+    ours"), and when the controller stops (pair 30, frame 62: its IOxS
+    BAD) the runs are given up as one that looked like ours: one pass, the
+    note that the layout is not settled again yet on 42..46, the one-
+    direction note on 47..61, from 62 on the given-up note with the entry
+    that decodes it; -2: that note on every frame after the re-opening,
+    whose frame keeps its warning. Never silent; the note is the one of a
+    run that looked like ours, not that of the re-opening."""
+    entry = "0x8060/0x8061=eclink:/224@4"
+    setting = "mcmb2.layouts:" + entry
+    path = eclink_capture(work_dir, "eclink_pco_stands", 224, 40, pco_stands=20, stop=30)
+    wait = row(WAIT.replace("frame 1552", "frame 41"))
+    looks = "Looks like an EC-Link BU, but its layout was not inferred (%s); to decode it now: " + setting
+    early = row(looks % "so far evidence from one direction only", setting)
+    given_up = row(looks % "given up: no layout fits frame 62", setting)
+    eclink_notes(tshark, path, entry, lambda two_pass, n: given_up if two_pass or n >= 62 else early if n >= 47
+                 else wait)
