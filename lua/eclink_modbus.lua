@@ -1667,7 +1667,8 @@ function proto.dissector(tvb, pinfo, tree)
         elseif shown then
             decoded = true
             if sp == nil then
-                sp = sparse_plan(view or not C and fe.lua_view(LUA_PROTOS, tree) or nil) or false
+                sp = sparse_plan(view or not C and fe.lua_view(LUA_PROTOS, tree, p_visited(pinfo)) or nil)
+                    or false
             end
             local adu_infos, gap = show_adu(tvb, pinfo, tree, f_off, f_len, rec, is_request, f_fcb, sp or nil)
             if not infos or infos == NONE then

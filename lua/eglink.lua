@@ -64,6 +64,7 @@ end
 local t_add, t_add_le, t_append, t_set_text, t_set_generated = api.add, api.add_le, api.append_text,
     api.set_text, api.set_generated
 local tvb_range, tvb_raw, tvb_len, tvb_reported_len = api.range, api.raw, api.len, api.reported_len
+local p_visited = api.pinfo.visited
 local col_append, col_clear, col_set = method(Column, "append"), method(Column, "clear"), method(Column, "set")
 
 local HEADER_LEN = 16
@@ -533,7 +534,7 @@ end
 -- cannot tell whether these are looked at), and the analysis adds no items.
 -- `want` is nil for the full tree, else the set of the fields to add,
 -- this frame's (what is referenced changes from one dissection to the
--- next). It comes from the view frontends.lua_view() makes from
+-- next in Wireshark; in tshark once a pass). It comes from the view frontends.lua_view() makes from
 -- TreeItem:referenced(), as for MC-MB2-PN and EC-Link: nil (the full tree)
 -- on a visible tree, without that method, with VRSHARK_FULL_TREE set, or
 -- with the protocol referenced with none of its fields; the view of no
@@ -568,8 +569,8 @@ local function want_of(view)
     return set
 end
 
-local function frame_want(tree)
-    local view = fe.lua_view(proto, tree)
+local function frame_want(tree, visited)
+    local view = fe.lua_view(proto, tree, visited)
     if not view then return nil end
     local w = view.eglink_want
     if w == nil then
@@ -965,7 +966,7 @@ local function dissect(tvb, pinfo, tree)
     if captured < 2 then return 0 end
     local raw = tvb_raw(tvb, 0, have)
     if sub(raw, 1, 2) ~= "VR" then return 0 end
-    want = frame_want(tree)
+    want = frame_want(tree, p_visited(pinfo))
 
     local info = {
         type = "UNKNOWN", revision = 0, origin = 0, serial = 0, has_serial = false, size = 0, size_ok = false,

@@ -65,8 +65,9 @@ local wrap = require("vrshark.wrap")
 local api = require("vrshark.api")
 local tvb_len, tvb_raw, tvb_reported_len = api.len, api.raw, api.reported_len
 -- (the pinfo attributes read on every cyclic frame)
-local p_number, p_visited, p_abs_ts, p_dl_src, p_dl_dst, p_match_string = api.pinfo.number,
-    api.pinfo.visited, api.pinfo.abs_ts, api.pinfo.dl_src, api.pinfo.dl_dst, api.pinfo.match_string
+local p_number, p_visited, p_abs_ts, p_dl_src, p_dl_dst, p_match_string, p_match_uint = api.pinfo.number,
+    api.pinfo.visited, api.pinfo.abs_ts, api.pinfo.dl_src, api.pinfo.dl_dst, api.pinfo.match_string,
+    api.pinfo.match_uint
 local fe = require("vrshark.frontends")
 -- (frames and per_frame by frame number: vrshark/framemap.luam says why)
 local framemap = require("vrshark.framemap")
@@ -1158,13 +1159,15 @@ end
 -- thrown: PN-RT (or PNIO below it) raised an exception on this frame.
 local function cyclic(tvb, pinfo, tree, view, thrown)
     local consumed, skipped = 0, false
+    -- (each C call counts on a foreign frame: the length is read once)
+    local len = not C and tvb_len(tvb) or nil
     -- A frame of ours the capture cut (snaplen): PN-RT would throw an
     -- exception Dissector.call() does not catch (a bounds error ends the
     -- frame's dissection), so it is not called; the decoder's note says
     -- the frame was cut. (Two C calls a frame; the C front end catches it.)
-    if not C and tvb_reported_len(tvb) > tvb_len(tvb) and tvb_len(tvb) >= 2
+    if not C and tvb_reported_len(tvb) > len and len >= 2
             and (p_visited(pinfo) and fget(frames, p_number(pinfo)) or by_fid[tvb:range(0, 2):uint()]) then
-        thrown, consumed, skipped = true, tvb_len(tvb), true
+        thrown, consumed, skipped = true, len, true
     elseif not C then
         consumed = wrap.call(pn_rt, tvb, pinfo, tree)
         -- A malformed PN-RT frame: Wireshark's report stands. A FrameID of
@@ -1179,9 +1182,9 @@ local function cyclic(tvb, pinfo, tree, view, thrown)
     end
     -- (the note is an expert item: everything is shown)
     if thrown then view = nil end
-    local rec, fresh
-    local n = p_number(pinfo)
+    local rec, fresh, n
     if p_visited(pinfo) then
+        n = p_number(pinfo)
         rec = fget(frames, n)
         -- (decoded by a layout contradicted later: decoded again by the one that replaced it)
         local p = rec and (rec.plan or rec.was)
@@ -1193,13 +1196,14 @@ local function cyclic(tvb, pinfo, tree, view, thrown)
         -- (a frame the capture cut before the layout of its run was inferred)
         if rec == nil and tvb_reported_len(tvb) > tvb_len(tvb) then rec = cut_before_inferred(tvb, pinfo) end
     else
-        local len = tvb_len(tvb)
+        len = len or tvb_len(tvb)
         -- (the FrameID from the bytes: a TvbRange costs more than the frame's other reads)
         local b1, b2 = string.byte(len >= 2 and tvb_raw(tvb, 0, 2) or "", 1, 2)
         local fid = b1 and (b1 * 256 + b2)
         if fid and (by_fid[fid] or (fid >= 0x8000 and fid <= 0xFBFF and heuristic
                     and ((tries[fid] or 0) < HEUR_TRIES or #pending_down > 0
                          or not gave_up(fid, pinfo)))) then
+            n = p_number(pinfo)
             rec, fresh = first_pass(fid, tvb, pinfo, len, n, thrown)
             if not once then fset(frames, n, rec) end
         end
@@ -1221,7 +1225,7 @@ local function cyclic(tvb, pinfo, tree, view, thrown)
             -- themselves: frontends.lua_view(), over the Protos of their fields)
             local protos = not C and not thrown and rec.plan
                 and (dec.lua_protos or dec.proto == mcmb2_proto and dec.proto)
-            if protos then view = fe.lua_view(protos, tree) end
+            if protos then view = fe.lua_view(protos, tree, p_visited(pinfo)) end
             if dec.proto == carrier then
                 display(rec, tvb, pinfo, tree, view, thrown)
             else
@@ -1322,7 +1326,7 @@ function carrier.dissector(tvb, pinfo, tree)
     end
     -- No controller port is ever 0x8892 (see connect), so match_uint tells
     -- the two tables apart.
-    if pinfo.match_uint == ETH_PNRT then return cyclic(tvb, pinfo, tree) end
+    if p_match_uint(pinfo) == ETH_PNRT then return cyclic(tvb, pinfo, tree) end
     return connect(tvb, pinfo, tree)
 end
 
