@@ -1291,7 +1291,7 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
     local fc = fcb % 128
     if sp then
         -- (a tap that walks the tree's top level, -z io,phs, counts the protocol)
-        if sp.protos then add(tree, proto, tvb(off, adu_len)) end
+        local root = sp.protos and add(tree, proto, tvb(off, adu_len))
         local adders = sp.adders
         if #adders > 0 then
             local c = sparse_ctx
@@ -1314,7 +1314,7 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
             accesses = adu_accesses(tvb, off, adu_len, fcb, false, rec[R_REQUEST] and request_of(rec))
         end
         local o = sparse_opts
-        o.only, o.no_summary, o.experts = sp.only, not cols, experts
+        o.only, o.no_summary, o.experts, o.proto_in = sp.only, not cols, experts, root
         -- (the C plugin writes the Info text: the summaries as parts, info_parts)
         local as_parts = cols and append_info and true or false
         o.parts = as_parts and info_parts

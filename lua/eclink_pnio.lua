@@ -308,7 +308,7 @@ local function sparse(rec, tvb, pinfo, tree, view)
         return false
     end
     -- (a tap that walks the tree's top level, -z io,phs, counts the protocol)
-    if p.protos then record.root(rec, tvb, tree, eclp, "") end
+    local root = p.protos and record.root(rec, tvb, tree, eclp, "")
     local experts = p.experts
     if experts then attach(rec, "top", tree) end
     if #p.adders > 0 then
@@ -321,7 +321,7 @@ local function sparse(rec, tvb, pinfo, tree, view)
     local o = plan.image
     local opts = image_opts
     opts.kind, opts.offset, opts.length, opts.image_len = up and "input" or "output", rec.base + o.off, o.len, o.len
-    opts.only, opts.no_summary, opts.experts = view.fields, not p.cols, experts
+    opts.only, opts.no_summary, opts.experts, opts.proto_in = view.fields, not p.cols, experts, root
     -- (the C plugin writes the Info text: the summary as parts)
     opts.parts, opts.np, opts.lead = p.cols and set_cols and info_parts, 0, up and "Input image " or "Output image "
     local info = image.dissect(tvb, pinfo, tree, opts)

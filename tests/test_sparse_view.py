@@ -646,3 +646,22 @@ def test_lua_only_sparse_display_serves_the_eclink_frames(tshark, work_dir, capt
     lines = _script_lines(tshark, work_dir, IMAGE_PROBE, capture, args, extra_env=LUA_ONLY)
     assert sorted({int(line.split()[1]) for line in lines}) == (decoded if served else [])
     assert _script_lines(tshark, work_dir, IMAGE_PROBE, capture, args, full=True, extra_env=LUA_ONLY) == []
+
+
+@pytest.mark.parametrize("name, flt, count", [
+    ("eclink_modbus_basic.pcap", "eclink && eclink.pci", 10),
+    ("eclink_modbus_basic.pcap", "eclink_modbus && eclink && eclink.bu_state == 0x11", 8),
+    ("eclink_pnio_connect.pcap", "eclink && eclink.pci", 40),
+    ("eclink_pnio_connect.pcap", "eclink_pnio && eclink && eclink.bu_state == 0x11", 38),
+])
+def test_lua_only_the_eclink_protocol_with_one_of_its_fields(tshark, name, flt, count):
+    """Lua plugins alone: the eclink protocol and one of its fields in one
+    filter. Wireshark's Lua API answers the same for the protocol asked for
+    as for one of its fields asked for, so the sparse display adds the
+    eclink protocol item whenever the protocol items may be looked at (as
+    the full tree does, under eclink_modbus or eclink_pnio): the frames of
+    the full tree, none lost."""
+    args = ["-n", "-r", str(CAPTURES / name), "-Y", flt]
+    sparse = _run(tshark, args, extra_env=LUA_ONLY)
+    assert sparse == _run(tshark, args, full=True, extra_env=LUA_ONLY)
+    assert len(sparse.splitlines()) == count
