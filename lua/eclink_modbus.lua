@@ -452,9 +452,18 @@ end
 -- access_list()'s lists by kind of access
 local access_memo, access_memo_n
 
+-- tshark -2 -R (vrshark/passes.luam): first-pass frame numbers repeat. No
+-- record goes flat (a request's flat record takes its response's link by
+-- number); the keys in `adus` of the highest number so far are listed, and
+-- a frame whose number an earlier frame had forgets them first.
+local renumbers = passes.renumbers()
+passes.track()
+local top_n, top_keys, forgot = 0, {}, false
+
 local function init_state()
     read_prefs()
     once = passes.once()
+    top_n, top_keys, forgot = 0, {}, false
     conns, keys_by_ports = {}, {}
     adus = {}
     hint_conns, hint_of, hint_short = {}, {}, {}
@@ -491,6 +500,12 @@ local function store_rec(key, n, rl, off, rec, is_request)
         -- plain one is used again by the next frame
         if plain and is_request and r and r.rec == rec then r.rec = false end
         return plain
+    end
+    if renumbers then
+        if n ~= top_n then top_n, top_keys = n, {} end
+        top_keys[#top_keys + 1] = key
+        adus[key] = rec
+        return false
     end
     local acc = rec[R_ACCEPTED]
     if not plain or off ~= 0 or fget(at_key, n) ~= nil or rl >= 262144 or (rec[R_PCI_AGE] and rec[R_PCO_AGE]) then
@@ -1628,6 +1643,17 @@ function proto.dissector(tvb, pinfo, tree)
     local off = 0
     local infos
     local number, rl = p_number(pinfo), tvb_reported_len(tvb)
+    if renumbers then
+        -- (a dropped frame's records under this number: forgotten once per frame)
+        local stale = passes.stale(number, p_visited(pinfo))
+        if stale and stale ~= forgot then
+            forgot = stale
+            if number == top_n then
+                for i = 1, #top_keys do adus[top_keys[i]] = nil end
+                top_keys = {}
+            end
+        end
+    end
     while off + 8 <= n do
         local t1, t2, p1, p2, l1, l2, unit, fcb = tvb_raw(tvb, off, 8):byte(1, 8)
         local plen = l1 * 256 + l2

@@ -750,7 +750,7 @@ local function settle(res)
             plan.fid, plan.sender, plan.entry, plan.inferred = run.fid, addr_of[run.src], res.entry, res
             plan.order_note, plan.alt_entry = res.order_note, res.alt_entry
             register(plan)
-            for _, f in ipairs(run.frames) do list[#list + 1] = { f[1], f[2], f[3], plan } end
+            for _, f in ipairs(run.frames) do list[#list + 1] = { f[1], f[2], f[3], plan, #list + 1 } end
             for _, old in ipairs(again and again.plans or {}) do
                 if old.dir == plan.dir then old.next = plan end
             end
@@ -758,7 +758,15 @@ local function settle(res)
         end
         run.frames = nil
     end
-    table.sort(list, function(a, b) return a[1] < b[1] end)
+    -- (by frame number; numbers repeat only on the first pass of tshark -2
+    -- -R, vrshark/passes.luam: there the last frame with a number is the one
+    -- kept, so its record is written last: frames of a number by time, then
+    -- as fed)
+    table.sort(list, function(a, b)
+        if a[1] ~= b[1] then return a[1] < b[1] end
+        if a[3] ~= b[3] then return a[3] < b[3] end
+        return a[5] < b[5]
+    end)
     for _, f in ipairs(list) do
         local rec = analysed(f[4], f[2], f[3], f[1])
         local dec = systems.decoder(f[4].system)

@@ -430,6 +430,14 @@ static guint32 eglink_burst_count;
 /* The time of the latest EG-Link packet, to see the clock step back. */
 static nstime_t eglink_last_ts;
 static guint32 eglink_last_ts_frame;   /* 0: none yet */
+/* The first-pass frame seen last (number, file offset). tshark -2 -R keeps
+ * only the frames that pass the read filter on the first pass and numbers
+ * each frame one more than the count kept so far: a dropped frame gives its
+ * number to the next one. A first-pass frame with the number of the one
+ * before it (at another file offset) clears that frame's slot; elsewhere
+ * numbers never repeat. */
+static guint32 eglink_fp_num;
+static gint64 eglink_fp_off;
 /* File scope: the BUs and controllers by index, and the pages of slots by frame number. */
 static wmem_array_t *eglink_bu_by_index;
 static wmem_array_t *eglink_ctrl_by_index;
@@ -443,6 +451,8 @@ eglink_analysis_init(void)
 {
     eglink_burst_count = 0;
     eglink_last_ts_frame = 0;
+    eglink_fp_num = 0;
+    eglink_fp_off = -1;
     nstime_set_zero(&eglink_last_ts);
     eglink_bu_by_index = NULL;
     eglink_ctrl_by_index = NULL;
@@ -2238,6 +2248,16 @@ eglink_analysis_dissect(tvbuff_t *tvb, packet_info *pinfo, proto_tree *eglink_tr
     if (info->type == EGLINK_TYPE_UNKNOWN || pinfo->flags.in_error_pkt)
         return;
 
+    if (!PINFO_FD_VISITED(pinfo)) {
+        if (pinfo->num == eglink_fp_num && pinfo->fd->file_off != eglink_fp_off) {
+            eglink_slot_t *slot = eglink_slot(pinfo->num, FALSE);
+
+            if (slot)
+                memset(slot, 0, sizeof(*slot));
+        }
+        eglink_fp_num = pinfo->num;
+        eglink_fp_off = pinfo->fd->file_off;
+    }
     fd = eglink_frame_fetch(pinfo, key, info->serial, &buf);
     if (!fd) {
         if (PINFO_FD_VISITED(pinfo))
