@@ -1,8 +1,8 @@
 """tshark -T fields with the Lua plugins alone (docs/quality.md, "tshark -T
 fields without the C plugin").
 
--T fields prints only the fields -e names. Wireshark 4.0 and 4.4 dissect it
-on a visible tree, where TreeItem:referenced() says yes to every field; the
+-T fields prints only the fields -e names. Wireshark 4.0 dissects it on a
+visible tree (4.4 and 4.6 on an invisible one, as for -Y), where TreeItem:referenced() says yes to every field; the
 Lua decoders read tshark's command line instead (passes.fields_names(), as
 the C front end does in vrshark-output.c) and add what the -e values and
 the filters name, the columns and the expert info. What tshark prints must
@@ -126,7 +126,7 @@ def _personal_probe(tshark, work_dir, script, capture, args):
 
 
 # sparse: True, False, or VISIBLE_ONLY: the whole tree where tshark makes
-# the tree visible (Wireshark 4.0 and 4.4), sparse where it does not (4.6:
+# the tree visible (Wireshark 4.0), sparse where it does not (4.4 and 4.6:
 # the referenced fields decide there, as for -Y).
 VISIBLE_ONLY = "visible only"
 
@@ -146,7 +146,7 @@ def _expected(sparse, printed):
     (["-2", "-T", "fields", "-e", "eglink.serial"], True),
     (["-T", "fields", "-e", "eglink"], False),                    # the protocol itself
     (["-T", "fields", "-e", "eglink.analysis.lost"], False),      # an analysis field: the full tree
-    (["-T", "fields", "-e", "eglink.serial", "-Y", "eglink"], False),
+    (["-T", "fields", "-e", "eglink.serial", "-Y", "eglink"], VISIBLE_ONLY),   # (an invisible tree: the protocol item is added)
     (["-T", "fields", "-e", "eglink.serial", "-e", "_ws.col.Info"], VISIBLE_ONLY),
     (["-T", "fields", "-e", "eglink.serial", "-P"], VISIBLE_ONLY),
     (["-T", "pdml"], False),
