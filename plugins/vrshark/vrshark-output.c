@@ -2,9 +2,9 @@
  * Does this process print only named fields? (tshark -T fields)
  *
  * tshark -T fields prints nothing of the protocol tree but the fields named
- * with -e (and the columns among them). Wireshark 4.6 dissects it on an
- * invisible tree with those fields referenced; 4.0 and 4.4 make the tree
- * visible, as for -V, and mark nothing, so a dissector cannot tell it from
+ * with -e (and the columns among them). Wireshark 4.4 and 4.6 dissect it on
+ * an invisible tree with those fields referenced; 4.0 makes the tree
+ * visible, as for -V, and marks nothing, so a dissector cannot tell it from
  * a packet's details. The Lua decoders behind the front ends
  * (vrshark-frontends.c, lua_view) add only the referenced fields when
  * nothing else of their tree can be seen; this tells them that a visible
