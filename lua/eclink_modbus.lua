@@ -458,12 +458,12 @@ local access_memo, access_memo_n
 -- a frame whose number an earlier frame had forgets them first.
 local renumbers = passes.renumbers()
 passes.track()
-local top_n, top_keys, forgot = 0, {}, false
+local top_n, top_keys = 0, {}
 
 local function init_state()
     read_prefs()
     once = passes.once()
-    top_n, top_keys, forgot = 0, {}, false
+    top_n, top_keys = 0, {}
     conns, keys_by_ports = {}, {}
     adus = {}
     hint_conns, hint_of, hint_short = {}, {}, {}
@@ -1645,13 +1645,9 @@ function proto.dissector(tvb, pinfo, tree)
     local number, rl = p_number(pinfo), tvb_reported_len(tvb)
     if renumbers then
         -- (a dropped frame's records under this number: forgotten once per frame)
-        local stale = passes.stale(number, p_visited(pinfo))
-        if stale and stale ~= forgot then
-            forgot = stale
-            if number == top_n then
-                for i = 1, #top_keys do adus[top_keys[i]] = nil end
-                top_keys = {}
-            end
+        if passes.stale("eclink_modbus", number, p_visited(pinfo)) and number == top_n then
+            for i = 1, #top_keys do adus[top_keys[i]] = nil end
+            top_keys = {}
         end
     end
     while off + 8 <= n do
