@@ -226,3 +226,30 @@ def test_eclink_fields_output_is_that_of_the_full_tree(tshark, proto, name, two_
     sparse = {"eclink_pnio": ECLINK_PNIO_SPARSE, "eclink_modbus": MODBUS_SPARSE}[proto]
     names = sorted(set(_fields(tshark, "eclink")) - {"eclink.lcd"}) + sparse
     _lines(tshark, CAPTURES / name, names + EXPERTS, two_pass=two_pass, prefs=_prefs(name))
+
+
+@pytest.fixture(scope="module")
+def realstack_capture():
+    """pymodbus BU and PLC on 127.0.0.1, captured (test_eclink_modbus_realstack)."""
+    import test_eclink_modbus_realstack as rs
+    from test_eclink_modbus_realstack_commands import _plc
+    for got in rs.captured("commands", _plc):
+        yield got + (rs.PREFS,)
+
+
+@pytest.mark.parametrize("two_pass", [False, True])
+def test_real_stack_fields_output_is_that_of_the_full_tree(tshark, realstack_capture, two_pass):
+    """Traffic the project did not make: a pymodbus BU and PLC. -T fields
+    with the EC-Link fields its sparse display adds is that of the full tree,
+    and carries what the PLC logged it wrote (CAO 5, then its echo 6)."""
+    cap, log, prefs = realstack_capture
+    args = []
+    for k, v in sorted(prefs.items()):
+        args += ["-o", "%s:%s" % (k, v)]
+    names = ["eclink.image", "eclink.cci", "eclink.cao", "eclink.pco"] + MODBUS_SPARSE + EXPERTS
+    out = _lines(tshark, cap, names, two_pass=two_pass, prefs=args)
+    header = out.splitlines()[0].split("\t")
+    rows = [dict(zip(header, line.split("\t"))) for line in out.splitlines()[1:]]
+    written = {int(r["eclink.cao"]) for r in rows if r["eclink.image"] == "output"}
+    assert written == {c for _, _, c in log["written"]} == {5, 6}
+    assert {int(r["eclink.cci"]) for r in rows if r["eclink.image"] == "input"} >= {6, 7}
