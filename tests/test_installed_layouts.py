@@ -11,6 +11,7 @@ off in: a plugin that puts PN-RT or Modbus/TCP back on EtherType 0x8892 or
 the Modbus port changes nothing; one that puts its own dissector there is
 named once on stderr and on the Connect whose cyclic frames it costs."""
 import shutil
+import subprocess
 
 import pytest
 
@@ -227,3 +228,62 @@ def test_a_foreign_connect_port_is_named(personal_pair):
     inst.add_lua_plugin("zz_other_cm.lua", CM_PORT_TAKEN)
     proc = run_installed(inst, ["-n", "-2", "-r", str(CAPTURES / "mcmb2_duplex_connect.pcap")])
     assert proc.stderr.count('UDP port 34964 (PNIO-CM) is taken by "OTHERCM"') == 1, proc.stderr
+
+
+# Writes "sparse" or "full" for every EG-Link packet the Lua analysis sees
+# (only when VRSHARK_PROBE_OUT is set: the plugin stays for the module's
+# other tests).
+EGLINK_VIEW_PROBE = r"""
+local path = os.getenv("VRSHARK_PROBE_OUT")
+local analysis = package.loaded["vrshark.eglink_analysis"]
+if path and analysis then
+    local out = assert(io.open(path, "w"))
+    local dissect = analysis.dissect
+    analysis.dissect = function(tvb, pinfo, tree, item, info, sparse)
+        out:write(sparse and "sparse\n" or "full\n")
+        out:flush()
+        return dissect(tvb, pinfo, tree, item, info, sparse)
+    end
+end
+"""
+
+
+def test_fields_output_of_the_lua_only_install(installed):
+    """The Lua plugins alone as the README installs them, tshark -T fields
+    with fields of every protocol (docs/quality.md, "tshark -T fields
+    without the C plugin"): every line as with the whole tree
+    (VRSHARK_FULL_TREE=1), and on Wireshark 4.0, where tshark makes the tree
+    visible, every EG-Link packet served by the sparse display all the same
+    (the command line read by the installed plugins; 4.4 and 4.6 make the
+    tree invisible)."""
+    if installed.kind != "lua-only":
+        pytest.skip("the C plugin's front ends read the command line themselves (test_sparse_view.py)")
+    probe = installed.add_lua_plugin("zz_view_probe.lua", EGLINK_VIEW_PROBE)
+    out = installed.home / "probe.txt"
+    try:
+        names = ["frame.number", "eglink.serial", "eglink.bu_state", "eclink.pci", "eclink.bu_state",
+                 "mcmb2.status", "_ws.expert.message"]
+        for capture in ["eglink_analysis_session.pcap", "eclink_pnio_connect.pcap", "eclink_modbus_basic.pcap",
+                        "mcmb2_duplex_connect.pcap"]:
+            args = ["-n", "-r", str(CAPTURES / capture), "-T", "fields"]
+            for n in names:
+                args += ["-e", n]
+            out.write_text("")
+            out.chmod(0o666)
+            sparse = subprocess.run(installed.command("tshark", args), env=installed.env(VRSHARK_PROBE_OUT=str(out)),
+                                    capture_output=True, text=True, cwd=str(installed.home))
+            assert sparse.returncode == 0 and "Lua Error" not in sparse.stderr, sparse.stderr
+            served = out.read_text().split()
+            full = subprocess.run(installed.command("tshark", args), env=installed.env(VRSHARK_FULL_TREE="1"),
+                                  capture_output=True, text=True, cwd=str(installed.home))
+            assert sparse.stdout == full.stdout, capture
+            # (the protocol's own fields are there: not an empty decode on both sides)
+            assert any(set(line.split("\t")[1:6]) != {""} for line in sparse.stdout.splitlines()), capture
+            if capture.startswith("eglink"):
+                frames = run_installed(installed, ["-n", "-r", str(CAPTURES / capture), "-Y", "eglink", "-T",
+                                                   "fields", "-e", "frame.number"]).stdout.split()
+                assert len(served) == len(frames) > 10
+                # (4.4 and 4.6 dissect -T fields on an invisible tree: sparse there too)
+                assert set(served) == {"sparse"}, served[:5]
+    finally:
+        probe.unlink()
