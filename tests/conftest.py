@@ -11,11 +11,14 @@ import json
 import os
 import re
 import shutil
+import struct
 import subprocess
 import tempfile
 from pathlib import Path
 
 import pytest
+
+import tshark_runs
 
 ROOT = Path(__file__).resolve().parent.parent
 # The build tools/tshark uses (tools/matrix gives each Wireshark version its own).
@@ -57,6 +60,10 @@ def _json_bools_as_numbers(value):
     return value
 
 
+# tshark -G fields' union of fields, per way of running tshark (Tshark.union_fields).
+_UNION = {}
+
+
 class Tshark:
     """tools/tshark with a hermetic environment, and ways to read its output."""
 
@@ -86,6 +93,7 @@ class Tshark:
 
     def run(self, args, check=True, allow_errors=False, cache=True):
         """Run tools/tshark ARGS; returns the CompletedProcess (text mode).
+        Cached runs are shared by every test of the session (tshark_runs).
 
         Unless allow_errors, a "Lua Error" or dissector bug in the output fails the test.
         """
@@ -93,8 +101,11 @@ class Tshark:
         if cache and key in self._cache:
             proc = self._cache[key]
         else:
-            proc = subprocess.run([self.cmd] + list(args), env=self.env, capture_output=True,
-                                  text=True, errors="replace", timeout=600)
+            def make():
+                return subprocess.run([self.cmd] + list(args), env=self.env, capture_output=True,
+                                      text=True, errors="replace", timeout=600)
+            store = tshark_runs.RunStore.of_session() if cache else None
+            proc = store.get(tshark_runs.run_key(args, self.env), make) if store else make()
             if cache:
                 self._cache[key] = proc
         if check and proc.returncode != 0:
@@ -106,9 +117,44 @@ class Tshark:
                     "%r in the output of tshark %s" % (bad, " ".join(args))
         return proc
 
+    def union_fields(self):
+        """The fields of the union run (tshark_runs.union_fields), for this
+        tshark's plugins (with or without the C plugin, the build dir)."""
+        mode = tuple(self.env.get(k, "") for k in ("VRSHARK_NO_C_PLUGIN", "VRSHARK_BUILD_DIR", "TSHARK"))
+        if mode not in _UNION:
+            proc = self.run(["-G", "fields"], allow_errors=True)   # lists the field "Lua Error"
+            names = tshark_runs.union_fields(proc.stdout) if proc.returncode == 0 else []
+            _UNION[mode] = (names, set(names))
+        return _UNION[mode]
+
+    def _field_table(self, base):
+        """The union run of base (-n -r CAPTURE OPTIONS -T fields): ({field:
+        column}, rows of cells), or None where it cannot answer (it failed)."""
+        names, _ = self.union_fields()
+        if not names:
+            return None
+        args = list(base)
+        for n in names:
+            args += ["-e", n]
+        args += ["-E", "separator=" + tshark_runs.SEP, "-E", "occurrence=a", "-E", "aggregator=" + tshark_runs.AGG]
+        proc = self.run(args, check=False)
+        if proc.returncode != 0:
+            return None
+        return {n: i for i, n in enumerate(names)}, tshark_runs.parse_table(proc.stdout)
+
     def fields(self, capture, fields, sep="\t", occurrence="a", aggregator=",", **kw):
         """Rows of -T fields output, one list of strings per displayed frame."""
-        args = ["-n", "-r", str(capture)] + self._opts(**kw) + ["-T", "fields"]
+        base = ["-n", "-r", str(capture)] + self._opts(**kw) + ["-T", "fields"]
+        if fields and tshark_runs.union_may_answer(capture, occurrence):
+            _, names = self.union_fields()
+            if all(f in names for f in fields):
+                table = self._field_table(base)
+                if table is not None:
+                    index, rows = table
+                    cols = [index[f] for f in fields]
+                    return [[_bool_as_number(tshark_runs.pick(cells[i], occurrence, aggregator), aggregator)
+                             for i in cols] for cells in rows]
+        args = list(base)
         for f in fields:
             args += ["-e", f]
         args += ["-E", "separator=" + sep, "-E", "occurrence=" + occurrence,
@@ -238,6 +284,30 @@ def assert_fields(got, expected, where=""):
     assert not wrong, "fields differ%s:\n%s" % (" in " + where if where else "", "\n".join(wrong))
 
 
+def pytest_configure(config):
+    """Once a session, in the controller (xdist workers inherit its
+    environment): build the plugin and lay out both plugin folders, so that
+    tools/tshark need not check them before every run (VRSHARK_PREPARED), and
+    make the store of shared runs (tshark_runs.RunStore) unless the caller
+    gives one (VRSHARK_TEST_STORE: tools/test, for both of its phases)."""
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        return
+    subprocess.run([str(ROOT / "tools" / "build"), "--quiet", str(BUILD)], check=True,
+                   env=dict(os.environ, VRSHARK_NO_C_PLUGIN="1"))
+    subprocess.run([str(ROOT / "tools" / "reachable")], check=True)
+    os.environ["VRSHARK_PREPARED"] = str(BUILD)
+    # (tools/test makes one store for both of its phases)
+    if not os.path.isdir(os.environ.get(tshark_runs.STORE_ENV, "")):
+        config.vrshark_store = tempfile.mkdtemp(prefix="vrshark-runs-")
+        os.environ[tshark_runs.STORE_ENV] = config.vrshark_store
+
+
+def pytest_unconfigure(config):
+    store = getattr(config, "vrshark_store", None)
+    if store:
+        shutil.rmtree(store, ignore_errors=True)
+
+
 @pytest.fixture(scope="session")
 def conf_dir():
     """A hermetic, empty Wireshark configuration folder (readable by nobody)."""
@@ -272,6 +342,69 @@ def capture_file():
         assert path.exists(), "missing capture %s (run tools/gen-captures)" % name
         return path
     return resolve
+
+
+def pcap_frame_count(path):
+    """The number of records of a pcap file (little- or big-endian, micro- or
+    nanosecond timestamps)."""
+    data = Path(path).read_bytes()
+    order = "<" if data[:4] in (b"\xd4\xc3\xb2\xa1", b"\x4d\x3c\xb2\xa1") else ">"
+    count, at = 0, 24
+    while at + 16 <= len(data):
+        at += 16 + struct.unpack(order + "I", data[at + 8:at + 12])[0]
+        count += 1
+    return count
+
+
+class Merged:
+    """Captures one after the other in one file (mergecap -a): one tshark run
+    covers them all where a test compares two ways of running tshark on each
+    frame (tshark's start-up is most of a run's time). .path, and .capture_of(
+    frame number) names the capture a frame of the merged file comes from."""
+
+    def __init__(self, folder, names):
+        self.names = list(names)
+        self.path = folder / ("merged-%d.pcap" % abs(hash(tuple(self.names))))
+        subprocess.run(["mergecap", "-a", "-F", "pcap", "-w", str(self.path)] + [str(CAPTURES / n) for n in names],
+                       check=True)
+        self.path.chmod(0o644)
+        self.ends, end = [], 0
+        for n in self.names:
+            end += pcap_frame_count(CAPTURES / n)
+            self.ends.append(end)
+
+    def capture_of(self, frame):
+        for name, end in zip(self.names, self.ends):
+            if frame <= end:
+                return "%s frame %d" % (name, frame - (end - pcap_frame_count(CAPTURES / name)))
+        return "beyond the merged captures"
+
+    def first_difference(self, got, want):
+        """Where two outputs of the merged file first differ: the line, and the
+        capture its frame comes from (a packet-list line starts with it)."""
+        a, b = got.splitlines(), want.splitlines()
+        for i, (x, y) in enumerate(zip(a, b)):
+            if x != y:
+                words = x.split()
+                where = self.capture_of(int(words[0])) if words and words[0].isdigit() else "line %d" % (i + 1)
+                return "%s:\n  got  %r\n  want %r" % (where, x, y)
+        return "line counts %d and %d" % (len(a), len(b))
+
+
+@pytest.fixture(scope="session")
+def merged_captures():
+    """merged_captures([names under captures/]) -> a Merged file of them
+    (one per list and session)."""
+    folder = _world_dir("vrshark-merged-")
+    made = {}
+
+    def merge(names):
+        key = tuple(names)
+        if key not in made:
+            made[key] = Merged(folder, key)
+        return made[key]
+    yield merge
+    shutil.rmtree(folder, ignore_errors=True)
 
 
 @pytest.fixture(scope="session")

@@ -79,10 +79,14 @@ def test_columns_are_those_of_the_full_tree(tshark, name, two_pass):
     assert "EG-Link" in sparse
 
 
-@pytest.mark.parametrize("name", EGLINK_CAPTURES)
+@pytest.mark.parametrize("name", [None] + sorted(PREFS))
 @pytest.mark.parametrize("two_pass", [False, True])
-def test_expert_statistics_are_those_of_the_full_tree(tshark, name, two_pass):
-    args = ["-n", "-q", "-r", str(CAPTURES / name), "-z", "expert"] + PREFS.get(name, [])
+def test_expert_statistics_are_those_of_the_full_tree(tshark, merged_captures, name, two_pass):
+    """-z expert of every EG-Link capture (name None: those decoded without a
+    preference, one after the other in one file) as with the full tree."""
+    path = merged_captures([n for n in EGLINK_CAPTURES if n not in PREFS]).path if name is None \
+        else CAPTURES / name
+    args = ["-n", "-q", "-r", str(path), "-z", "expert"] + PREFS.get(name, [])
     args += ["-2"] if two_pass else []
     assert _run(tshark, args) == _run(tshark, args, full=True)
 
@@ -94,17 +98,17 @@ FILTERS = ["eglink.bu_state == 4", "udp.length == 1", "eglink.crc.status == 0 ||
 
 
 @pytest.mark.parametrize("flt, two_pass", [(f, False) for f in FILTERS] + [(f, True) for f in FILTERS[:3]])
-def test_filters_select_the_frames_of_the_full_tree(tshark, flt, two_pass):
+def test_filters_select_the_frames_of_the_full_tree(tshark, merged_captures, flt, two_pass):
     """-Y selects the same frames, with the same Info, and the same expert
-    statistics, as with the full tree."""
-    matched = 0
-    for name in SOME:
-        args = ["-n", "-r", str(CAPTURES / name), "-Y", flt, "-z", "expert"] + (["-2"] if two_pass else [])
-        sparse = _run(tshark, args)
-        assert sparse == _run(tshark, args, full=True), (name, flt)
-        matched += sparse.count("EG-Link")
+    statistics, as with the full tree (the captures of SOME one after the
+    other in one file)."""
+    merged = merged_captures(SOME)
+    args = ["-n", "-r", str(merged.path), "-Y", flt, "-z", "expert"] + (["-2"] if two_pass else [])
+    sparse = _run(tshark, args)
+    full = _run(tshark, args, full=True)
+    assert sparse == full, (flt, merged.first_difference(sparse, full))
     if flt != "udp.length == 1":
-        assert matched > 0, flt
+        assert sparse.count("EG-Link") > 0, flt
 
 
 def test_fields_output_and_protocol_hierarchy_are_those_of_the_full_tree(tshark):

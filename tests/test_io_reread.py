@@ -181,14 +181,15 @@ NOT_CRANE = sorted(p.name for p in CAPTURES.glob("*.pcap") if not p.name.startsw
 
 
 @pytest.mark.parametrize("lua_only", [False, True], ids=["c", "lua-only"])
-@pytest.mark.parametrize("capture", NOT_CRANE)
-def test_demo_list_names_no_other_machine(crane, capture, lua_only):
+def test_demo_list_names_no_other_machine(crane, merged_captures, lua_only):
     """The demo list is limited to the demo crane's devices (its device
-    column): left installed, it names nothing in any other capture, one pass
-    and -2, with the C plugin and without."""
+    column): left installed, it names nothing in any other capture (all of
+    them one after the other in one file), one pass and -2, with the C plugin
+    and without."""
     t = variant(crane, lua_only)
+    merged = merged_captures(NOT_CRANE)
     for two in ([], ["-2"]):
-        proc = t.run(["-n", "-r", str(CAPTURES / capture), "-Y", "vrshark_io || vrshark.io", "-T", "fields",
+        proc = t.run(["-n", "-r", str(merged.path), "-Y", "vrshark_io || vrshark.io", "-T", "fields",
                       "-e", "frame.number", "-e", "_ws.expert.message"] + two, cache=False)
-        assert proc.stdout == "", proc.stdout[:2000]
+        assert proc.stdout == "", [merged.capture_of(int(line.split()[0])) for line in proc.stdout.splitlines()][:20]
         assert "vrshark-io:" not in proc.stderr, proc.stderr

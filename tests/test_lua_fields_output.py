@@ -23,7 +23,7 @@ import pytest
 from conftest import CAPTURES
 from test_eglink_sparse_view import SOME as EGLINK_SOME, _eglink_fields
 from test_sparse_view import (ECLINK_PNIO_CAPTURES, ECLINK_PNIO_SPARSE, MCMB2_CAPTURES, MODBUS_CAPTURES,
-                              MODBUS_SPARSE, PUBLIC, _capture, _fields, _prefs, _run)
+                              MODBUS_SPARSE, PREFS, PUBLIC, _capture, _fields, _prefs, _run)
 
 LUA_ONLY = {"VRSHARK_NO_C_PLUGIN": "1"}
 EXPERTS = ["_ws.expert.message", "_ws.expert.severity"]
@@ -192,40 +192,64 @@ def _lines(tshark, capture, names, extra=(), two_pass=False, prefs=()):
     return sparse
 
 
-@pytest.mark.parametrize("name", EGLINK_SOME + ["eglink_crc_variants.pcap", "eglink_analysis_vrpo_incomplete.pcap"])
+# The captures compared: None stands for those that need no preference, one
+# after the other in one file (one run covers them: tshark's start-up is most
+# of a run's time); the others one by one.
+EGLINK_CRC = "eglink_crc_variants.pcap"
+EGLINK_MERGED = EGLINK_SOME + ["eglink_analysis_vrpo_incomplete.pcap"]
+
+
+def _input(merged_captures, name, names):
+    """(path, preference args) of a comparison: name, or (None) the merged
+    file of the captures names that need no preference."""
+    if name is None:
+        return merged_captures([n for n in names if n not in PREFS and n not in PUBLIC]).path, []
+    return _capture(name), _prefs(name)
+
+
+@pytest.mark.parametrize("name", [None, EGLINK_CRC])
 @pytest.mark.parametrize("two_pass", [False, True])
-def test_eglink_fields_output_is_that_of_the_full_tree(tshark, name, two_pass):
+def test_eglink_fields_output_is_that_of_the_full_tree(tshark, merged_captures, name, two_pass):
     """EG-Link: every field the sparse display adds, with the expert
-    messages, and with a filter on one of them."""
-    prefs = ["-o", "eglink.crc_variant:bzip2"] if name == "eglink_crc_variants.pcap" else []
+    messages, and with a filter on one of them (the captures of EGLINK_SOME
+    and a cut VRPO burst in one file; the CRC variant with its preference)."""
+    if name is None:
+        capture, prefs = merged_captures(EGLINK_MERGED).path, []
+    else:
+        capture, prefs = CAPTURES / name, ["-o", "eglink.crc_variant:bzip2"]
     names = _eglink_fields(tshark) + EXPERTS
-    out = _lines(tshark, CAPTURES / name, names, two_pass=two_pass, prefs=prefs)
+    out = _lines(tshark, capture, names, two_pass=two_pass, prefs=prefs)
     assert out.count("\n") > 2
-    _lines(tshark, CAPTURES / name, ["eglink.serial", "eglink.joystick1"], ["-Y", "eglink.bu_state >= 0x10"],
+    _lines(tshark, capture, ["eglink.serial", "eglink.joystick1"], ["-Y", "eglink.bu_state >= 0x10"],
            two_pass=two_pass, prefs=prefs)
 
 
-@pytest.mark.parametrize("name", MCMB2_CAPTURES + PUBLIC)
+@pytest.mark.parametrize("name", [None] + [n for n in MCMB2_CAPTURES if n in PREFS] + PUBLIC)
 @pytest.mark.parametrize("two_pass", [False, True])
-def test_mcmb2_fields_output_is_that_of_the_full_tree(tshark, name, two_pass):
+def test_mcmb2_fields_output_is_that_of_the_full_tree(tshark, merged_captures, name, two_pass):
     """MC-MB2-PN: every field of mcmb2 (those the sparse display adds, and
-    the full tree's for the others), with the expert messages."""
-    capture = _capture(name)
+    the full tree's for the others), with the expert messages (every
+    MC-MB2-PN capture)."""
+    capture, prefs = _input(merged_captures, name, MCMB2_CAPTURES)
     names = sorted(set(_fields(tshark)))
-    _lines(tshark, capture, names + EXPERTS, two_pass=two_pass, prefs=_prefs(name))
+    _lines(tshark, capture, names + EXPERTS, two_pass=two_pass, prefs=prefs)
     _lines(tshark, capture, ["mcmb2.status", "mcmb2.uplink_watchdog"], ["-Y", "mcmb2.status != 0"],
-           two_pass=two_pass, prefs=_prefs(name))
+           two_pass=two_pass, prefs=prefs)
 
 
-@pytest.mark.parametrize("proto, name", [("eclink_pnio", n) for n in ECLINK_PNIO_CAPTURES]
-                         + [("eclink_modbus", n) for n in MODBUS_CAPTURES])
+@pytest.mark.parametrize("proto, name", [(p, n) for p, names in (("eclink_pnio", ECLINK_PNIO_CAPTURES),
+                                                                   ("eclink_modbus", MODBUS_CAPTURES))
+                                          for n in [None] + [n for n in names if n in PREFS]])
 @pytest.mark.parametrize("two_pass", [False, True])
-def test_eclink_fields_output_is_that_of_the_full_tree(tshark, proto, name, two_pass):
+def test_eclink_fields_output_is_that_of_the_full_tree(tshark, merged_captures, proto, name, two_pass):
     """EC-Link: the fields its sparse display adds (eclink.lcd, the BU
-    display beside a finding, means the full tree), with the expert messages."""
+    display beside a finding, means the full tree), with the expert messages
+    (every capture of each carrier)."""
     sparse = {"eclink_pnio": ECLINK_PNIO_SPARSE, "eclink_modbus": MODBUS_SPARSE}[proto]
     names = sorted(set(_fields(tshark, "eclink")) - {"eclink.lcd"}) + sparse
-    _lines(tshark, CAPTURES / name, names + EXPERTS, two_pass=two_pass, prefs=_prefs(name))
+    capture, prefs = _input(merged_captures, name,
+                            ECLINK_PNIO_CAPTURES if proto == "eclink_pnio" else MODBUS_CAPTURES)
+    _lines(tshark, capture, names + EXPERTS, two_pass=two_pass, prefs=prefs)
 
 
 @pytest.fixture(scope="module")

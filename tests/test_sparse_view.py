@@ -10,6 +10,7 @@ the full tree (VRSHARK_FULL_TREE=1) on every capture that carries these
 frames, ours and the public ones. Probes check what the front end sends and
 that the sparse display really serves the frames.
 """
+import copy
 import os
 import shutil
 import subprocess
@@ -494,21 +495,37 @@ FIELDS_CASES = {
 COLUMNS_AND_EXPERTS = ["_ws.col.Protocol", "_ws.col.Info", "_ws.expert.message", "_ws.expert.severity"]
 
 
+def _fields_groups(names):
+    """The captures of a protocol as compared: None (those that need no
+    preference, one after the other in one file), each capture with a
+    preference, and the public ones."""
+    return [None] + [n for n in names if n in PREFS or n in PUBLIC]
+
+
 @needs_c
-@pytest.mark.parametrize("proto,name", [(p, n) for p, (names, _) in FIELDS_CASES.items() for n in names])
+@pytest.mark.parametrize("proto,name", [(p, n) for p, (names, _) in FIELDS_CASES.items()
+                                        for n in _fields_groups(names)])
 @pytest.mark.parametrize("what", ["fields", "fields+columns+experts", "fields+columns+experts -2"])
-def test_fields_output_is_that_of_the_full_tree(tshark, proto, name, what):
+def test_fields_output_is_that_of_the_full_tree(tshark, merged_captures, proto, name, what):
     """tshark -T fields with the fields the sparse display adds (and the
-    columns and expert messages): every line as with the full tree."""
+    columns and expert messages): every line as with the full tree (every
+    capture of the protocol: those that need no preference merged into one
+    file, the others one by one)."""
     names = sorted(set(FIELDS_CASES[proto][1](tshark)))
     if "columns" in what:
         names += COLUMNS_AND_EXPERTS
-    args = ["-n", "-r", str(_capture(name)), "-T", "fields", "-E", "header=y", "-e", "frame.number"]
+    if name is None:
+        merged = merged_captures([n for n in FIELDS_CASES[proto][0] if n not in PREFS and n not in PUBLIC])
+        path, prefs = merged.path, []
+    else:
+        merged, path, prefs = None, _capture(name), _prefs(name)
+    args = ["-n", "-r", str(path), "-T", "fields", "-E", "header=y", "-e", "frame.number"]
     for n in names:
         args += ["-e", n]
-    args += _prefs(name) + (["-2"] if what.endswith("-2") else [])
+    args += prefs + (["-2"] if what.endswith("-2") else [])
     sparse = _run(tshark, args)
-    assert sparse.splitlines() == _run(tshark, args, full=True).splitlines()
+    full = _run(tshark, args, full=True)
+    assert sparse.splitlines() == full.splitlines(), merged.first_difference(sparse, full) if merged else name
 
 
 @needs_c
@@ -603,6 +620,29 @@ def test_lua_only_ec_link_expert_statistics_are_those_of_the_full_tree(tshark, n
 FILTER_CHUNKS = 4
 
 
+def _full_tree_lines(tshark, capture, names, two_pass):
+    """{field: the lines `tshark -Y FIELD` prints with the columns No.,
+    Protocol, Info and FIELD} on the full tree, for every field of names, from
+    one run (-T fields with each field as a custom column, and the field
+    itself for its presence; lines as tshark writes them: the number right
+    aligned in 5 characters, the columns apart by a space). The run is shared
+    by the tests of each chunk."""
+    cols = ['"No."', '"%m"', '"Protocol"', '"%p"', '"Info"', '"%i"']
+    for i, n in enumerate(names):
+        cols += ['"c%d"' % i, '"%%Cus:%s:0:R"' % n]
+    args = ["-n", "-r", str(capture), "-o", "gui.column.format:" + ",".join(cols)] + (["-2"] if two_pass else [])
+    args += ["-T", "fields", "-E", "occurrence=f", "-e", "frame.number", "-e", "_ws.col.Protocol",
+             "-e", "_ws.col.Info"]
+    for i, n in enumerate(names):
+        args += ["-e", "_ws.col.c%d" % i, "-e", n]
+    full = copy.copy(tshark)
+    full.env = dict(tshark.env, VRSHARK_FULL_TREE="1", **LUA_ONLY)
+    full._cache = {}
+    rows = [line.split("\t") for line in full.run(args).stdout.splitlines()]
+    return {n: "".join("%5s %s %s %s\n" % (r[0], r[1], r[2], r[3 + 2 * i]) for r in rows if r[4 + 2 * i] != "")
+            for i, n in enumerate(names)}
+
+
 @pytest.mark.parametrize("chunk", range(FILTER_CHUNKS))
 @pytest.mark.parametrize("two_pass", [False, True])
 @pytest.mark.parametrize("proto", ["eclink_pnio", "eclink_modbus"])
@@ -610,14 +650,16 @@ def test_lua_only_eclink_filters_select_the_frames_of_the_full_tree(tshark, merg
     """Lua plugins alone: every field of eclink and of the carrier's EC-Link
     protocol, alone as the -Y filter and as a column: the frames and values
     of the full tree (each field alone is a view of its own; the fields in
-    FILTER_CHUNKS tests)."""
+    FILTER_CHUNKS tests; the full tree's lines from one run)."""
     capture = merged_eclink[proto]
+    names = _eclink_lua_fields(tshark, proto, "all")
+    want = _full_tree_lines(tshark, capture, names, two_pass)
     matched = {}
-    for name in _eclink_lua_fields(tshark, proto, "all")[chunk::FILTER_CHUNKS]:
+    for name in names[chunk::FILTER_CHUNKS]:
         args = ["-n", "-r", str(capture), "-Y", name, "-o", "gui.column.format:" + _columns([name])]
         args += ["-2"] if two_pass else []
         sparse = _run(tshark, args, extra_env=LUA_ONLY)
-        assert sparse == _run(tshark, args, full=True, extra_env=LUA_ONLY), name
+        assert sparse == want[name], name
         matched[name] = len(sparse.splitlines())
     assert sum(matched.values()) > 0
 
