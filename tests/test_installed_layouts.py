@@ -80,7 +80,14 @@ def run_installed(inst, args):
 
 @pytest.mark.parametrize("capture", sorted(CASES))
 def test_decodes_as_the_harness(installed, harness, capture):
-    _as_the_harness(installed, harness, capture, CASES[capture])
+    _as_the_harness(installed, harness, capture, CASES[capture], whole=False)
+
+
+def test_every_capture_reads_as_the_harness(installed, harness, merged_captures):
+    """The captures of CASES one after the other in one file (one run covers
+    them): the packet list of one pass and the whole tree of two, as through
+    tools/tshark."""
+    _reads_as_the_harness(installed, harness, merged_captures(sorted(CASES)))
 
 
 # The short Modbus/TCP excerpt: unpinned, the note on the BU's frames;
@@ -95,7 +102,9 @@ def test_modbus_excerpt_as_the_harness(installed, harness, how):
     _as_the_harness(installed, harness, "eclink_modbus_excerpt.pcap", filt, prefs)
 
 
-def _as_the_harness(installed, harness, capture, filt, prefs=()):
+def _as_the_harness(installed, harness, capture, filt, prefs=(), whole=True):
+    """The protocol is there (filt) on the frames where the harness has it;
+    whole: and the capture reads as through tools/tshark (_reads_as_the_harness)."""
     ref = harness["lua-only" if installed.kind == "lua-only" else "full"]
     path = str(CAPTURES / capture)
     prefs = list(prefs)
@@ -107,15 +116,24 @@ def _as_the_harness(installed, harness, capture, filt, prefs=()):
             capture, filt, installed.kind)
         assert listed == ref.run(args).stdout, "%s: other frames match %r in the %s install" % (
             capture, filt, installed.kind)
-    # and everything reads as through tools/tshark: the packet list of one
-    # pass, and the whole tree of two
+    if whole:
+        _reads_as_the_harness(installed, harness, None, capture, prefs)
+
+
+def _reads_as_the_harness(installed, harness, merged, capture=None, prefs=()):
+    """Everything reads as through tools/tshark: the packet list of one pass,
+    and the whole tree of two (of a capture, or of a Merged file)."""
+    ref = harness["lua-only" if installed.kind == "lua-only" else "full"]
+    path = str(merged.path if merged else CAPTURES / capture)
+    prefs = list(prefs)
     for args in (["-n", "-r", path, "-T", "fields", "-e", "frame.number", "-e", "frame.protocols",
                   "-e", "_ws.col.Protocol", "-e", "_ws.col.Info"] + prefs,
                  ["-n", "-2", "-r", path, "-V"] + prefs):
         got = run_installed(installed, args).stdout
         want = ref.run(args).stdout
-        assert got == want, "%s differs in the %s install from tools/tshark (%s)" % (
-            capture, installed.kind, " ".join(args[3:]))
+        assert got == want, "%s differs in the %s install from tools/tshark (%s): %s" % (
+            capture or "a merged capture", installed.kind, " ".join(args[3:]),
+            merged.first_difference(got, want) if merged else "")
 
 
 # capture -> (the failed commands' expert fields, the frames that carry them

@@ -23,7 +23,7 @@ import pytest
 from conftest import CAPTURES
 from test_eglink_sparse_view import SOME as EGLINK_SOME, _eglink_fields
 from test_sparse_view import (ECLINK_PNIO_CAPTURES, ECLINK_PNIO_SPARSE, MCMB2_CAPTURES, MODBUS_CAPTURES,
-                              MODBUS_SPARSE, PREFS, PUBLIC, _capture, _fields, _prefs, _run)
+                              MODBUS_SPARSE, PUBLIC, _fields, _group_input, _groups, _run)
 
 LUA_ONLY = {"VRSHARK_NO_C_PLUGIN": "1"}
 EXPERTS = ["_ws.expert.message", "_ws.expert.severity"]
@@ -199,14 +199,6 @@ EGLINK_CRC = "eglink_crc_variants.pcap"
 EGLINK_MERGED = EGLINK_SOME + ["eglink_analysis_vrpo_incomplete.pcap"]
 
 
-def _input(merged_captures, name, names):
-    """(path, preference args) of a comparison: name, or (None) the merged
-    file of the captures names that need no preference."""
-    if name is None:
-        return merged_captures([n for n in names if n not in PREFS and n not in PUBLIC]).path, []
-    return _capture(name), _prefs(name)
-
-
 @pytest.mark.parametrize("name", [None, EGLINK_CRC])
 @pytest.mark.parametrize("two_pass", [False, True])
 def test_eglink_fields_output_is_that_of_the_full_tree(tshark, merged_captures, name, two_pass):
@@ -224,13 +216,13 @@ def test_eglink_fields_output_is_that_of_the_full_tree(tshark, merged_captures, 
            two_pass=two_pass, prefs=prefs)
 
 
-@pytest.mark.parametrize("name", [None] + [n for n in MCMB2_CAPTURES if n in PREFS] + PUBLIC)
+@pytest.mark.parametrize("name", _groups(MCMB2_CAPTURES + PUBLIC))
 @pytest.mark.parametrize("two_pass", [False, True])
 def test_mcmb2_fields_output_is_that_of_the_full_tree(tshark, merged_captures, name, two_pass):
     """MC-MB2-PN: every field of mcmb2 (those the sparse display adds, and
     the full tree's for the others), with the expert messages (every
     MC-MB2-PN capture)."""
-    capture, prefs = _input(merged_captures, name, MCMB2_CAPTURES)
+    capture, prefs, _ = _group_input(merged_captures, name, MCMB2_CAPTURES)
     names = sorted(set(_fields(tshark)))
     _lines(tshark, capture, names + EXPERTS, two_pass=two_pass, prefs=prefs)
     _lines(tshark, capture, ["mcmb2.status", "mcmb2.uplink_watchdog"], ["-Y", "mcmb2.status != 0"],
@@ -239,7 +231,7 @@ def test_mcmb2_fields_output_is_that_of_the_full_tree(tshark, merged_captures, n
 
 @pytest.mark.parametrize("proto, name", [(p, n) for p, names in (("eclink_pnio", ECLINK_PNIO_CAPTURES),
                                                                    ("eclink_modbus", MODBUS_CAPTURES))
-                                          for n in [None] + [n for n in names if n in PREFS]])
+                                          for n in _groups(names)])
 @pytest.mark.parametrize("two_pass", [False, True])
 def test_eclink_fields_output_is_that_of_the_full_tree(tshark, merged_captures, proto, name, two_pass):
     """EC-Link: the fields its sparse display adds (eclink.lcd, the BU
@@ -247,8 +239,8 @@ def test_eclink_fields_output_is_that_of_the_full_tree(tshark, merged_captures, 
     (every capture of each carrier)."""
     sparse = {"eclink_pnio": ECLINK_PNIO_SPARSE, "eclink_modbus": MODBUS_SPARSE}[proto]
     names = sorted(set(_fields(tshark, "eclink")) - {"eclink.lcd"}) + sparse
-    capture, prefs = _input(merged_captures, name,
-                            ECLINK_PNIO_CAPTURES if proto == "eclink_pnio" else MODBUS_CAPTURES)
+    capture, prefs, _ = _group_input(merged_captures, name,
+                                     ECLINK_PNIO_CAPTURES if proto == "eclink_pnio" else MODBUS_CAPTURES)
     _lines(tshark, capture, names + EXPERTS, two_pass=two_pass, prefs=prefs)
 
 

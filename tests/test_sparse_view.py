@@ -178,26 +178,51 @@ def _eclink_input(merged_eclink, proto, name):
     return CAPTURES / name, _prefs(name)
 
 
+def _groups(names):
+    """The captures of names as compared: None (those that need no
+    preference, one after the other in one file: one run covers them, and
+    tshark's start-up is most of a run's time), each capture with a
+    preference, and the public ones."""
+    return [None] + [n for n in names if n in PREFS or n in PUBLIC]
+
+
+def _group_input(merged_captures, name, names):
+    """(path, preference args, Merged or None) of a comparison: the merged
+    file of names (name None), or one capture."""
+    if name is None:
+        merged = merged_captures([n for n in names if n not in PREFS and n not in PUBLIC])
+        return merged.path, [], merged
+    return _capture(name), _prefs(name), None
+
+
+def _same(sparse, full, merged, name):
+    """Assert two outputs equal; a difference names the capture (and, in a
+    merged file, the frame) it comes from."""
+    assert sparse.splitlines() == full.splitlines(), merged.first_difference(sparse, full) if merged else name
+
+
 @needs_c
-@pytest.mark.parametrize("name", MCMB2_CAPTURES + PUBLIC)
+@pytest.mark.parametrize("name", _groups(MCMB2_CAPTURES + PUBLIC))
 @pytest.mark.parametrize("two_pass", [False, True])
-def test_columns_are_those_of_the_full_tree(tshark, name, two_pass):
+def test_columns_are_those_of_the_full_tree(tshark, merged_captures, name, two_pass):
     """Every MC-MB2-PN field as a column (all occurrences), Protocol and Info:
-    the sparse display gives what the full tree gives, frame by frame."""
-    args = ["-n", "-r", str(_capture(name)), "-o", "gui.column.format:" + _columns(_fields(tshark))]
-    args += _prefs(name) + (["-2"] if two_pass else [])
+    the sparse display gives what the full tree gives, frame by frame (every
+    capture: _groups)."""
+    path, prefs, merged = _group_input(merged_captures, name, MCMB2_CAPTURES)
+    args = ["-n", "-r", str(path), "-o", "gui.column.format:" + _columns(_fields(tshark))]
+    args += prefs + (["-2"] if two_pass else [])
     sparse = _run(tshark, args)
-    full = _run(tshark, args, full=True)
-    assert sparse.splitlines() == full.splitlines()
+    _same(sparse, _run(tshark, args, full=True), merged, name)
     # (a base whose layout is not inferred stays PN-RT, with the candidate note)
-    if "mcmb2" in name and "e010_noconnect" not in name:
+    if name is None or ("mcmb2" in name and "e010_noconnect" not in name):
         assert "MC-MB2" in sparse
 
 
 @needs_c
-@pytest.mark.parametrize("name", MCMB2_CAPTURES + PUBLIC)
-def test_expert_statistics_are_those_of_the_full_tree(tshark, name):
-    args = ["-n", "-q", "-r", str(_capture(name)), "-z", "expert"] + _prefs(name)
+@pytest.mark.parametrize("name", _groups(MCMB2_CAPTURES + PUBLIC))
+def test_expert_statistics_are_those_of_the_full_tree(tshark, merged_captures, name):
+    path, prefs, _ = _group_input(merged_captures, name, MCMB2_CAPTURES)
+    args = ["-n", "-q", "-r", str(path), "-z", "expert"] + prefs
     assert _run(tshark, args) == _run(tshark, args, full=True)
 
 
@@ -220,22 +245,24 @@ def test_filters_select_the_frames_of_the_full_tree(tshark, mcmb2_inputs, flt):
 LUA_ONLY = {"VRSHARK_NO_C_PLUGIN": "1"}
 
 
-@pytest.mark.parametrize("name", MCMB2_CAPTURES + PUBLIC)
+@pytest.mark.parametrize("name", _groups(MCMB2_CAPTURES + PUBLIC))
 @pytest.mark.parametrize("two_pass", [False, True])
-def test_lua_only_columns_are_those_of_the_full_tree(tshark, name, two_pass):
+def test_lua_only_columns_are_those_of_the_full_tree(tshark, merged_captures, name, two_pass):
     """Lua plugins alone: every MC-MB2-PN field as a column, Protocol and
-    Info are those of the full tree, frame by frame."""
-    args = ["-n", "-r", str(_capture(name)), "-o", "gui.column.format:" + _columns(_fields(tshark))]
-    args += _prefs(name) + (["-2"] if two_pass else [])
+    Info are those of the full tree, frame by frame (every capture: _groups)."""
+    path, prefs, merged = _group_input(merged_captures, name, MCMB2_CAPTURES)
+    args = ["-n", "-r", str(path), "-o", "gui.column.format:" + _columns(_fields(tshark))]
+    args += prefs + (["-2"] if two_pass else [])
     sparse = _run(tshark, args, extra_env=LUA_ONLY)
-    assert sparse.splitlines() == _run(tshark, args, full=True, extra_env=LUA_ONLY).splitlines()
-    if "mcmb2" in name and "e010_noconnect" not in name:
+    _same(sparse, _run(tshark, args, full=True, extra_env=LUA_ONLY), merged, name)
+    if name is None or ("mcmb2" in name and "e010_noconnect" not in name):
         assert "MC-MB2" in sparse
 
 
-@pytest.mark.parametrize("name", MCMB2_CAPTURES + PUBLIC)
-def test_lua_only_expert_statistics_are_those_of_the_full_tree(tshark, name):
-    args = ["-n", "-q", "-r", str(_capture(name)), "-z", "expert"] + _prefs(name)
+@pytest.mark.parametrize("name", _groups(MCMB2_CAPTURES + PUBLIC))
+def test_lua_only_expert_statistics_are_those_of_the_full_tree(tshark, merged_captures, name):
+    path, prefs, _ = _group_input(merged_captures, name, MCMB2_CAPTURES)
+    args = ["-n", "-q", "-r", str(path), "-z", "expert"] + prefs
     assert _run(tshark, args, extra_env=LUA_ONLY) == _run(tshark, args, full=True, extra_env=LUA_ONLY)
 
 
@@ -416,11 +443,19 @@ def test_modbus_columns_are_those_of_the_full_tree(tshark, merged_eclink, name, 
         assert "EC-Link" in sparse
 
 
+# EC-Link's captures by carrier, as compared (_groups).
+ECLINK_GROUPS = [(names, n) for names in (MODBUS_CAPTURES, ECLINK_PNIO_CAPTURES) for n in _groups(names)]
+ECLINK_GROUP_IDS = ["%s-%s" % ("modbus" if names is MODBUS_CAPTURES else "pnio", n or "merged")
+                    for names, n in ECLINK_GROUPS]
+
+
 @needs_c
-@pytest.mark.parametrize("name", MODBUS_CAPTURES + ECLINK_PNIO_CAPTURES)
-def test_ec_link_expert_statistics_are_those_of_the_full_tree(tshark, name):
-    """EC-Link over Modbus/TCP and over PROFINET: -z expert as with the full tree."""
-    args = ["-n", "-q", "-r", str(CAPTURES / name), "-z", "expert"] + _prefs(name)
+@pytest.mark.parametrize("names, name", ECLINK_GROUPS, ids=ECLINK_GROUP_IDS)
+def test_ec_link_expert_statistics_are_those_of_the_full_tree(tshark, merged_captures, names, name):
+    """EC-Link over Modbus/TCP and over PROFINET: -z expert as with the full
+    tree (every capture: _groups)."""
+    path, prefs, _ = _group_input(merged_captures, name, names)
+    args = ["-n", "-q", "-r", str(path), "-z", "expert"] + prefs
     assert _run(tshark, args) == _run(tshark, args, full=True)
 
 
@@ -495,16 +530,9 @@ FIELDS_CASES = {
 COLUMNS_AND_EXPERTS = ["_ws.col.Protocol", "_ws.col.Info", "_ws.expert.message", "_ws.expert.severity"]
 
 
-def _fields_groups(names):
-    """The captures of a protocol as compared: None (those that need no
-    preference, one after the other in one file), each capture with a
-    preference, and the public ones."""
-    return [None] + [n for n in names if n in PREFS or n in PUBLIC]
-
-
 @needs_c
 @pytest.mark.parametrize("proto,name", [(p, n) for p, (names, _) in FIELDS_CASES.items()
-                                        for n in _fields_groups(names)])
+                                        for n in _groups(names)])
 @pytest.mark.parametrize("what", ["fields", "fields+columns+experts", "fields+columns+experts -2"])
 def test_fields_output_is_that_of_the_full_tree(tshark, merged_captures, proto, name, what):
     """tshark -T fields with the fields the sparse display adds (and the
@@ -514,18 +542,12 @@ def test_fields_output_is_that_of_the_full_tree(tshark, merged_captures, proto, 
     names = sorted(set(FIELDS_CASES[proto][1](tshark)))
     if "columns" in what:
         names += COLUMNS_AND_EXPERTS
-    if name is None:
-        merged = merged_captures([n for n in FIELDS_CASES[proto][0] if n not in PREFS and n not in PUBLIC])
-        path, prefs = merged.path, []
-    else:
-        merged, path, prefs = None, _capture(name), _prefs(name)
+    path, prefs, merged = _group_input(merged_captures, name, FIELDS_CASES[proto][0])
     args = ["-n", "-r", str(path), "-T", "fields", "-E", "header=y", "-e", "frame.number"]
     for n in names:
         args += ["-e", n]
     args += prefs + (["-2"] if what.endswith("-2") else [])
-    sparse = _run(tshark, args)
-    full = _run(tshark, args, full=True)
-    assert sparse.splitlines() == full.splitlines(), merged.first_difference(sparse, full) if merged else name
+    _same(_run(tshark, args), _run(tshark, args, full=True), merged, name)
 
 
 @needs_c
@@ -609,11 +631,12 @@ def test_lua_only_eclink_fields_output_is_that_of_the_full_tree(tshark, merged_e
     assert sparse.splitlines() == _run(tshark, args, full=True, extra_env=LUA_ONLY).splitlines()
 
 
-@pytest.mark.parametrize("name", MODBUS_CAPTURES + ECLINK_PNIO_CAPTURES)
-def test_lua_only_ec_link_expert_statistics_are_those_of_the_full_tree(tshark, name):
+@pytest.mark.parametrize("names, name", ECLINK_GROUPS, ids=ECLINK_GROUP_IDS)
+def test_lua_only_ec_link_expert_statistics_are_those_of_the_full_tree(tshark, merged_captures, names, name):
     """Lua plugins alone: -z expert as with the full tree (the sparse display
-    adds every finding, in the full tree's order)."""
-    args = ["-n", "-q", "-r", str(CAPTURES / name), "-z", "expert"] + _prefs(name)
+    adds every finding, in the full tree's order; every capture: _groups)."""
+    path, prefs, _ = _group_input(merged_captures, name, names)
+    args = ["-n", "-q", "-r", str(path), "-z", "expert"] + prefs
     assert _run(tshark, args, extra_env=LUA_ONLY) == _run(tshark, args, full=True, extra_env=LUA_ONLY)
 
 
