@@ -74,3 +74,58 @@ def test_a_checkout_in_a_private_folder_is_reachable():
     again = subprocess.run([str(private / "p" / "tools" / "reachable")], capture_output=True, text=True)
     assert again.stderr == ""
     shutil.rmtree(base)
+
+
+# --- shared runs (tests/tshark_runs.py) ----------------------------------------
+
+def test_union_answers_as_a_run_of_its_own(tshark, capture_file, monkeypatch):
+    """fields() picked from the union run is what tshark prints for the request
+    alone: every occurrence setting, an aggregator, a separator, booleans,
+    absent fields, a filter and two passes."""
+    import tshark_runs
+    cap = capture_file("eglink_analysis_vrpo_split.pcap")
+    requests = [
+        (["eglink.type", "eglink.serial", "_ws.col.Info"], {}),
+        (["frame.number", "_ws.expert.message", "eglink.crc.status"], {"aggregator": "|", "occurrence": "a"}),
+        (["eglink.fragment", "eglink.analysis.vrpo_gap"], {"occurrence": "f", "two_pass": True}),
+        (["eglink.fragment"], {"occurrence": "l", "display_filter": "eglink.type == \"VRPO\""}),
+        (["eglink.fragment", "eglink.bu_state"], {"occurrence": "f", "sep": ";"}),
+    ]
+    assert tshark_runs.union_may_answer(cap, "a")
+    shared = [tshark.fields(cap, names, **kw) for names, kw in requests]
+    monkeypatch.setattr(tshark_runs, "EXACT", True)
+    alone = [tshark.fields(cap, names, **kw) for names, kw in requests]
+    assert shared == alone
+    assert any(cell for rows in alone for row in rows for cell in row[1:])
+
+
+def test_run_key_follows_the_files_it_names(work_dir):
+    """A capture written anew (another size or time) is another run; the
+    per-worker name of the empty configuration folder is not."""
+    import tshark_runs
+    cap = work_dir / "x.pcap"
+    cap.write_bytes(b"1")
+    conf_a, conf_b = work_dir / "a", work_dir / "b"
+    conf_a.mkdir()
+    conf_b.mkdir()
+    key = tshark_runs.run_key(["-r", str(cap)], {"WIRESHARK_CONFIG_DIR": str(conf_a)})
+    assert key == tshark_runs.run_key(["-r", str(cap)], {"WIRESHARK_CONFIG_DIR": str(conf_b),
+                                                         "PYTEST_XDIST_WORKER": "gw1"})
+    cap.write_bytes(b"22")
+    assert key != tshark_runs.run_key(["-r", str(cap)], {"WIRESHARK_CONFIG_DIR": str(conf_a)})
+    (conf_b / "preferences").write_text("x")
+    assert key != tshark_runs.run_key(["-r", str(cap)], {"WIRESHARK_CONFIG_DIR": str(conf_b)})
+
+
+def test_store_makes_a_run_once(work_dir):
+    import tshark_runs
+    store = tshark_runs.RunStore(work_dir)
+    made = []
+
+    def make():
+        made.append(1)
+        return subprocess.CompletedProcess(["x"], 0, "out", "err")
+    first = store.get("key", make)
+    again = store.get("key", make)
+    assert made == [1]
+    assert (again.returncode, again.stdout, again.stderr) == (first.returncode, "out", "err")

@@ -156,18 +156,15 @@ def pick(occurrences, occurrence, aggregator):
         return ""
     if occurrence == "f":
         return occurrences[0]
-    if occurrence == "l":
-        return occurrences[-1]
-    n = int(occurrence)
-    return occurrences[n - 1] if 0 < n <= len(occurrences) else ""
+    return occurrences[-1]      # "l"
 
 
 def union_may_answer(capture, occurrence):
     """Whether a union run is worth making for this request: a small capture
     (the union shows every field, which a decoder's full tree costs on each
     frame: on a large capture that outweighs the runs it saves) and an
-    occurrence tshark spells as pick() does."""
-    if EXACT or not (occurrence in ("a", "f", "l") or (occurrence.isdigit() and int(occurrence) > 0)):
+    occurrence tshark takes (f, l or a; anything else fails there)."""
+    if EXACT or occurrence not in ("a", "f", "l"):
         return False
     try:
         size = os.path.getsize(capture)
