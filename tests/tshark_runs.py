@@ -6,8 +6,9 @@ made once and read by every test that asks for it.
   session, shared by the xdist workers (the first asks tshark, the others
   wait for it and read its answer). A run's key is its arguments, its
   environment (but for the per-worker names of the hermetic configuration
-  folder), the contents of that folder, and the size and time of every file
-  the arguments or environment name: a file written anew is a new run.
+  folder), the contents of that folder, the size and time of every file
+  the arguments or environment name (a file written anew is a new run), and
+  those of the plugins' own files.
 - FieldTable: -T fields asks for the same capture and options many times
   with different -e lists. One run with every field the suite can ask for
   (UnionFields: every field of vrshark's protocols and every field name
@@ -79,6 +80,23 @@ def _files_named(text):
     return out
 
 
+_code = None
+
+
+def code_fingerprint():
+    """The plugins a run loads, as their files' sizes and times (Lua plugins,
+    the built C plugins): a store kept across sessions (VRSHARK_TEST_STORE
+    given by hand) never answers for other code. Read once a process."""
+    global _code
+    if _code is None:
+        root = TESTS.parent
+        build = Path(os.environ.get("VRSHARK_BUILD_DIR") or root / "build")
+        files = sorted(p for p in (root / "lua").rglob("*") if p.is_file())
+        files += sorted(build.glob("wsplugins/*/epan/*.so"))
+        _code = tuple((str(p), _stat(p)) for p in files)
+    return _code
+
+
 def run_key(args, env):
     """What makes two runs the same run (see the module comment)."""
     conf = env.get("WIRESHARK_CONFIG_DIR", "")
@@ -89,7 +107,7 @@ def run_key(args, env):
         envs.append((k, v, tuple(_files_named(v)) if k.startswith(("VRSHARK", "WIRESHARK"))
                      and k not in NOT_INPUTS else ()))
     files = [f for a in args for f in _files_named(a)]
-    return repr((tuple(args), tuple(envs), _stat(conf) if conf else None, tuple(files)))
+    return repr((tuple(args), tuple(envs), _stat(conf) if conf else None, tuple(files), code_fingerprint()))
 
 
 class RunStore:
