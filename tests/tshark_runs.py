@@ -9,15 +9,16 @@ made once and read by every test that asks for it.
   folder), the contents of that folder, the size and time of every file
   the arguments or environment name (a file written anew is a new run), and
   those of the plugins' own files.
-- FieldTable: -T fields asks for the same capture and options many times
-  with different -e lists. One run with every field the suite can ask for
-  (UnionFields: every field of vrshark's protocols and every field name
-  written in tests/) answers them all: a field's -T fields value does not
-  depend on the other -e fields (tests/test_sparse_view.py,
-  tests/test_lua_fields_output.py and tests/test_eglink_sparse_view.py check
-  that for every field, with narrow -e lists, against the full tree). A
-  request that names a field outside the union, or an occurrence tshark
-  spells otherwise, runs as asked.
+- The union run: -T fields asks for the same capture and options many
+  times with different -e lists. One run with every field the suite can ask
+  for (union_fields(): every field of vrshark's protocols and every field
+  name written in tests/) answers them all (conftest's Tshark.fields picks
+  the columns): a field's -T fields value does not depend on the other -e
+  fields (tests/test_sparse_view.py, tests/test_lua_fields_output.py and
+  tests/test_eglink_sparse_view.py check that for every field, with narrow
+  -e lists, against the full tree). A request on a capture over
+  UNION_MAX_BYTES, naming a field outside the union, or with an occurrence
+  other than f, l or a, runs as asked.
 
 VRSHARK_TEST_EXACT_RUNS=1 turns both off: every request is its own run, as
 written (to tell a sharing fault from a decoding one).
