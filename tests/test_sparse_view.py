@@ -12,10 +12,7 @@ that the sparse display really serves the frames.
 """
 import copy
 import os
-import shutil
 import subprocess
-import tempfile
-from pathlib import Path
 
 import pytest
 
@@ -128,39 +125,22 @@ def _prefs(name):
     return args
 
 
-def _merge(folder, name, captures):
-    """captures one after the other in folder/name (mergecap -a), readable by the test user."""
-    path = folder / name
-    subprocess.run(["mergecap", "-a", "-F", "pcap", "-w", str(path)] + [str(CAPTURES / n) for n in captures],
-                   check=True)
-    path.chmod(0o644)
-    return path
-
-
 @pytest.fixture(scope="module")
-def mcmb2_inputs():
+def mcmb2_inputs(merged_captures):
     """(path, preference args) covering every MC-MB2-PN capture: those that
-    need no preference merged into one file (mergecap -a: one run a filter
-    covers them; tshark's start-up is most of a run's time), then each
-    capture with a preference."""
-    folder = Path(tempfile.mkdtemp(prefix="vrshark-merged-"))
-    folder.chmod(0o755)
-    yield [(_merge(folder, "mcmb2.pcap", [n for n in MCMB2_CAPTURES if n not in PREFS]), [])] \
+    need no preference merged into one file (one run a filter covers them;
+    tshark's start-up is most of a run's time), then each capture with a
+    preference."""
+    return [(merged_captures([n for n in MCMB2_CAPTURES if n not in PREFS]).path, [])] \
         + [(CAPTURES / n, _prefs(n)) for n in MCMB2_CAPTURES if n in PREFS]
-    shutil.rmtree(folder, ignore_errors=True)
 
 
 @pytest.fixture(scope="module")
-def merged_eclink():
+def merged_eclink(merged_captures):
     """The EC-Link captures of each carrier that need no preference, one
-    after the other in one file (mergecap -a): one run a filter covers them."""
-    folder = Path(tempfile.mkdtemp(prefix="vrshark-merged-"))
-    folder.chmod(0o755)
-    out = {}
-    for proto, names in (("eclink_pnio", ECLINK_PNIO_CAPTURES), ("eclink_modbus", MODBUS_CAPTURES)):
-        out[proto] = _merge(folder, proto + ".pcap", [n for n in names if n not in PREFS])
-    yield out
-    shutil.rmtree(folder, ignore_errors=True)
+    after the other in one file: one run a filter covers them."""
+    return {proto: merged_captures([n for n in names if n not in PREFS]).path
+            for proto, names in (("eclink_pnio", ECLINK_PNIO_CAPTURES), ("eclink_modbus", MODBUS_CAPTURES))}
 
 
 # The EC-Link column comparisons run on the merged file of each carrier and

@@ -189,9 +189,6 @@ def union_may_answer(capture, occurrence):
         size = os.path.getsize(capture)
     except OSError:
         return False
-    if os.environ.get("VRSHARK_TEST_SIZES"):
-        with open(os.environ["VRSHARK_TEST_SIZES"], "a") as f:
-            f.write("%d %s\n" % (size, capture))
     return size <= UNION_MAX_BYTES
 
 
