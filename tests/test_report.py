@@ -476,14 +476,18 @@ def test_json_schema(report):
     assert set(doc) == {"schema", "fail_on", "expect", "exit_status", "captures"}
     assert (doc["fail_on"], doc["expect"], doc["exit_status"]) == ("error", [], 1)
     cap = doc["captures"][0]
-    assert set(cap) == {"capture", "error", "frames", "tcp_frames", "start", "start_epoch", "duration",
-                        "devices", "timeline", "counts", "missing"}
+    assert set(cap) == {"capture", "error", "frames", "tcp_frames", "held", "start", "start_epoch",
+                        "duration", "devices", "timeline", "counts", "missing"}
     assert (cap["frames"], cap["tcp_frames"]) == (52, 0)
+    assert cap["held"] == {"udp": {"frames": 2, "cut": 0}, "tcp": {"frames": 0, "cut": 0, "cut_ports": []},
+                           "profinet": {"frames": 50, "cut": 0, "undecoded": 0, "frame_ids": [],
+                                        "connect_cut": None},
+                           "snaplen": None}
     # the two watchdog pace warnings (frames 17, 18), the two stalls
     assert cap["counts"] == {"note": 0, "warning": 2, "error": 2}
     assert set(cap["devices"][0]) == {"id", "kind", "name", "address", "layout", "frames",
                                       "first_frame", "last_frame", "start", "end", "initial",
-                                      "final", "terminals"}
+                                      "final", "not_captured", "terminals"}
     stall = cap["timeline"][3]
     assert stall == {"time": 3.201, "frame": 34, "device": 1, "severity": "error", "kind": "stall",
                      "field": "mcmb2.downlink_watchdog.stalled", "text": stall["text"], "count": 1,

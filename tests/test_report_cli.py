@@ -17,6 +17,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 import xml.etree.ElementTree as ET
@@ -152,8 +153,9 @@ def test_expect_missing_protocol(cmd):
 def test_expect_excerpt_and_subsets(cmd, work):
     """A Modbus excerpt that ends before the BU is recognised (its candidate
     note names the setting), and several
-    protocols: each capture names the ones it lacks; EC-Link over PROFINET
-    counts as EC-Link."""
+    protocols: each capture names the ones it lacks, with what the capture
+    holds (no UDP, no PROFINET: no port or layout hint); EC-Link over
+    PROFINET counts as EC-Link."""
     excerpt = work / "excerpt.pcap"
     subprocess.run(["editcap", "-r", str(CAPTURES / "eclink_modbus_faults.pcap"), str(excerpt), "1-8"],
                    check=True)
@@ -163,12 +165,10 @@ def test_expect_excerpt_and_subsets(cmd, work):
     assert proc.returncode == 1
     assert proc.stderr.splitlines() == [
         "vrshark-report: %s: expected EG-Link, EC-Link and MC-MB2-PN, none found (8 frames read; "
-        "EG-Link on another UDP port: -o eglink.input_port:PORT; not recognised, to decode: "
-        "-o eclink_modbus.servers:192.168.2.41; a base whose Connect is not in "
-        "the capture: -o mcmb2.layouts, docs/profinet.md)" % excerpt,
+        "the capture holds no UDP (no UDP frame at all); not recognised, to decode: "
+        "-o eclink_modbus.servers:192.168.2.41; the capture holds no PROFINET cyclic frame)" % excerpt,
         "vrshark-report: %s: expected EG-Link and MC-MB2-PN, none found (82 frames read; EG-Link on "
-        "another UDP port: -o eglink.input_port:PORT; a base whose Connect is not in the capture: "
-        "-o mcmb2.layouts, docs/profinet.md)" % pnio,
+        "another UDP port: -o eglink.input_port:PORT; its PROFINET frames are all another device's)" % pnio,
         "vrshark-report: %s: expected EG-Link and EC-Link, none found (52 frames read; EG-Link on "
         "another UDP port: -o eglink.input_port:PORT; %s)" % (MCMB2, NO_MODBUS)]
     proc = run(cmd, "--expect", "eclink", pnio)
@@ -757,3 +757,171 @@ def test_eglink_devices_and_frame_counts(cmd, capture, devices, lost):
     cap = captures(proc)[0]
     assert [(d["name"], d["frames"]) for d in cap["devices"]] == devices
     assert any("packets lost" in e["text"] or "packet lost" in e["text"] for e in cap["timeline"]) == lost
+
+
+# --- what the capture does not hold: frames cut by the snaplen, short excerpts -------------
+
+def editcap(work, name, *args):
+    """A capture cut as a user cuts one (editcap -s, -r), readable by the installed command's user."""
+    out = work / name
+    subprocess.run(["editcap"] + [str(a) for a in args[:-1]] + [str(out)] + ([args[-1]] if args[-1] else []),
+                   check=True)
+    out.chmod(0o666)
+    return out
+
+
+def test_cut_state_is_not_captured(cmd, work, tshark):
+    """The second half of an EG-Link capture cut at 64 bytes: tshark leaves the
+    RU state and armed RU of those VRPIs empty, in one pass and with -2; the
+    report says the RU state was not captured from there on and invents no
+    change (before: "RU state Enabled (RU 0xbeef) -> Initial (no RU armed)")."""
+    src = CAPTURES / "eglink_armed.pcap"
+    first, second = editcap(work, "a.pcap", "-r", src, "1-29"), editcap(work, "b.pcap", "-s", 64, "-r", src, "30-58")
+    path = work / "half_cut.pcap"
+    subprocess.run(["mergecap", "-a", "-w", str(path), str(first), str(second)], check=True)
+    path.chmod(0o666)
+    for two_pass in (False, True):
+        tshark.expect(path, 30, {"eglink.type": "VRPI", "eglink.bu_state": 0x11, "eglink.ru_state": None,
+                                 "eglink.armed_ru": None, "eglink.cut": True}, two_pass=two_pass)
+    proc = run(cmd, "--json", "--fail-on", "warn", path)
+    assert (proc.returncode, proc.stderr) == (0, "")
+    cap = captures(proc)[0]
+    (dev,) = cap["devices"]
+    assert dev["initial"] == {"BU state": "Armed", "RU state": "Enabled (RU 0xbeef)"}
+    assert dev["final"] == {"BU state": "Armed",
+                            "RU state": "not captured from frame 30 on (before: Enabled (RU 0xbeef))"}
+    assert dev["not_captured"] == {"RU state": {"first_frame": 30, "last_frame": 57, "frames": 12}}
+    assert [e["kind"] for e in cap["timeline"]] == ["finding"]   # the cut note, no state change
+    assert (cap["held"]["snaplen"], cap["held"]["udp"]["cut"]) == (64, 28)  # (frame 45 is 64 bytes long)
+    text = run(cmd, path).stdout.splitlines()
+    assert "      last:  BU state Armed, RU state not captured from frame 30 on (before: Enabled (RU 0xbeef))" in text
+    assert "  %d of 58 frames cut by the capture at 64 bytes (snaplen): what they do not hold is not " \
+           "captured" % cap["held"]["udp"]["cut"] in text
+    out = work / "cut.xml"
+    run(cmd, "--junit", out, path)
+    assert [(p.get("name"), p.get("value")) for p in ET.parse(out).getroot().iter("property")
+            if p.get("name") == "not_captured"] == [("not_captured", "RU state from frame 30")]
+
+
+@pytest.fixture(scope="module")
+def scapy_bu_cut():
+    """An EC-Link BU over PROFINET built by scapy's layers, its Connect and
+    cyclic frames, captured with a 100-byte snaplen (editcap -s 100), in a
+    folder the installed command's user can read."""
+    from pnio_testlib import CaptureFile, Device, eclink_submodules, mac
+    from test_pnio_midsession import eclink_image_in, eclink_image_out
+    folder = Path(tempfile.mkdtemp(prefix="vrshark-scapy-bu-"))
+    folder.chmod(0o777)
+    d = Device(eclink_submodules(4, 224), mac(41), 0x8042, 0x8043)
+    cap = CaptureFile()
+    for p in d.connect():
+        cap.add(p)
+    for i in range(20):
+        cap.add(d.cyclic("in", {1: eclink_image_in(i)}), 0.045)
+        cap.add(d.cyclic("out", {2: eclink_image_out(i)}), 0.005)
+    whole = cap.write(folder / "bu.pcap")
+    yield whole, editcap(folder, "bu_s100.pcap", "-s", 100, whole, None)
+    shutil.rmtree(folder)
+
+
+def test_no_device_carries_tshark_notes(cmd, tshark, scapy_bu_cut):
+    """The Connect and the output frames cut at 100 bytes (the cut frames
+    carry no FrameID): no device forms.
+    tshark notes the cut Connect (one pass and -2); the report carries those
+    notes (device null, [-] in the text), says no device was decoded and
+    why, and its hints name the cut instead of a port or a missing UDP."""
+    whole, path = scapy_bu_cut
+    assert [d["kind"] for d in captures(run(cmd, "--json", whole))[0]["devices"]] == ["eclink_pnio"]
+    for two_pass in (False, True):
+        notes = tshark.experts(path, two_pass=two_pass)
+        assert [n for n, msgs in sorted(notes.items()) if any("cut by the capture" in m for m in msgs)][:2] == [1, 2]
+        tshark.expect(path, 1, {"mcmb2.connect_cut": True}, two_pass=two_pass)
+    proc = run(cmd, "--json", "--expect", "eclink", path)
+    assert proc.returncode == 1
+    cap = captures(proc)[0]
+    assert cap["devices"] == []
+    assert [(e["frame"], e["device"], e["severity"], e["text"].split(" at ")[0]) for e in cap["timeline"]] == [
+        (1, None, "note", "PNIO-CM request cut by the capture"), (2, None, "note", "PNIO-CM response cut by the capture")]
+    assert all("its layout cannot be read" in e["text"] for e in cap["timeline"])
+    assert (cap["held"]["profinet"]["undecoded"], cap["held"]["profinet"]["connect_cut"]) == (40, 1)
+    assert proc.stderr == (
+        "vrshark-report: %s: expected EC-Link, none found (42 frames read; the capture holds no Modbus/TCP "
+        "(no TCP frame at all); 40 PROFINET cyclic frames (FrameID 0x8042) formed no device: the "
+        "capture cut the Connect in frame 1 and 20 of 40 PROFINET frames cut by the capture at 100 bytes "
+        "(snaplen); a known layout decodes them: -o mcmb2.layouts, docs/profinet.md)\n" % path)
+    text = run(cmd, path).stdout.splitlines()
+    assert text[3] == "  no device decoded: tshark's notes in the timeline"
+    assert text[-1].startswith("     0.001       2  note      [-]  PNIO-CM response cut by the capture at 100 of ")
+    # the gate counts them: not a silent pass
+    assert run(cmd, "--fail-on", "note", path).returncode == 1
+
+
+def test_short_profinet_excerpt_says_so(cmd, work):
+    """Four cyclic frames of a base (editcap -r): too few to infer a layout
+    from; the report says so with the count instead of "no traffic"."""
+    path = editcap(work, "four.pcap", "-r", CAPTURES / "mcmb2_duplex_noconnect.pcap", "1-4")
+    proc = run(cmd, "--expect", "eglink,mcmb2", path)
+    assert proc.returncode == 1
+    assert proc.stdout.splitlines()[2:] == [
+        "  no device decoded",
+        "  4 PROFINET cyclic frames (FrameID 0xc010, 0xc011) formed no device: too few to infer a layout "
+        "from, or no base's or BU's; a known layout decodes them: -o mcmb2.layouts, docs/profinet.md"]
+    # (no UDP at all: no hint about UDP ports)
+    assert proc.stderr == (
+        "vrshark-report: %s: expected EG-Link and MC-MB2-PN, none found (4 frames read; the capture holds no UDP "
+        "(no UDP frame at all); 4 PROFINET cyclic frames (FrameID 0xc010, 0xc011) formed no device: too few to "
+        "infer a layout from, or no base's or BU's; a known layout decodes them: -o mcmb2.layouts, "
+        "docs/profinet.md)\n" % path)
+    out = work / "four.xml"
+    run(cmd, "--junit", out, path)
+    (case,) = ET.parse(out).getroot().iter("testcase")
+    assert (case.get("name"), case.find("skipped").get("message").split(":")[0]) == (
+        "no device decoded", "4 PROFINET cyclic frames (FrameID 0xc010, 0xc011) formed no device")
+
+
+@pytest.fixture(scope="module")
+def plant():
+    """The pymodbus plant of test_eclink_modbus_realstack.py under dumpcap."""
+    from test_eclink_modbus_realstack import captured
+    yield from captured()
+
+
+def test_cut_modbus_names_the_cut(cmd, work, plant):
+    """The pymodbus plant cut at 100 bytes with its port already set: the
+    ADUs were cut, not missed; the hint says so, never to set the port."""
+    from test_eclink_modbus_realstack import PORT
+    path = editcap(work, "plant_s100.pcapng", "-s", 100, plant[0], None)
+    setting = "eclink_modbus.port:%d" % PORT
+    whole = captures(run(cmd, "--json", "-o", setting, plant[0]))[0]
+    assert "eclink_modbus" in [d["kind"] for d in whole["devices"]]
+    proc = run(cmd, "--json", "--expect", "eclink", "-o", setting, path)
+    assert proc.returncode == 1
+    cap = captures(proc)[0]
+    assert PORT in cap["held"]["tcp"]["cut_ports"]
+    line = proc.stderr.splitlines()[0]
+    assert "the capture cut its Modbus/TCP ADUs: %d of %d TCP frames cut by the capture at 100 bytes (snaplen), " \
+           "on port " % (cap["held"]["tcp"]["cut"], cap["held"]["tcp"]["frames"]) in line
+    assert "no port setting reads them, capture without a snaplen" in line
+    assert "-o eclink_modbus.port" not in line
+
+
+# --- "-": standard output -----------------------------------------------------------------
+
+@pytest.mark.parametrize("option", ["--junit", "--html"])
+def test_dash_is_standard_output(cmd, work, option):
+    """`--junit -` and `--html -` write onto standard output (no file named -),
+    instead of the text report; two outputs there are a usage error."""
+    if option == "--html":
+        pytest.importorskip("plotly", reason="plotly is not installed (tools/setup installs it)")
+    proc = run(cmd, option, "-", "--fail-on", "error", BAD_CRC)
+    assert proc.returncode == 1
+    assert not (Path(cmd.cwd) / "-").exists()
+    if option == "--junit":
+        root = ET.fromstring(proc.stdout.encode())
+        assert (root.tag, root.get("failures")) == ("testsuites", "1")
+    else:
+        assert proc.stdout.startswith("<!DOCTYPE html>") and "bad CRC" in proc.stdout
+    proc = run(cmd, option, "-", "--json", BAD_CRC)
+    assert (proc.returncode, proc.stdout) == (2, "")
+    assert proc.stderr.splitlines()[-1] == ("vrshark-report: error: only one of --json, --html - and --junit - "
+                                            "can write to standard output")

@@ -55,8 +55,10 @@ def parse_args(argv):
     ap.add_argument("captures", nargs="+", metavar="CAPTURE",
                     help="capture file (pcap, pcapng, ...), a pipe, or - for standard input")
     ap.add_argument("--json", action="store_true", help="write JSON to standard output instead of text")
-    ap.add_argument("--html", metavar="FILE", help="write a self-contained HTML report with plots")
-    ap.add_argument("--junit", metavar="FILE", help="write JUnit XML (one test case per device)")
+    ap.add_argument("--html", metavar="FILE",
+                    help="write a self-contained HTML report with plots (- for standard output)")
+    ap.add_argument("--junit", metavar="FILE",
+                    help="write JUnit XML, one test case per device (- for standard output)")
     ap.add_argument("--fail-on", choices=sorted(GATES), metavar="{note,warn,error}",
                     help="exit 1 when a finding of this severity or higher is present")
     ap.add_argument("--expect", type=protocols, action="extend", default=[],
@@ -75,6 +77,8 @@ def parse_args(argv):
     args.expect = list(dict.fromkeys(args.expect))
     if args.captures.count("-") > 1:
         ap.error("standard input (-) can be read only once")
+    if [args.json, args.html == "-", args.junit == "-"].count(True) > 1:
+        ap.error("only one of --json, --html - and --junit - can write to standard output")
     return args
 
 
@@ -259,7 +263,7 @@ def main(argv=None):
     stop.install()
     # What can fail before any tshark runs, fails first.
     for option, path in (("--html", args.html), ("--junit", args.junit)):
-        if path:
+        if path and path != "-":
             check_output(option, path)
     if args.html:
         try:
@@ -281,13 +285,22 @@ def main(argv=None):
     absent = [rep for rep in reports if rep["missing"]]
     status = 2 if any(rep["error"] for rep in reports) else 1 if count or absent else 0
 
+    page = None
     if args.html:
-        html.write(reports, args.html,
-                   lambda done, total: bar.show(done / total, "HTML: plots %d/%d" % (done, total)))
+        page = html.document(reports, lambda done, total: bar.show(done / total,
+                                                                   "HTML: plots %d/%d" % (done, total)))
+        if args.html != "-":
+            html.write(page, args.html)
     bar.clear()
-    unwritten = write_stdout(lambda out: jsonout.write(reports, out, threshold, status, args.expect)
-                             if args.json else text.write(reports, out))
-    if args.junit:
+    # Standard output carries one report: the one given "-", else JSON or text.
+    if args.html == "-":
+        unwritten = write_stdout(lambda out: out.write(page))
+    elif args.junit == "-":
+        unwritten = write_stdout(lambda out: junit.write(results, "-", threshold or catalog.WARNING))
+    else:
+        unwritten = write_stdout(lambda out: jsonout.write(reports, out, threshold, status, args.expect)
+                                 if args.json else text.write(reports, out))
+    if args.junit and args.junit != "-":
         junit.write(results, args.junit, threshold or catalog.WARNING)
     lines = ["%s: %s" % (rep["capture"], rep["error"]) for rep in reports if rep["error"]]
     if unwritten:

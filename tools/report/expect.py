@@ -5,6 +5,7 @@ whose layout is unknown) passes on exactly the captures that need a look:
 with --expect such a capture fails the run (exit 1) with one line naming the
 protocol and the setting that usually brings its devices back.
 """
+from . import held as about
 
 # name: (what the line calls it, the device kinds that are it, where to look when absent)
 PROTOCOLS = {
@@ -59,21 +60,40 @@ def settings(rep, name):
 
 def hint(rep, name):
     """Where to look for an absent protocol: the candidates' own settings when
-    the capture has candidates for it, else the setting that usually helps."""
+    the capture has candidates for it, else what the capture shows (frames
+    cut by the snaplen, PROFINET frames of which no device formed, no frame
+    of the transport at all), else the setting that usually helps."""
     found = settings(rep, name)
     if found:
         return "not recognised, to decode: " + ", ".join(found)
-    if name == "eclink" and rep.get("tcp_frames") == 0:
-        # (no port setting can help: say what the capture holds instead)
-        return "the capture holds no Modbus/TCP (no TCP frame at all)"
-    return PROTOCOLS[name][2]
+    held = rep.get("held")
+    if held is None:  # (an unreadable capture's)
+        return PROTOCOLS[name][2]
+    if name == "eglink":
+        return ("the capture holds no UDP (no UDP frame at all)" if not held["udp"]["frames"]
+                else PROTOCOLS[name][2])
+    pnio = about.profinet_undecoded(rep)
+    if name == "mcmb2":
+        if not held["profinet"]["frames"]:
+            return "the capture holds no PROFINET cyclic frame"
+        return pnio or "its PROFINET frames are all another device's"
+    # (no port setting helps a capture without TCP, or one whose ADUs were cut)
+    modbus = ("the capture holds no Modbus/TCP (no TCP frame at all)" if not held["tcp"]["frames"]
+              else about.modbus_cut(rep) or PROTOCOLS[name][2])
+    return "; ".join(filter(None, (modbus, pnio)))
+
+
+def hints(rep, absent):
+    """The hints of the absent protocols, each said once (EC-Link and
+    MC-MB2-PN share what the capture shows of PROFINET)."""
+    return list(dict.fromkeys(part for n in absent for part in hint(rep, n).split("; ")))
 
 
 def summary(rep, absent):
     """What is missing and the settings to try: "expected EC-Link, none found
     (19 frames read; not recognised, to decode: -o ...)"."""
     return "expected %s, none found (%d frames read; %s)" % (
-        listed([title(n) for n in absent]), rep["frames"], "; ".join(hint(rep, n) for n in absent))
+        listed([title(n) for n in absent]), rep["frames"], "; ".join(hints(rep, absent)))
 
 
 def line(rep):

@@ -14,7 +14,9 @@ import plotly.graph_objects as go
 from plotly.offline import get_plotlyjs, get_plotlyjs_version
 from plotly.subplots import make_subplots
 
+from . import held
 from .expect import listed, title
+from .text import device
 
 # plotly.js's "basic" bundle (scatter, bar, pie; npm plotly.js-basic-dist-min,
 # MIT, plotly-basic.LICENSE): every plot here is a scatter trace with shapes,
@@ -158,20 +160,14 @@ def capture_section(index, rep, plotted=lambda: None):
         return "\n".join(out)
     out.append("<p>%d frames, %.3f s from %s</p>" % (rep["frames"], rep["duration"],
                                                      H.escape(rep["start"] or "")))
+    if held.cut(rep):
+        out.append("<p>%s: what they do not hold is not captured.</p>" % H.escape(held.cut(rep)))
     if not rep["devices"]:
-        out.append("<p>No EG-Link, EC-Link or MC-MB2-PN traffic found.</p>")
-        return "\n".join(out)
-    out.append("<table><tr><th>#</th><th>device</th><th>frames</th><th>time</th>"
-               "<th>layout</th><th>first state</th><th>last state</th><th>terminals</th></tr>")
-    for d in rep["devices"]:
-        terms = ", ".join("%d (frames %d-%d)" % (t["terminal"], t["first_frame"], t["last_frame"])
-                          for t in d.get("terminals", []))
-        out.append("<tr><td>%d</td><td>%s</td><td class=num>%d (%d-%d)</td>"
-                   "<td class=num>%.3f-%.3f s</td><td>%s</td><td>%s</td><td>%s</td><td>%s</td></tr>" % (
-                       d["id"], H.escape(d["name"]), d["frames"], d["first_frame"], d["last_frame"],
-                       d["start"], d["end"], H.escape(d["layout"] or ""),
-                       H.escape(states(d["initial"])), H.escape(last_states(d)), H.escape(terms)))
-    out.append("</table>")
+        out += ["<p>%s.</p>" % H.escape(line[0].upper() + line[1:]) for line in held.no_device(rep)]
+        if not rep["timeline"]:
+            return "\n".join(out)
+    else:
+        out.append(devices_table(rep))
     for d in rep["devices"]:
         timeline = [e for e in rep["timeline"] if e["device"] == d["id"]]
         fig = figure(d, timeline, rep["duration"])
@@ -187,12 +183,27 @@ def capture_section(index, rep, plotted=lambda: None):
                '<th>what</th></tr>')
     for e in rep["timeline"][:TIMELINE_ROWS]:
         out.append('<tr><td class=num>%.3f</td><td class=num>%d</td><td class="sev %s">%s</td>'
-                   '<td>[%d]</td><td>%s</td></tr>' % (e["time"], e["frame"], e["severity"],
-                                                      e["severity"], e["device"], H.escape(e["text"])))
+                   '<td>%s</td><td>%s</td></tr>' % (e["time"], e["frame"], e["severity"],
+                                                    e["severity"], device(e), H.escape(e["text"])))
     out.append("</table>")
     if len(rep["timeline"]) > TIMELINE_ROWS:
         out.append('<p class="muted">%d more entries: see the text or JSON report.</p>'
                    % (len(rep["timeline"]) - TIMELINE_ROWS))
+    return "\n".join(out)
+
+
+def devices_table(rep):
+    out = ["<table><tr><th>#</th><th>device</th><th>frames</th><th>time</th>"
+           "<th>layout</th><th>first state</th><th>last state</th><th>terminals</th></tr>"]
+    for d in rep["devices"]:
+        terms = ", ".join("%d (frames %d-%d)" % (t["terminal"], t["first_frame"], t["last_frame"])
+                          for t in d.get("terminals", []))
+        out.append("<tr><td>%d</td><td>%s</td><td class=num>%d (%d-%d)</td>"
+                   "<td class=num>%.3f-%.3f s</td><td>%s</td><td>%s</td><td>%s</td><td>%s</td></tr>" % (
+                       d["id"], H.escape(d["name"]), d["frames"], d["first_frame"], d["last_frame"],
+                       d["start"], d["end"], H.escape(d["layout"] or ""),
+                       H.escape(states(d["initial"])), H.escape(last_states(d)), H.escape(terms)))
+    out.append("</table>")
     return "\n".join(out)
 
 
@@ -233,6 +244,6 @@ def document(reports, progress=None):
             % (names, CSS, plotly_js(), body))
 
 
-def write(reports, path, progress=None):
+def write(page, path):
     with open(path, "w", encoding="utf-8") as f:
-        f.write(document(reports, progress))
+        f.write(page)

@@ -7,8 +7,10 @@ failing test case of its own. Each failure lists the entries with their frame
 numbers. A suite's `time` is how long the report took for the capture (what
 JUnit readers take it for); a device's traffic span is in its properties.
 """
+import sys
 import xml.etree.ElementTree as ET
 
+from . import held
 from .catalog import severity_at_least
 from .expect import summary, title
 
@@ -26,9 +28,16 @@ def device_case(suite, rep, dev, threshold):
                       ("first_frame", dev["first_frame"]), ("last_frame", dev["last_frame"]),
                       ("traffic_start_s", "%.3f" % dev["start"]),
                       ("traffic_end_s", "%.3f" % dev["end"]),
-                      ("traffic_span_s", "%.3f" % max(0.0, dev["end"] - dev["start"]))])
+                      ("traffic_span_s", "%.3f" % max(0.0, dev["end"] - dev["start"]))]
+               + [("not_captured", "%s from frame %d" % (name, r["first_frame"]))
+                  for name, r in dev.get("not_captured", {}).items()])
+    return failures(case, rep, dev["id"], threshold)
+
+
+def failures(case, rep, device, threshold):
+    """The failure of a test case: its entries at or above threshold; True when any."""
     bad = [e for e in rep["timeline"]
-           if e["device"] == dev["id"] and severity_at_least(e["severity"], threshold)]
+           if e["device"] == device and severity_at_least(e["severity"], threshold)]
     if not bad:
         return False
     first = bad[0]
@@ -43,10 +52,10 @@ def device_case(suite, rep, dev, threshold):
 def document(results, threshold):
     """results: [(report, seconds the report took)]."""
     root = ET.Element("testsuites", name="vrshark-report")
-    totals = {"tests": 0, "failures": 0, "errors": 0}
+    totals = {"tests": 0, "failures": 0, "errors": 0, "skipped": 0}
     for rep, seconds in results:
         suite = ET.SubElement(root, "testsuite", name=rep["capture"])
-        counts = {"tests": 0, "failures": 0, "errors": 0}
+        counts = {"tests": 0, "failures": 0, "errors": 0, "skipped": 0}
         if rep["error"]:
             case = ET.SubElement(suite, "testcase", name="read capture", classname=rep["capture"])
             ET.SubElement(case, "error", message=rep["error"], type="capture").text = rep["error"]
@@ -62,8 +71,20 @@ def document(results, threshold):
             ET.SubElement(case, "failure", message=message, type="expect").text = message
             counts["tests"] += 1
             counts["failures"] += 1
+        if any(e["device"] is None for e in rep["timeline"]):
+            # (tshark's notes on frames of no device: a Connect the capture cut)
+            case = ET.SubElement(suite, "testcase", name="notes of no device", classname=rep["capture"])
+            counts["tests"] += 1
+            counts["failures"] += failures(case, rep, None, threshold)
         if not rep["devices"] and not rep["error"] and not rep.get("missing"):
-            ET.SubElement(suite, "testcase", name="no vrshark traffic", classname=rep["capture"])
+            lines = held.no_device(rep)
+            if lines[0].startswith("no device decoded"):
+                # what the capture shows of traffic it did not decode: not a pass
+                case = ET.SubElement(suite, "testcase", name="no device decoded", classname=rep["capture"])
+                ET.SubElement(case, "skipped", message="; ".join(lines[1:]) or lines[0])
+                counts["skipped"] += 1
+            else:
+                ET.SubElement(suite, "testcase", name="no vrshark traffic", classname=rep["capture"])
             counts["tests"] += 1
         for key, value in counts.items():
             suite.set(key, str(value))
@@ -75,6 +96,11 @@ def document(results, threshold):
 
 
 def write(results, path, threshold):
+    """Into the file path, or onto standard output for "-"."""
     tree = document(results, threshold)
     ET.indent(tree)
-    tree.write(path, encoding="utf-8", xml_declaration=True)
+    if path == "-":
+        tree.write(sys.stdout.buffer, encoding="utf-8", xml_declaration=True)
+        sys.stdout.buffer.write(b"\n")
+    else:
+        tree.write(path, encoding="utf-8", xml_declaration=True)

@@ -6,6 +6,7 @@ schema) that every output format reads. Memory grows with the number of
 devices, timeline entries and plot buckets, never with the number of frames.
 """
 import datetime
+import re
 
 from . import catalog
 from .catalog import ERROR, NOTE, WARNING
@@ -19,6 +20,9 @@ DUPLEX_STATUS = {0x0: "absent", 0x1: "present", 0x2: "blocked", 0x7: "active sto
                  0xA: "fieldbus update failure (E010)"}
 POLLED_STATUS = {0xA: "fieldbus update failure (E010)", 0xF: "normal mode"}
 SLOT_STATUS = {0x0: "absent", 0x1: "present", 0x2: "blocked", 0x7: "active stop", 0xF: "not used"}
+# A state the capture does not hold (the frame cut before its byte): unknown,
+# never read as 0.
+NOT_CAPTURED = "not captured"
 
 BURST_GAP = 2.0     # s: the same finding again within this time joins its burst
 PLOT_BUCKETS = 2000  # points kept per plotted series (min/max per time bucket)
@@ -33,6 +37,8 @@ DEFAULT_LIMITS = {
     "eglink.input_port": "5825",
     # nor this: the Modbus/TCP servers decoded as BUs without evidence
     "eclink_modbus.servers": "",
+    # nor this: the Modbus/TCP ports decoded, to name a cut frame's server port
+    "eclink_modbus.port": "502",
 }
 
 EXPERT_START = len(COL) - len(EXPERT_FIELDS)
@@ -47,6 +53,13 @@ EG_DPORT = C["udp_dstport"]
 TCP_SPORT = C["tcp_srcport"]
 MODBUS_CANDIDATE, PNIO_CANDIDATE = C["eclink_modbus_candidate_setting"], C["mcmb2_candidate_setting"]
 CONNECT_CUT = C["mcmb2_connect_cut"]  # (an expert field: a Connect the capture cut)
+FRAME_LEN, CAP_LEN, PN_FRAME_ID = C["frame_len"], C["frame_cap_len"], C["pn_rt_frame_id"]
+MCMB2_ITEM, MESSAGES, SEVERITIES = C["mcmb2"], C["_ws_expert_message"], C["_ws_expert_severity"]
+# tshark's expert severities (_ws.expert.severity), note and above
+SEVERITY_CODES = {0x00400000: NOTE, 0x00600000: WARNING, 0x00800000: ERROR}
+# PROFINET RT FrameIDs of cyclic data (classes 3, 2 and 1); above: alarms, DCP
+CYCLIC_IDS = range(0x0100, 0xFC00)
+PROFINET_TYPE = "0x8892"   # (the EtherType; a frame the capture cut may have no FrameID)
 LAYOUT_INFERRED = ("mcmb2.layout.inferred", "eclink_pnio.layout.inferred")
 # A failed command (its warning, or the note that its deadline passed): the
 # field that links to the command's frame.
@@ -65,7 +78,7 @@ def limits_from_prefs(prefs):
     limits = dict(DEFAULT_LIMITS)
     for pref in prefs:
         name, _, value = pref.partition(":")
-        if name in ("eglink.input_port", "eclink_modbus.servers"):
+        if name in ("eglink.input_port", "eclink_modbus.servers", "eclink_modbus.port"):
             limits[name] = value
         elif name in limits:
             try:
@@ -266,6 +279,12 @@ class Entry:
                 "end_time": None if self.end_time is None else round(self.end_time, 6)}
 
 
+class CaptureLevel:
+    """The "device" of an entry that belongs to no device: a note tshark
+    gave on frames of which no device formed (a cut Connect)."""
+    id = None
+
+
 ENDED = {"relays": "closed in frame %d", "stall": "moving again in frame %d",
          "gap": "received again in frame %d"}
 
@@ -290,6 +309,26 @@ class Device:
         self.raw_state = None   # EG-Link: the last VRPI's state columns
         self.stream = None      # EG-Link: the analysis stream of the BU, once known
         self.ports = set()      # EG-Link: the UDP destination ports of its packets
+        self.uncaptured = {}    # state name: [first, last, count] of the frames without it since
+                                # its last captured value (a cut frame)
+
+    def not_captured(self, name, frame):
+        """A frame that should carry the state but was cut before it."""
+        rec = self.uncaptured.get(name)
+        if rec is None:
+            rec = self.uncaptured[name] = [frame, frame, 0]
+            self.initial.setdefault(name, NOT_CAPTURED)
+        rec[1] = frame
+        rec[2] += 1
+
+    def final(self, name):
+        """The state at the end: its last value, or what was not captured after it."""
+        state, rec = self.states.get(name), self.uncaptured.get(name)
+        if rec is None:
+            return self.formats[name](state[0])
+        if state is None:
+            return NOT_CAPTURED
+        return "%s from frame %d on (before: %s)" % (NOT_CAPTURED, rec[0], self.formats[name](state[0]))
 
     def plot(self, name, group, t, v, limit=None, labels=None):
         s = self.series.get(name)
@@ -303,7 +342,9 @@ class Device:
                "first_frame": self.first_frame, "last_frame": self.last_frame,
                "start": round(self.first_time, 6), "end": round(self.last_time, 6),
                "initial": self.initial,
-               "final": {k: self.formats[k](s[0]) for k, s in self.states.items()}}
+               "final": {k: self.final(k) for k in self.initial},
+               "not_captured": {k: {"first_frame": r[0], "last_frame": r[1], "frames": r[2]}
+                                for k, r in self.uncaptured.items()}}
         if self.kind == "mcmb2":
             out["terminals"] = [
                 {"terminal": n, "first_frame": v[0], "last_frame": v[1], "start": round(v[2], 6),
@@ -338,6 +379,15 @@ class Capture:
         self.candidates = {}        # connection or PROFINET run: what its candidate notes say
         self._pnio_decoded = {}     # PROFINET run (pair of MAC addresses): last frame decoded
         self._connect_cut = None    # the first Connect the capture cut (snaplen): its frame
+        self._cut = False           # the current frame was cut by the capture (snaplen)
+        # what the capture holds, for the hints (expect.py): frames and cut
+        # frames per transport, the cut frames' TCP server ports, the
+        # PROFINET cyclic frames that formed no device and no candidate
+        self.held = {name: {"frames": 0, "cut": 0} for name in ("udp", "tcp", "profinet")}
+        self._undecoded = {}        # PROFINET run (pair of MAC addresses): [frames, FrameIDs] of no device
+        self.snaplen = None         # the longest cut frame's captured length
+        self._cut_ports = set()
+        self._notes = {}            # (severity, message without its numbers): latest Entry
 
     # --- rows ---------------------------------------------------------------
 
@@ -357,6 +407,9 @@ class Capture:
         self.last_time, self.last_frame = t, frame
         if c[TCP_SPORT]:
             self.tcp_frames += 1
+        self._cut = bool(c[FRAME_LEN] and c[CAP_LEN]) and int(c[CAP_LEN]) < int(c[FRAME_LEN])
+        held = self._held(c)
+        formed = True
         if c[C["eglink_type"]]:
             self._eglink(c, frame, t)
         elif c[C["mcmb2_direction"]]:
@@ -365,10 +418,57 @@ class Capture:
             self._eclink_pnio(c, frame, t)
         elif c[C["eclink_modbus_table"]] or c[C["eclink_image"]]:
             self._eclink_modbus(c, frame, t)
+        else:
+            formed = False
         if c[MODBUS_CANDIDATE] or c[PNIO_CANDIDATE]:
             self._candidate(c, frame, t)
+        elif not formed:
+            frame_id = num(c[PN_FRAME_ID]) if c[PN_FRAME_ID] else None
+            if held == "profinet" and (frame_id in CYCLIC_IDS or frame_id is None and self._cut):
+                run = self._undecoded.setdefault(frozenset((c[C["eth_src"]], c[C["eth_dst"]])), [0, set()])
+                run[0] += 1
+                run[1].update([frame_id] if frame_id is not None else [])
+            if c[MCMB2_ITEM] and c[MESSAGES]:
+                self._capture_notes(c, frame, t)
         if len(c) > CONNECT_CUT and c[CONNECT_CUT] and self._connect_cut is None:
             self._connect_cut = frame
+
+    def _held(self, c):
+        """Counts the frame by its transport; the transport's name."""
+        name = ("udp" if c[EG_DPORT] else "tcp" if c[TCP_SPORT]
+                else "profinet" if PROFINET_TYPE in (c[C["eth_type"]], c[C["vlan_etype"]]) else None)
+        if name is None:
+            return None
+        self.held[name]["frames"] += 1
+        if self._cut:
+            self.held[name]["cut"] += 1
+            self.snaplen = max(self.snaplen or 0, int(c[CAP_LEN]))
+            if name == "tcp":
+                ports = {int(c[TCP_SPORT]), int(c[C["tcp_dstport"]] or 0xFFFF)}
+                decoded = ports & port_range(self.limits["eclink_modbus.port"])
+                self._cut_ports.add(min(decoded or ports))
+        return name
+
+    def _capture_notes(self, c, frame, t):
+        """tshark's expert infos (note and above) on a frame that formed no
+        device, as tshark words them: what the capture shows of a run no
+        device came from (a Connect it cut)."""
+        severities = [SEVERITY_CODES.get(int(v)) for v in c[SEVERITIES].split(",") if v]
+        messages = re.split(r",(?=[A-Z])", c[MESSAGES])
+        if len(messages) != len(severities):   # (a comma of the messages' own)
+            messages = [c[MESSAGES]]
+            severities = [max(filter(None, severities), key=catalog.LEVELS.get, default=None)]
+        for severity, text in zip(severities, messages):
+            if severity is None:
+                continue
+            key = (severity, re.sub(r"\d+", "#", text))
+            entry = self._notes.get(key)
+            if entry is not None and t - entry.last_time <= BURST_GAP:
+                entry.count += 1
+                entry.last_frame, entry.last_time = frame, t
+                continue
+            entry = self._notes[key] = Entry(CaptureLevel, frame, t, severity, "finding", text)
+            self.entries.append(entry)
 
     def _new_device(self, key, kind, frame, t):
         self._ids += 1
@@ -397,11 +497,11 @@ class Capture:
         dev.frames += 1
         dev.last_frame, dev.last_time = frame, t
         good = c[EG_CRC] != "0"
-        if typ == "VRPI" and good and c[EG_BU]:
+        if typ == "VRPI" and good:
             raw = (c[EG_BU], c[EG_RU], c[EG_ARMED])
-            if raw != dev.raw_state:  # most VRPI repeat the state: nothing to do
+            if raw != dev.raw_state or not all(raw):  # most VRPI repeat the state: nothing to do
                 dev.raw_state = raw
-                self._safety(dev, frame, t, num(raw[0]), num(raw[1] or "0"), num(raw[2] or "0"))
+                self._safety(dev, frame, t, *[num(v) if v else None for v in raw])
             for i, col in EG_JOYSTICKS:
                 if c[col]:
                     dev.plot("joystick %d" % i, "value", t, num(c[col]))
@@ -569,10 +669,9 @@ class Capture:
         images = c[C["eclink_image"]]
         if "input" in images:
             self._poll(dev, "input image", frame, t, self.limits["eclink.pci"])
-            bu, ru = c[C["eclink_bu_state"]], c[C["eclink_ru_state"]]
-            if bu:
-                self._safety(dev, frame, t, num(bu), num(ru) if ru else None,
-                             num(c[C["eclink_armed_ru"]]) if c[C["eclink_armed_ru"]] else None)
+            self._safety(dev, frame, t, *[num(c[C[name]]) if c[C[name]] else None
+                                          for name in ("eclink_bu_state", "eclink_ru_state",
+                                                       "eclink_armed_ru")])
             for i in range(1, 5):
                 value = c[C["eclink_joystick%d" % i]]
                 if value:
@@ -604,8 +703,7 @@ class Capture:
                 self._counter(dev, "uplink watchdog", num(c[C["mcmb2_uplink_watchdog"]]), frame, t)
             if age:
                 dev.plot("uplink watchdog age", "age", t, float(age), self.limits["mcmb2.uplink_timeout"])
-            if c[C["mcmb2_status"]]:
-                self._mcmb2_status(dev, c, frame, t, system)
+            self._mcmb2_status(dev, c, frame, t, system)
         else:
             if c[C["mcmb2_downlink_watchdog"]]:
                 self._counter(dev, "downlink watchdog", num(c[C["mcmb2_downlink_watchdog"]]), frame, t)
@@ -615,6 +713,10 @@ class Capture:
         self._experts(dev, c, frame, t)
 
     def _mcmb2_status(self, dev, c, frame, t, system):
+        if not c[C["mcmb2_status"]]:
+            if self._cut:
+                dev.not_captured("status", frame)
+            return
         status = num(c[C["mcmb2_status"]])
         table = POLLED_STATUS if system == "polled" else DUPLEX_STATUS
         self._transition(dev, "status", status, frame, t, named(table), table)
@@ -652,10 +754,11 @@ class Capture:
         state = dev.states.get(name)
         if labels is not None:
             dev.plot(name, "state", t, value, labels=labels)
+        dev.uncaptured.pop(name, None)
         if state is None:
             dev.states[name] = [value, t, frame, True]
             dev.formats[name] = fmt
-            dev.initial[name] = fmt(value)
+            dev.initial.setdefault(name, fmt(value))
             return
         if state[0] == value:
             return
@@ -667,14 +770,24 @@ class Capture:
         dev.states[name] = [value, t, frame, False]
 
     def _safety(self, dev, frame, t, bu, ru, armed):
-        """BU and RU state of a BU, and the ES-Link relays they imply."""
-        self._transition(dev, "BU state", bu, frame, t, named(BU_STATES), BU_STATES)
-        prev = dev.states.get("RU state", [(None, None)])[0]
-        ru = prev[0] if ru is None else ru
-        armed = prev[1] if armed is None else armed
-        if ru is not None:
-            self._transition(dev, "RU state", (ru, armed or 0), frame, t, ru_text, change=ru_change)
+        """BU and RU state of a BU, and the ES-Link relays they imply. A
+        value None is not in the frame: on a frame the capture cut
+        (self._cut) it is not captured, and the state it belongs to stays
+        what it was, never 0 (no invented change); the armed RU goes with
+        the RU state, so a state without it is not captured either."""
+        if bu is not None:
+            self._transition(dev, "BU state", bu, frame, t, named(BU_STATES), BU_STATES)
+        elif self._cut:
+            dev.not_captured("BU state", frame)
+        if ru is not None and armed is not None:
+            self._transition(dev, "RU state", (ru, armed), frame, t, ru_text, change=ru_change)
             dev.plot("RU state", "state", t, ru, labels=RU_STATES)
+        elif self._cut:
+            dev.not_captured("RU state", frame)
+        bu = dev.states.get("BU state", [bu])[0]
+        ru = dev.states.get("RU state", [(ru, armed)])[0][0]
+        if bu is None:
+            return
         cause = ("BU state %s" % named(BU_STATES)(bu) if bu < 0x10
                  else "RU stopped" if ru == 4 else None)
         entry = dev.open.get("relays")
@@ -850,6 +963,15 @@ class Capture:
             entry.last_frame, entry.last_time = rec["last_frame"], rec["end"]
             self.entries.append(entry)
 
+    def _profinet_undecoded(self):
+        """The cyclic frames of the PROFINET runs that never formed a device
+        or a candidate (a run's first frames before its layout is inferred
+        are its device's)."""
+        runs = [run for key, run in self._undecoded.items()
+                if key not in self._pnio_decoded and ("pnio", key) not in self.candidates]
+        return {"undecoded": sum(run[0] for run in runs),
+                "frame_ids": sorted(set().union(*[run[1] for run in runs]))}
+
     def finish(self, error=None):
         """Close what is still open at the end; the report as a plain dict."""
         self._candidates()
@@ -885,6 +1007,10 @@ class Capture:
             "error": error,
             "frames": self.frames,
             "tcp_frames": self.tcp_frames,
+            "held": {"udp": self.held["udp"], "tcp": dict(self.held["tcp"], cut_ports=sorted(self._cut_ports)),
+                     "profinet": dict(self.held["profinet"], connect_cut=self._connect_cut,
+                                      **self._profinet_undecoded()),
+                     "snaplen": self.snaplen},
             "start": start.strftime("%Y-%m-%d %H:%M:%S.%f")[:-3] + " UTC" if start else None,
             "start_epoch": self.first_epoch,
             "duration": round(self.last_time, 6),

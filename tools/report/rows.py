@@ -59,6 +59,11 @@ FIELDS = [
     "eclink.ru_battery", "eclink.ru_rssi", "eclink.ru_cable", "eclink.ru_docked",
     "eclink.encoder_switch", "eclink.ru_disabled", "eclink.spare", "eclink.periodic_size",
     "eclink.periodic_block", "eclink_pnio.iops",
+    # what the capture holds: a frame cut by the snaplen (its caplen below
+    # its length), and the expert infos of a PROFINET run's frames that
+    # formed no device (the mcmb2 protocol item: a cut Connect, too few
+    # cyclic frames), read by their message as tshark gives it
+    "frame.len", "frame.cap_len", "eth.type", "vlan.etype", "mcmb2", "_ws.expert.message", "_ws.expert.severity",
 ]
 EXPERT_FIELDS = list(catalog.EXPERTS)
 ALL_FIELDS = FIELDS + EXPERT_FIELDS

@@ -1,4 +1,5 @@
 """The text report: per capture its devices, then its timeline, one line per entry."""
+from . import held
 
 
 def plural(n, word):
@@ -21,6 +22,11 @@ def device_lines(dev):
             term["start"], term["end"])
 
 
+def device(entry):
+    """[1], or [-] for a note that belongs to no device (a cut Connect)."""
+    return "[%s]" % ("-" if entry["device"] is None else entry["device"])
+
+
 def capture_lines(rep):
     yield "== %s" % rep["capture"]
     if rep["frames"] == 0 and rep["error"]:
@@ -29,10 +35,15 @@ def capture_lines(rep):
     yield "%s, %.3f s from %s" % (plural(rep["frames"], "frame"), rep["duration"], rep["start"])
     if rep["error"]:
         yield "  %s: the report covers the frames before it" % rep["error"]
-    if not rep["devices"]:
-        yield "  no EG-Link, EC-Link or MC-MB2-PN traffic found"
-        return
-    yield "%s:" % plural(len(rep["devices"]), "device")
+    if held.cut(rep):
+        yield "  %s: what they do not hold is not captured" % held.cut(rep)
+    if rep["devices"]:
+        yield "%s:" % plural(len(rep["devices"]), "device")
+    else:
+        for line in held.no_device(rep):
+            yield "  " + line
+        if not rep["timeline"]:
+            return
     for dev in rep["devices"]:
         yield from device_lines(dev)
     counts = rep["counts"]
@@ -44,7 +55,7 @@ def capture_lines(rep):
         counts["error"], counts["warning"], counts["note"])
     yield "      time   frame  severity  device"
     for e in rep["timeline"]:
-        yield "%10.3f %7d  %-8s  [%d]  %s" % (e["time"], e["frame"], e["severity"], e["device"], e["text"])
+        yield "%10.3f %7d  %-8s  %s  %s" % (e["time"], e["frame"], e["severity"], device(e), e["text"])
 
 
 def write(reports, out):
