@@ -600,6 +600,27 @@ ns_str(wmem_allocator_t *scope, gint64 ns)
     return wmem_strdup_printf(scope, "%" G_GINT64_FORMAT ".%03d s", ms / 1000, (int)(ms % 1000));
 }
 
+/* A time a finding compares with a limit (in ms): rounded to the
+ * millisecond, or with as many more digits as it takes not to read as the
+ * limit itself, which it is not ("0.2003 s" for a VRPO interval outside 50
+ * to 200 ms). Rounding never carries a time across its limit, which has
+ * no more digits. */
+static const char *
+ns_str_past(wmem_allocator_t *scope, gint64 ns, guint limit_ms)
+{
+    gint64 unit = 1000000, per_s = 1000, v = (ns + unit / 2) / unit;
+    int digits = 3;
+
+    while (unit > 1 && v * unit == ms_to_ns(limit_ms)) {
+        unit /= 10;
+        per_s *= 10;
+        digits++;
+        v = (ns + unit / 2) / unit;
+    }
+    return wmem_strdup_printf(scope, "%" G_GINT64_FORMAT ".%0*" G_GINT64_FORMAT " s",
+                              v / per_s, digits, v % per_s);
+}
+
 static gboolean
 eglink_is_input(eglink_type_t type)
 {
@@ -1796,6 +1817,7 @@ show_command(proto_tree *at, proto_item *aitem, tvbuff_t *tvb, packet_info *pinf
     proto_item *ti;
     const char *what = cmd->dir == EGLINK_DIR_IN ? "VRCI" : "VRCO";
     const char *ack = cmd->dir == EGLINK_DIR_IN ? "VRAO" : "VRAI";
+    guint timeout_ms = cmd->dir == EGLINK_DIR_IN ? pref_vrci_ack_timeout_ms : pref_vrco_ack_timeout_ms;
 
     if (info->type == EGLINK_TYPE_VRCI || info->type == EGLINK_TYPE_VRCO) {
         if (fd->flags & FF_RETRANS) {
@@ -1840,8 +1862,7 @@ show_command(proto_tree *at, proto_item *aitem, tvbuff_t *tvb, packet_info *pinf
         if (late) {
             expert_add_info_format(pinfo, ti, &ei_late_ack,
                 "Acknowledges %s command %u %s after its first transmission, later than %u ms",
-                what, cmd->command_id, ns_str(pinfo->pool, late->ns),
-                info->type == EGLINK_TYPE_VRAO ? pref_vrci_ack_timeout_ms : pref_vrco_ack_timeout_ms);
+                what, cmd->command_id, ns_str_past(pinfo->pool, late->ns, timeout_ms), timeout_ms);
             col_append_str(pinfo->cinfo, COL_INFO, " [late ack]");
         } else if ((fd->flags & FF_FIRST_ACK) && (fd->flags & FF_DELTA)) {
             expert_add_info_format(pinfo, ti, &ei_ack, "Acknowledges %s command %u after %s",
@@ -1912,13 +1933,15 @@ show_vrpo_rule(proto_item *aitem, packet_info *pinfo, const eglink_info_t *info,
     case FND_VRPO_INTERVAL:
         expert_add_info_format(pinfo, aitem, &ei_vrpo_interval,
             "VRPO %s after the previous one: TS-0006 §5.1.2 recommends a VRPO every %u to %u ms",
-            ns_str(pinfo->pool, f->ns), EGLINK_VRPO_INTERVAL_MIN_MS, EGLINK_VRPO_INTERVAL_MAX_MS);
+            ns_str_past(pinfo->pool, f->ns, f->ns < ms_to_ns(EGLINK_VRPO_INTERVAL_MIN_MS)
+                                            ? EGLINK_VRPO_INTERVAL_MIN_MS : EGLINK_VRPO_INTERVAL_MAX_MS),
+            EGLINK_VRPO_INTERVAL_MIN_MS, EGLINK_VRPO_INTERVAL_MAX_MS);
         break;
     case FND_BURST_SPREAD:
         expert_add_info_format(pinfo, aitem, &ei_burst_spread,
             "VRPO packet %u %s after the packet before it in its burst (more than %u ms): TS-0006 "
             "§5.1.2 sends the packets of a split VRPO without delay", info->packet_number,
-            ns_str(pinfo->pool, f->ns), pref_burst_spread_ms);
+            ns_str_past(pinfo->pool, f->ns, pref_burst_spread_ms), pref_burst_spread_ms);
         break;
     case FND_VRPO_NOT_FULL:
         expert_add_info_format(pinfo, aitem, &ei_vrpo_not_full,
@@ -1931,6 +1954,17 @@ show_vrpo_rule(proto_item *aitem, packet_info *pinfo, const eglink_info_t *info,
     }
 }
 
+/* The edge of the resend window (100 ms +- the tolerance) a resend
+ * interval falls outside of. */
+static guint
+resend_edge_ms(gint64 ns)
+{
+    if (ns > ms_to_ns(EGLINK_RESEND_INTERVAL_MS))
+        return EGLINK_RESEND_INTERVAL_MS + pref_resend_tolerance_ms;
+    return pref_resend_tolerance_ms < EGLINK_RESEND_INTERVAL_MS
+           ? EGLINK_RESEND_INTERVAL_MS - pref_resend_tolerance_ms : 0;
+}
+
 /* The command rules of TS-0006 4.3, 4.5, 5.1.3 and 5.1.4. */
 static void
 show_command_rule(proto_item *aitem, packet_info *pinfo, const eglink_info_t *info, const eglink_finding_t *f)
@@ -1940,18 +1974,20 @@ show_command_rule(proto_item *aitem, packet_info *pinfo, const eglink_info_t *in
     const char *ack = vrci ? "VRAO" : "VRAI";
     const char *flow = vrci ? "5.1.3" : "5.1.4";
     guint id = f->value & 0xFFFF;
+    guint timeout_ms = vrci ? pref_vrci_ack_timeout_ms : pref_vrco_ack_timeout_ms;
 
     switch ((eglink_finding_kind_t)f->kind) {
     case FND_RESEND_INTERVAL:
         expert_add_info_format(pinfo, aitem, &ei_resend_interval,
             "%s command %u resent %s after its previous transmission (frame %u): TS-0006 §%s "
-            "resends it every %u ms (tolerance %u ms)", what, id, ns_str(pinfo->pool, f->ns), f->frame,
+            "resends it every %u ms (tolerance %u ms)", what, id, ns_str_past(pinfo->pool, f->ns, resend_edge_ms(f->ns)), f->frame,
             flow, EGLINK_RESEND_INTERVAL_MS, pref_resend_tolerance_ms);
         break;
     case FND_NOT_RESENT:
         expert_add_info_format(pinfo, aitem, &ei_not_resent,
             "%s command %u (frame %u) not resent for %s while unacknowledged: TS-0006 §%s "
-            "resends it every %u ms until a %s", what, id, f->frame, ns_str(pinfo->pool, f->ns), flow,
+            "resends it every %u ms until a %s", what, id, f->frame,
+            ns_str_past(pinfo->pool, f->ns, EGLINK_RESEND_INTERVAL_MS + pref_resend_tolerance_ms), flow,
             EGLINK_RESEND_INTERVAL_MS, ack);
         break;
     case FND_RESENT_AFTER_ACK:
@@ -1963,8 +1999,7 @@ show_command_rule(proto_item *aitem, packet_info *pinfo, const eglink_info_t *in
         expert_add_info_format(pinfo, aitem, &ei_resent_after_deadline,
             "%s command %u resent %s after its first transmission (frame %u), past its %u ms "
             "deadline: TS-0006 §%s stops resending at the timeout", what, id,
-            ns_str(pinfo->pool, f->ns), f->frame,
-            vrci ? pref_vrci_ack_timeout_ms : pref_vrco_ack_timeout_ms, flow);
+            ns_str_past(pinfo->pool, f->ns, timeout_ms), f->frame, timeout_ms, flow);
         break;
     case FND_CMD_ID_SEQUENCE:
         expert_add_info_format(pinfo, aitem, &ei_command_id_sequence,
@@ -1985,7 +2020,9 @@ show_findings(proto_tree *at, proto_item *aitem, tvbuff_t *tvb, packet_info *pin
     const char *t;
 
     for (f = fd->findings; f; f = f->next) {
-        t = ns_str(pinfo->pool, f->ns);
+        /* (the gaps below: a VRPI's or a VRPO's, past its threshold) */
+        t = ns_str_past(pinfo->pool, f->ns, f->kind == FND_VRPI_GAP || f->kind == FND_VRPI_MISSING
+                                            ? pref_vrpi_gap_ms : pref_vrpo_gap_ms);
         switch ((eglink_finding_kind_t)f->kind) {
         case FND_REPEAT:
             ti = aitem;
