@@ -372,23 +372,25 @@ eglink_add_bytes(eglink_payload_t *p, int hf, int off, int len, proto_item **ite
 }
 
 /* A finding on a payload value; none in a packet whose CRC fits no variant,
- * whose values are its corrupted bytes (its CRC finding says so, once). */
-static void
+ * whose values are its corrupted bytes (its CRC finding says so, once).
+ * TRUE when it was added. */
+static gboolean
 eglink_value_finding(eglink_payload_t *p, proto_item *ti, expert_field *ei, const char *format, ...)
     G_GNUC_PRINTF(4, 5);
 
-static void
+static gboolean
 eglink_value_finding(eglink_payload_t *p, proto_item *ti, expert_field *ei, const char *format, ...)
 {
     va_list ap;
     char *text;
 
     if (p->untrusted)
-        return;
+        return FALSE;
     va_start(ap, format);
     text = wmem_strdup_vprintf(p->pinfo->pool, format, ap);
     va_end(ap);
     expert_add_info_format(p->pinfo, ti, ei, "%s", text);
+    return TRUE;
 }
 
 static void
@@ -410,24 +412,8 @@ eglink_check_payload_spare(eglink_payload_t *p, int off, int len)
 
 /* An undefined or out-of-range value: an error in the Protocol group (the
  * "one voice" table of the README), and the Info tag [undefined]. */
-static void
-eglink_undefined(eglink_payload_t *p, proto_item *ti, expert_field *ei, const char *format, ...)
-    G_GNUC_PRINTF(4, 5);
-
-static void
-eglink_undefined(eglink_payload_t *p, proto_item *ti, expert_field *ei, const char *format, ...)
-{
-    va_list ap;
-    char *text;
-
-    if (p->untrusted)
-        return;
-    va_start(ap, format);
-    text = wmem_strdup_vprintf(p->pinfo->pool, format, ap);
-    va_end(ap);
-    eglink_value_finding(p, ti, ei, "%s", text);
-    p->undefined = TRUE;
-}
+#define eglink_undefined(p, ti, ei, ...) \
+    ((p)->undefined |= eglink_value_finding((p), (ti), (ei), __VA_ARGS__))
 
 /* A value a value_string does not name reads "Unknown (0x42)", in the tree as
  * everywhere else (Wireshark would print a decimal field as "Unknown (66)"). */
