@@ -629,12 +629,18 @@ local function add_bytes(p, field, off, len)
     return len, t_add(p.tree, field, tvb_range(p.tvb, p.base + off, len))
 end
 
+-- A finding on a payload value; none in a packet whose CRC fits no variant,
+-- whose values are its corrupted bytes (its CRC finding says so, once).
+local function value_finding(p, ti, e, text)
+    if not p.untrusted then ti:add_proto_expert_info(e, text) end
+end
+
 local function check_payload_spare(p, off, len)
     local present, ti = add_bytes(p, pf.payload_spare, off, len)
     local raw, first = p.raw, p.base + off
     for i = 1, present do
         if byte(raw, first + i) ~= 0 then
-            ti:add_proto_expert_info(ei.payload_spare_nonzero,
+            value_finding(p, ti, ei.payload_spare_nonzero,
                 "Payload spare bytes are not 0: reserved for future use, the sender "
                 .. "may use a newer layout than TS-0006")
             break
@@ -645,7 +651,8 @@ end
 -- An undefined or out-of-range value: an error in the Protocol group, and
 -- the Info tag [undefined].
 local function undefined(p, ti, e, text)
-    ti:add_proto_expert_info(e, text)
+    if p.untrusted then return end
+    value_finding(p, ti, e, text)
     p.undefined = true
 end
 
@@ -665,13 +672,13 @@ end
 -- TS-0006 4.1.2: Passive (link not in use) is reported on the C-Link only,
 -- and only when no remote is armed. i: 1 EG-Link, 2 EC-Link, 3 C-Link.
 local LINK_NAMES = { "EG-Link", "EC-Link", "C-Link" }
-local function check_passive(ti, i, value, armed_ru)
+local function check_passive(p, ti, i, value, armed_ru)
     if not ti or value ~= LINK_PASSIVE then return end
     if i ~= 3 then
-        ti:add_proto_expert_info(ei.link_status_passive,
+        value_finding(p, ti, ei.link_status_passive,
             string.format("%s status Passive: only the C-Link reports Passive", LINK_NAMES[i]))
     elseif armed_ru and armed_ru ~= 0 then
-        ti:add_proto_expert_info(ei.link_status_passive, string.format(
+        value_finding(p, ti, ei.link_status_passive, string.format(
             "C-Link status Passive while RU 0x%04x is armed: Passive only when no remote is armed", armed_ru))
     end
 end
@@ -760,7 +767,7 @@ local function dissect_vrpi(p, info)
         t_set_generated(t_add(p.tree, pf.relays_open, tvb_range(p.tvb, p.base, 1), relays_open))
     end
     if bu_state < BU_STATE_DISARMED then
-        bu_ti:add_proto_expert_info(ei.relays_open, string.format("ES-Link relays open: BU state %s (0x%02x), %s",
+        value_finding(p, bu_ti, ei.relays_open, string.format("ES-Link relays open: BU state %s (0x%02x), %s",
             BU_STATE[bu_state] or "Unknown", bu_state,
             BU_STATE_ADVICE[bu_state] or "an undefined state below Disarmed"))
     end
@@ -778,17 +785,17 @@ local function dissect_vrpi(p, info)
     if cl then check_link_status(p, cl_ti, "c_link_status", "C-Link status", cl) end
 
     local armed_ru, armed_ti = add_uint(p, pf.armed_ru, 6, 2)
-    check_passive(eg_ti, 1, eg, armed_ru)
-    check_passive(ec_ti, 2, ec, armed_ru)
-    check_passive(cl_ti, 3, cl, armed_ru)
+    check_passive(p, eg_ti, 1, eg, armed_ru)
+    check_passive(p, ec_ti, 2, ec, armed_ru)
+    check_passive(p, cl_ti, 3, cl, armed_ru)
     local ru_state, ru_ti = add_uint(p, pf.ru_state, 8, 1)
     if ru_state then
         if ru_state == RU_STATE_STOPPED then
-            ru_ti:add_proto_expert_info(ei.ru_state_stopped,
+            value_finding(p, ru_ti, ei.ru_state_stopped,
                 "RU stopped (stop switch, free-fall/shock sensor or RU fault): ES-Link relays open")
         elseif ru_state == RU_STATE_DISARMED then
             -- TS-0006 4.1.3: Disarmed is used inside the BU only
-            ru_ti:add_proto_expert_info(ei.ru_state_disarmed,
+            value_finding(p, ru_ti, ei.ru_state_disarmed,
                 "RU state 1 (Disarmed) on the wire: TS-0006 uses it only inside the BU")
         elseif not RU_STATE[ru_state] then
             show_unknown(ru_ti, "ru_state", ru_state)
@@ -880,52 +887,64 @@ local function add_crc_status(tree, tvb, crc_offset, status)
     t_set_generated(ti)
 end
 
--- CRC: verify with the configured variant; on failure say which one fits.
--- raw: the packet's bytes, the CRC's included.
-local function dissect_crc(tvb, raw, pinfo, tree, crc_offset)
+-- The CRC check of one packet (as eglink_crc_check() in C): with the
+-- configured variant and byte order, and when that fails, the first other
+-- variant and byte order that fits. raw: the packet's bytes, the CRC's included.
+local CRC_OK = { ok = true }
+local function crc_check(raw, crc_offset)
     local variant, order = opt.crc_variant, opt.crc_order
     local b0, b1, b2, b3 = byte(raw, crc_offset + 1, crc_offset + 4)
     local stored_le = ((b3 * 256 + b2) * 256 + b1) * 256 + b0
     local stored_be = ((b0 * 256 + b1) * 256 + b2) * 256 + b3
     local stored = order == CRC_BE and stored_be or stored_le
+    if variant == CRC_MPEG2 and stored == crc_mpeg2(raw, crc_offset) then return CRC_OK end
+    local s = sub(raw, 1, crc_offset)
+    local computed = { [variant] = crc_compute(s, variant) }
+    if stored == computed[variant] then return CRC_OK end
+    local c = { ok = false, computed = computed[variant] }
+    for v = CRC_MPEG2, CRC_STM32 do
+        if v ~= variant then computed[v] = crc_compute(s, v) end
+        if computed[v] == stored_le and (v ~= variant or order ~= CRC_LE) then
+            c.match, c.order = v, "le"
+            break
+        end
+        if computed[v] == stored_be and (v ~= variant or order ~= CRC_BE) then
+            c.match, c.order = v, "be"
+            break
+        end
+    end
+    return c
+end
+
+-- CRC: the check's result; on failure which variant fits, or that the
+-- packet's values are not trusted (said once, instead of a finding per
+-- value its corrupted bytes make undefined).
+local function dissect_crc(tvb, pinfo, tree, crc_offset, c)
     local shown = not want or want[pf.crc]
     local ti = tree
     if shown then
         local range = tvb_range(tvb, crc_offset, CRC_LEN)
-        ti = order == CRC_BE and t_add(tree, pf.crc, range) or t_add_le(tree, pf.crc, range)
+        ti = opt.crc_order == CRC_BE and t_add(tree, pf.crc, range) or t_add_le(tree, pf.crc, range)
     end
-    if variant == CRC_MPEG2 and stored == crc_mpeg2(raw, crc_offset) then
-        if shown then t_append(ti, " [correct]") end
-        add_crc_status(tree, tvb, crc_offset, CHECKSUM_GOOD)
-        return true
-    end
-    local s = sub(raw, 1, crc_offset)
-    local computed = { [variant] = crc_compute(s, variant) }
-    if stored == computed[variant] then
+    if c.ok then
         if shown then t_append(ti, " [correct]") end
         add_crc_status(tree, tvb, crc_offset, CHECKSUM_GOOD)
         return true
     end
     add_crc_status(tree, tvb, crc_offset, CHECKSUM_BAD)
-    if shown then ti:append_text(string.format(" incorrect, should be 0x%08x", computed[variant])) end
-    ti:add_proto_expert_info(ei.crc_bad, string.format("Bad CRC [should be 0x%08x]", computed[variant]))
-
+    if shown then ti:append_text(string.format(" incorrect, should be 0x%08x", c.computed)) end
     col_append(pinfo.cols.info, " [bad CRC]")
-    for v = CRC_MPEG2, CRC_STM32 do
-        if v ~= variant then computed[v] = crc_compute(s, v) end
-        if computed[v] == stored_le and (v ~= variant or order ~= CRC_LE) then
-            ti:add_proto_expert_info(ei.crc_variant, string.format(
-                "CRC matches %s, little-endian: set the preference (eglink.crc_variant: %s, eglink.crc_byte_order: le)",
-                CRC_VARIANT_NAMES[v], CRC_VARIANTS[v + 1][1]))
-            break
-        end
-        if computed[v] == stored_be and (v ~= variant or order ~= CRC_BE) then
-            ti:add_proto_expert_info(ei.crc_variant, string.format(
-                "CRC matches %s, big-endian: set the preference (eglink.crc_variant: %s, eglink.crc_byte_order: be)",
-                CRC_VARIANT_NAMES[v], CRC_VARIANTS[v + 1][1]))
-            break
-        end
+    if not c.match then
+        ti:add_proto_expert_info(ei.crc_bad, string.format(
+            "Bad CRC [should be 0x%08x]: no CRC variant fits, the packet is corrupted: its payload "
+            .. "values are not trusted, none is judged", c.computed))
+        return false
     end
+    ti:add_proto_expert_info(ei.crc_bad, string.format("Bad CRC [should be 0x%08x]", c.computed))
+    ti:add_proto_expert_info(ei.crc_variant, string.format(
+        "CRC matches %s, %s-endian: set the preference (eglink.crc_variant: %s, eglink.crc_byte_order: %s)",
+        CRC_VARIANT_NAMES[c.match], c.order == "be" and "big" or "little", CRC_VARIANTS[c.match + 1][1],
+        c.order))
     return false
 end
 
@@ -1066,6 +1085,9 @@ local function dissect(tvb, pinfo, tree)
     local p = { tvb = tvb, raw = raw, pinfo = pinfo, cinfo = cinfo, base = HEADER_LEN, len = reported - MIN_LEN,
                 undefined = false }
     p.cap = math.max(0, math.min(p.len, captured - HEADER_LEN))
+    -- (checked before the payload: a corrupted packet's values are not judged)
+    local crc = captured >= reported and crc_check(raw, reported - CRC_LEN) or nil
+    p.untrusted = crc ~= nil and not crc.ok and not crc.match
     info.size_ok = true
     -- (the C plugin files these under the Size item; with the Size not
     -- captured, under no item: only the expert list has them. The nearest
@@ -1115,7 +1137,7 @@ local function dissect(tvb, pinfo, tree)
     end
 
     if captured >= reported then
-        info.crc_ok = dissect_crc(tvb, raw, pinfo, eglink_tree, reported - CRC_LEN)
+        info.crc_ok = dissect_crc(tvb, pinfo, eglink_tree, reported - CRC_LEN, crc)
     else
         info.crc_ok = info.cut   -- not checked: counted as received when analysable
     end

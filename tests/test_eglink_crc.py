@@ -32,6 +32,7 @@ def test_good_crc(tshark, capture_file, name):
                   display_filter="eglink.crc")
 
 
+CORRUPTED = ": no CRC variant fits, the packet is corrupted: its payload values are not trusted, none is judged"
 BAD_CRCS = ["0xdeadbeef", "0x00000000", "0x12345678", "0xffffffff", "0xcafef00d", "0x0badc0de"]
 
 
@@ -42,7 +43,7 @@ def test_bad_crc(tshark, capture_file):
         7: {"eglink.crc.status": 1}})
     assert sorted(got) == list(range(1, 8))
     payloads = tshark.frames(cap, ["udp.payload"])
-    expected = {n: ["Bad CRC [should be 0x%08x]" % gen.crc32_mpeg2(
+    expected = {n: [("Bad CRC [should be 0x%08x]" + CORRUPTED) % gen.crc32_mpeg2(
         bytes.fromhex(payloads[n]["udp.payload"])[:-4])] for n in range(1, 7)}
     assert messages(tshark, cap) == expected
 
@@ -110,3 +111,33 @@ def test_bad_crc_is_a_checksum_error(tshark, capture_file):
                           display_filter="eglink.crc.bad && _ws.expert.severity == error"
                                          " && _ws.expert.group == checksum")
     assert sorted(shown) == [1, 2, 3, 4, 5, 6]
+
+
+def test_corrupted_values_are_not_judged(tshark, work_dir):
+    """A VRPI whose bytes were corrupted (BU state 0x05, battery 101 %, joystick 1 at
+    1001) with a CRC no variant fits: one error says its values are not trusted, no
+    undefined-value error, no finding on its values, no [undefined]; the fields
+    still decode. The same values
+    with a good CRC, or with the CRC of another variant (the packet is intact), are
+    judged."""
+    bad = gen.armed(bu_state=0x05, battery=101, joysticks=(1001, 0, 0, 0))
+    link = gen.Link()
+    link.bu(0.0, "VRPI", bad, crc_value=0xDEADBEEF)
+    link.bu(0.125, "VRPI", bad)
+    link.bu(0.25, "VRPI", bad, crc="bzip2", crc_order="be")
+    cap = work_dir / "corrupted_values.pcap"
+    cap.write_bytes(link.cap.to_bytes())
+    cap.chmod(0o644)
+    got = messages(tshark, cap)
+    judged = ["BU state Unknown (0x05): not defined in TS-0006",
+              "ES-Link relays open: BU state Unknown (0x05), an undefined state below Disarmed",
+              "RU battery 101 % is above 100 %", "Joystick 1 position 1001 is outside -1000..+1000"]
+    assert got[1] == [("Bad CRC [should be 0x%08x]" + CORRUPTED)
+                      % gen.crc32_mpeg2(gen.packet("VRPI", bad, origin=link.origin)[:-4])]
+    assert got[2] == judged
+    assert got[3] == judged + [got[3][-2], hint("bzip2", "be")]
+    assert got[3][-2].startswith("Bad CRC [should be 0x") and got[3][-2].endswith("]")
+    expect_frames(tshark, cap, {
+        1: {"_ws.col.Info": "VRPI BU=Unknown (0x05) RU 0xbeef=Enabled J1=1001 [relays open] [bad CRC]",
+            "eglink.bu_state": 5, "eglink.ru_battery": 101, "eglink.joystick1": 1001},
+        2: {"_ws.col.Info": "VRPI BU=Unknown (0x05) RU 0xbeef=Enabled J1=1001 [relays open] [undefined]"}})

@@ -144,13 +144,96 @@ def test_wrong_port_belongs_to_its_controller(tshark):
 
 def test_controller_on_its_own_port_is_not_flagged(tshark, work_dir):
     """A controller with no BU in the capture, on a port of its own (the
-    heuristic finds it): nothing says which port it should use."""
+    heuristic finds it): nothing says which port it should use. One pass
+    says it is not joined to a BU yet; two passes know it never is."""
     from eglink_testlib import gen
     link = gen.Link(input_port=5999)
     link.ctrl(0.0, "VRAO", gen.ack(5))
     path = work_dir / "vrao_6001.pcap"
     path.write_bytes(link.cap.to_bytes())
-    assert analysis(tshark, path) == {}
+    assert analysis(tshark, path) == {1: [(
+        "eglink.analysis.not_joined", "VRAO sent to UDP port 6001, where no BU has been seen: not joined to "
+        "a BU yet (two passes join it to the BU its controller turns up with later)")]}
+    assert analysis(tshark, path, two_pass=True) == {}
+
+
+# --- an excerpt that starts with a packet sent to a wrong port ------------------------------
+
+@pytest.fixture(scope="module")
+def wrong_port_excerpt():
+    """Real UDP sockets on lo: a BU (VRPI, VRCI 5) and its controller (VRPO to 5827,
+    VRAO 5 to port 6001, VRPO to 5827 again); the excerpt a user cuts with editcap -r
+    from the VRCI on: the controller's first packet in it is the VRAO on the wrong port."""
+    import time
+    from test_report_model import capture_on_lo, mcast_socket
+    from eglink_testlib import gen
+    from conftest import _world_dir
+    folder = _world_dir("vrshark-excerpt-", 0o755)    # (tshark may run as nobody)
+    whole = folder / "whole.pcap"
+    bu, ctrl = mcast_socket(), mcast_socket()
+    group = "239.255.42.20"
+    steps = [(ctrl, "VRPO", gen.vrpo(0, gen.machine_data(0)), 5827),
+             (bu, "VRPI", gen.armed(), 5825),
+             (bu, "VRCI", gen.command(5, b"\x01\x00HORN"), 5825),
+             (ctrl, "VRAO", gen.ack(5), 6001),
+             (ctrl, "VRPO", gen.vrpo(0, gen.machine_data(1)), 5827),
+             (bu, "VRPI", gen.armed(), 5825),
+             (ctrl, "VRPO", gen.vrpo(0, gen.machine_data(2)), 5827),
+             (bu, "VRPI", gen.armed(), 5825)]
+
+    def send():
+        serials = {id(bu): 0, id(ctrl): 0}
+        for sock, ptype, payload, port in steps:
+            origin = 0x1001 if sock is bu else 0
+            sock.sendto(gen.packet(ptype, payload, origin=origin, serial=serials[id(sock)]), (group, port))
+            serials[id(sock)] += 1
+            time.sleep(0.03)    # (VRPO 60 to 120 ms apart, as TS-0006 recommends)
+
+    capture_on_lo(whole, (bu, ctrl), send)
+    yield editcap(folder, whole, "excerpt.pcap", "-r", frames="3-8")
+    shutil.rmtree(folder, ignore_errors=True)
+
+
+def test_excerpt_starting_at_a_wrong_port_packet(tshark, wrong_port_excerpt):
+    """The excerpt's frame 2 is the controller's VRAO to port 6001, acknowledging the
+    BU's VRCI (frame 1); from frame 3 on the controller is on the BU's port. One pass
+    cannot know it yet and says so; two passes join the VRAO to the BU, on the wrong
+    port, acknowledging the VRCI. Either way the VRCI is acknowledged from then on: no
+    'not resent', no failed command."""
+    cap = wrong_port_excerpt
+    one = analysis(tshark, cap)
+    assert one == {2: [("eglink.analysis.not_joined",
+                        "VRAO sent to UDP port 6001, where no BU has been seen: not joined to a BU yet "
+                        "(two passes join it to the BU its controller turns up with later)")]}
+    assert analysis(tshark, cap, two_pass=True) == {
+        2: [("eglink.analysis.wrong_port",
+             "VRAO sent to UDP port 6001: the machine controller sends VRPO, VRCO and VRAO to the "
+             "BU's input port + 2 (5827 here, TS-0006 §2.2); analysed with this controller's packets")]}
+    fields = ["eglink.analysis.bu_origin", "eglink.analysis.device", "eglink.analysis.ack_to",
+              "eglink.analysis.ack_in", "eglink.analysis.expected_port", "_ws.col.Info"]
+    two = tshark.frames(cap, fields, two_pass=True)
+    assert two[2] == {"eglink.analysis.bu_origin": "0x1001", "eglink.analysis.device": "0x1001",
+                      "eglink.analysis.ack_to": "1", "eglink.analysis.ack_in": "",
+                      "eglink.analysis.expected_port": "5827", "_ws.col.Info": "VRAO Cmd=5 [wrong port]"}
+    assert two[1]["eglink.analysis.ack_in"] == "2"
+    first = tshark.frames(cap, fields)
+    assert first[2] == {"eglink.analysis.bu_origin": "", "eglink.analysis.device": "BU not known",
+                        "eglink.analysis.ack_to": "", "eglink.analysis.ack_in": "",
+                        "eglink.analysis.expected_port": "", "_ws.col.Info": "VRAO Cmd=5"}
+    # from frame 3 on, both passes alike: every packet the one BU's
+    for got in (first, two):
+        assert {f: r["eglink.analysis.device"] for f, r in got.items() if f >= 3} == \
+            {f: "0x1001" for f in range(3, 7)}
+
+
+def test_excerpt_starting_at_a_wrong_port_packet_in_the_report(wrong_port_excerpt):
+    """One pass, as the report reads: the VRAO is the BU's, not a device of its own,
+    and no command of the BU failed or went unanswered."""
+    status, rep = report(wrong_port_excerpt)
+    assert devices(rep) == [("EG-Link BU 0x1001 (127.0.0.1 to 239.255.42.20:5825)", 6)]
+    assert rep["devices"][0]["address"]["ports"] == [5825, 5827, 6001]
+    assert timeline(rep) == []
+    assert status == 0
 
 
 def test_wrong_port_in_the_report():

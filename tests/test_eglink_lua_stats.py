@@ -66,3 +66,14 @@ def test_lua_stats_session_values():
     assert rows[("Interval (ms)", 22)] == ["130.68", "125", "250"]
     assert rows[("Acknowledgement time (ms)", 2)] == ["80.00", "50", "110"]
     assert rows[("0x11 Armed", 1)] == ["1000.00", "1000", "1000"]
+
+
+def test_walkthrough_names_the_lua_menu_item():
+    """README's walkthrough names the Statistics item of both installs: the Lua
+    EG-Link registers its own (a Lua plugin cannot take the C plugin's name)."""
+    lua = (ROOT / "lua" / "vrshark" / "eglink_analysis.luam").read_text()
+    item = re.search(r'register_menu\("([^"]+)"', lua).group(1)
+    walkthrough = (ROOT / "README.md").read_text().split("## A five-minute walkthrough", 1)[1].split("\n## ")[0]
+    text = " ".join(walkthrough.split())
+    assert item == "EG-Link (Lua)"
+    assert "*Statistics > EG-Link* (*%s* in the Lua-only install)" % item in text

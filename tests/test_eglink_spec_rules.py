@@ -418,3 +418,85 @@ def test_command_ids_count_afresh_after_a_restart(tshark, work_dir):
     link.bu(0.31, "VRAI", gen.ack(1))
     assert findings(tshark, write(work_dir, link)) == {
         3: [("eglink.analysis.serial_restart", "Serial jumped back from 5000 to 0: the sender restarted?")]}
+
+
+# --- a time just past its limit never reads as the limit ---------------------------------------
+
+def _late_vrpo(link):
+    link.ctrl(0.05, "VRPO", gen.vrpo(0, gen.machine_data(0)))
+    return link.ctrl(0.2503, "VRPO", gen.vrpo(0, gen.machine_data(1)))
+
+
+def _early_vrpo(link):
+    link.ctrl(0.05, "VRPO", gen.vrpo(0, gen.machine_data(0)))
+    return link.ctrl(0.0996, "VRPO", gen.vrpo(0, gen.machine_data(1)))
+
+
+def _spread_burst(link):
+    return bursts(link, [[0, 1]], [488, 100], spread=0.010004)[0][1]
+
+
+def _resend_late(link):
+    vrci(link, 0.1, 1)
+    return vrci(link, 0.2204, 1)
+
+
+def _resend_early(link):
+    vrci(link, 0.1, 1)
+    return vrci(link, 0.1796, 1)
+
+
+def _not_resent(link):
+    vrci(link, 0.1, 1)
+    return link.bu(0.2203, "VRPI", gen.armed())
+
+
+def _vrpi_gap(link):
+    link.bu(0.0, "VRPI", gen.armed())
+    return link.bu(0.500001, "VRPI", gen.armed())
+
+
+@pytest.mark.parametrize("build,name,message", [
+    (_late_vrpo, "eglink.analysis.vrpo_interval",
+     "VRPO 0.2003 s after the previous one: TS-0006 §5.1.2 recommends a VRPO every 50 to 200 ms"),
+    (_early_vrpo, "eglink.analysis.vrpo_interval",
+     "VRPO 0.0496 s after the previous one: TS-0006 §5.1.2 recommends a VRPO every 50 to 200 ms"),
+    (_spread_burst, "eglink.analysis.burst_spread",
+     "VRPO packet 1 0.010004 s after the packet before it in its burst (more than 10 ms): TS-0006 "
+     "§5.1.2 sends the packets of a split VRPO without delay"),
+    (_resend_late, "eglink.analysis.resend_interval",
+     "VRCI command 1 resent 0.1204 s after its previous transmission (frame 1): TS-0006 §5.1.3 "
+     "resends it every 100 ms (tolerance 20 ms)"),
+    (_resend_early, "eglink.analysis.resend_interval",
+     "VRCI command 1 resent 0.0796 s after its previous transmission (frame 1): TS-0006 §5.1.3 "
+     "resends it every 100 ms (tolerance 20 ms)"),
+    (_not_resent, "eglink.analysis.not_resent",
+     "VRCI command 1 (frame 1) not resent for 0.1203 s while unacknowledged: TS-0006 §5.1.3 resends "
+     "it every 100 ms until a VRAO"),
+    (_vrpi_gap, "eglink.analysis.vrpi_gap",
+     "No VRPI for 0.500001 s (more than 500 ms): the machine controller should have flagged an error"),
+])
+def test_time_past_its_limit_shows_the_digits_that_tell(tshark, work_dir, build, name, message):
+    """A time a hair past the limit it is flagged against (0.2003 s, outside 50 to 200 ms)
+    would read as the limit itself when rounded to the millisecond: it gets the digits
+    that tell it apart, in the message and the Info tag."""
+    link = gen.Link()
+    frame = build(link)
+    assert findings(tshark, write(work_dir, link))[frame] == [(name, message)]
+
+
+def test_gap_tag_past_its_limit(tshark, work_dir):
+    link = gen.Link()
+    frame = _vrpi_gap(link)
+    cap = write(work_dir, link)
+    assert tshark.frame(cap, frame, ["_ws.col.Info"])["_ws.col.Info"] == \
+        "VRPI BU=Armed RU 0xbeef=Enabled [gap 0.500001 s]"
+
+
+def test_late_ack_past_its_limit(tshark, work_dir):
+    link = gen.Link()
+    vrco(link, 0.1, 1)
+    link.bu(2.1004, "VRAI", gen.ack(1))
+    assert ("eglink.analysis.late_ack",
+            "Acknowledges VRCO command 1 2.0004 s after its first transmission, later than 2000 ms") \
+        in findings(tshark, write(work_dir, link), passes=(True,))[2]

@@ -132,6 +132,7 @@ static expert_field ei_resent_after_ack = EI_INIT;
 static expert_field ei_resent_after_deadline = EI_INIT;
 static expert_field ei_command_id_sequence = EI_INIT;
 static expert_field ei_revision_ignored = EI_INIT;
+static expert_field ei_not_joined = EI_INIT;
 
 /* Preferences */
 static guint pref_vrpi_gap_ms = 500;
@@ -203,6 +204,7 @@ typedef struct {
 struct eglink_chan {
     const char *where;          /* "239.255.42.20 port 5825" */
     guint32 port;               /* the BU's input port */
+    gboolean own_port;          /* a controller's port that fits no BU seen (no input port) */
     eglink_chan_t *group_next;  /* in its group's chans */
     eglink_bu_t *bus;           /* the BUs seen on it, newest first */
     eglink_ctrl_t *ctrls;       /* the machine controllers seen on it, newest first */
@@ -288,6 +290,17 @@ typedef struct {
     nstime_t start_ts;
 } eglink_burst_t;
 
+/* An acknowledgement a controller sent on a port of its own, before it
+ * turned up with a BU: matched then (see eglink_ctrl_adopt()). */
+typedef struct {
+    struct eglink_frame *fd;    /* its record, as stored */
+    nstime_t ts;
+    guint32 frame;
+    guint16 command_id;
+} eglink_orphan_ack_t;
+
+#define EGLINK_ORPHAN_ACKS 4
+
 /* A machine controller: its address, on one channel; joined to the BU it
  * talks to once that is known. */
 struct eglink_ctrl {
@@ -298,6 +311,9 @@ struct eglink_ctrl {
     address addr;
     eglink_bu_t *bu;            /* its BU, NULL while not known */
     gboolean joined_by_ack;     /* ... known from a command it or the BU acknowledged */
+    gboolean adopted;           /* first seen on a port of its own, then with this channel's BU */
+    eglink_orphan_ack_t orphan_acks[EGLINK_ORPHAN_ACKS];
+    guint n_orphan_acks;
     eglink_burst_t burst;
     eglink_ctrl_t *next;        /* in chan->ctrls */
 };
@@ -376,7 +392,7 @@ typedef enum {
 #define FF_STATUS_SHIFT 12      /* serial_status in bits 12-14 */
 
 /* The full record of one EG-Link layer of a frame. */
-typedef struct {
+typedef struct eglink_frame {
     eglink_bu_t *bu;            /* the BU of the packet: its own, or the one its controller talks to */
     eglink_ctrl_t *ctrl;        /* a controller packet whose BU is not known (bu is NULL) */
     eglink_cmd_t *cmd;          /* VRCI/VRCO: its command; VRAO/VRAI: the one it acknowledges */
@@ -508,10 +524,11 @@ eglink_frame_is_compact(const eglink_frame_t *fd, int layer, guint16 serial)
 }
 
 /* Stores the record of the current layer (of a packet with this serial),
- * computed on the first pass. */
-static void
+ * computed on the first pass: the full record as stored, NULL for a compact one. */
+static eglink_frame_t *
 eglink_frame_store(packet_info *pinfo, guint32 key, guint16 serial, const eglink_frame_t *fd)
 {
+    eglink_frame_t *stored;
     eglink_slot_t *slot = eglink_slot(pinfo->num, TRUE);
     int layer = pinfo->curr_layer_num;
 
@@ -522,13 +539,14 @@ eglink_frame_store(packet_info *pinfo, guint32 key, guint16 serial, const eglink
             slot->unit = fd->bu ? fd->bu->index : (SLOT_CTRL | fd->ctrl->index);
             slot->delta_ns = (fd->flags & FF_DELTA) ? (guint32)fd->delta_ns : 0;
             slot->bu_origin = fd->bu_origin;
-            return;
+            return NULL;
         }
         /* (the layer is not kept: a full record is looked up by its key) */
         slot->flags = FF_USED | FF_FULL;
     }
-    p_add_proto_data(wmem_file_scope(), pinfo, proto_eglink, key,
-                     wmem_memdup(wmem_file_scope(), fd, sizeof(*fd)));
+    stored = (eglink_frame_t *)wmem_memdup(wmem_file_scope(), fd, sizeof(*fd));
+    p_add_proto_data(wmem_file_scope(), pinfo, proto_eglink, key, stored);
+    return stored;
 }
 
 /* The record of the current layer (of a packet with this serial), or NULL
@@ -598,6 +616,27 @@ ns_str(wmem_allocator_t *scope, gint64 ns)
     gint64 ms = (ns + 500000) / 1000000;     /* rounded to the millisecond */
 
     return wmem_strdup_printf(scope, "%" G_GINT64_FORMAT ".%03d s", ms / 1000, (int)(ms % 1000));
+}
+
+/* A time a finding compares with a limit (in ms): rounded to the
+ * millisecond, or with as many more digits as it takes not to read as the
+ * limit itself, which it is not ("0.2003 s" for a VRPO interval outside 50
+ * to 200 ms). Rounding never carries a time across its limit, which has
+ * no more digits. */
+static const char *
+ns_str_past(wmem_allocator_t *scope, gint64 ns, guint limit_ms)
+{
+    gint64 unit = 1000000, per_s = 1000, v = (ns + unit / 2) / unit;
+    int digits = 3;
+
+    while (unit > 1 && v * unit == ms_to_ns(limit_ms)) {
+        unit /= 10;
+        per_s *= 10;
+        digits++;
+        v = (ns + unit / 2) / unit;
+    }
+    return wmem_strdup_printf(scope, "%" G_GINT64_FORMAT ".%0*" G_GINT64_FORMAT " s",
+                              v / per_s, digits, v % per_s);
 }
 
 static gboolean
@@ -753,7 +792,11 @@ eglink_ctrl_chan(packet_info *pinfo, guint32 *expected)
         *expected = port + 2;
         return other ? other : eglink_chan_find(pinfo, port, TRUE);
     }
-    return chan ? chan : eglink_chan_find(pinfo, input, TRUE);
+    if (!chan)
+        chan = eglink_chan_find(pinfo, input, TRUE);
+    if (!eglink_is_input_port(input))
+        chan->own_port = TRUE;
+    return chan;
 }
 
 /* Two BUs with the same origin and address on different ports or groups
@@ -801,6 +844,40 @@ eglink_bu_lookup(packet_info *pinfo, eglink_chan_t *chan, guint16 origin)
     return bu;
 }
 
+/* A controller whose packets went to a port of its own, where no BU is,
+ * and that now turns up on a BU's channel of the same group, or on a BU
+ * input port's (an excerpt
+ * that starts with a packet it sent to a wrong port): those packets were
+ * this conversation's. It moves here, its serials, intervals and commands
+ * going on; the second pass shows its earlier packets joined, on the wrong
+ * port (show_orphan()). NULL when there is no such controller. */
+static eglink_ctrl_t *
+eglink_ctrl_adopt(packet_info *pinfo, eglink_chan_t *chan)
+{
+    eglink_group_t *group = chan->n_bus || !chan->own_port ? eglink_group(pinfo, FALSE) : NULL;
+    eglink_chan_t *own;
+    eglink_ctrl_t **link, *ctrl;
+
+    for (own = group ? group->chans : NULL; own; own = own->group_next) {
+        if (!own->own_port || own->n_bus)
+            continue;
+        for (link = &own->ctrls; *link; link = &(*link)->next) {
+            ctrl = *link;
+            if (!addresses_equal(&ctrl->addr, &pinfo->src))
+                continue;
+            *link = ctrl->next;
+            own->n_ctrls--;
+            ctrl->next = chan->ctrls;
+            chan->ctrls = ctrl;
+            chan->n_ctrls++;
+            ctrl->chan = chan;
+            ctrl->adopted = TRUE;
+            return ctrl;
+        }
+    }
+    return NULL;
+}
+
 static eglink_ctrl_t *
 eglink_ctrl_lookup(packet_info *pinfo, eglink_chan_t *chan)
 {
@@ -809,6 +886,9 @@ eglink_ctrl_lookup(packet_info *pinfo, eglink_chan_t *chan)
     for (ctrl = chan->ctrls; ctrl; ctrl = ctrl->next)
         if (addresses_equal(&ctrl->addr, &pinfo->src))
             return ctrl;
+    ctrl = eglink_ctrl_adopt(pinfo, chan);
+    if (ctrl)
+        return ctrl;
     ctrl = wmem_new0(wmem_file_scope(), eglink_ctrl_t);
     ctrl->chan = chan;
     ctrl->name = wmem_strdup_printf(wmem_file_scope(), "Controller %s (BU not known)",
@@ -1278,6 +1358,63 @@ track_ack(eglink_cmd_t *cmd, eglink_frame_t *fd, packet_info *pinfo, int dir, gu
     }
 }
 
+/* The acknowledgement of the frame being analysed that waits, in its
+ * stored record, for its controller to turn up with a BU. */
+static eglink_orphan_ack_t *eglink_orphan_pending;
+
+/* A VRAO a controller on a port of its own sent for a command not seen:
+ * kept, with its record, until the controller turns up with a BU. */
+static void
+remember_orphan_ack(eglink_ctrl_t *ctrl, packet_info *pinfo, guint16 command_id)
+{
+    eglink_orphan_ack_t *o;
+
+    if (ctrl->n_orphan_acks >= EGLINK_ORPHAN_ACKS)
+        return;
+    o = &ctrl->orphan_acks[ctrl->n_orphan_acks++];
+    o->fd = NULL;
+    o->ts = pinfo->abs_ts;
+    o->frame = pinfo->num;
+    o->command_id = command_id;
+    eglink_orphan_pending = o;
+}
+
+/* The controller turned up with a BU: the VRAOs it sent before, on a port
+ * of its own, acknowledge that BU's VRCIs still waiting (in time); their
+ * records say so from the second pass on. */
+static void
+match_orphan_acks(eglink_ctrl_t *ctrl)
+{
+    guint i;
+
+    for (i = 0; i < ctrl->n_orphan_acks; i++) {
+        eglink_orphan_ack_t *o = &ctrl->orphan_acks[i];
+        eglink_cmd_t *cmd = vrci_acknowledged(ctrl, o->command_id);
+        eglink_finding_t **f;
+        gint64 age;
+
+        if (!o->fd || !waits_for_ack(cmd) || cmd->failed || cmd->first_frame > o->frame)
+            continue;
+        age = ns_between(&o->ts, &cmd->first_ts);
+        if (age > ack_timeout_ns(EGLINK_DIR_IN))
+            continue;
+        cmd->ack_frame = o->frame;
+        o->fd->cmd = cmd;
+        o->fd->flags |= FF_FIRST_ACK;
+        if (!cmd->clock_step) {
+            o->fd->delta_ns = age;
+            o->fd->flags |= FF_DELTA;
+        }
+        for (f = &o->fd->findings; *f; f = &(*f)->next) {
+            if ((*f)->kind == FND_UNKNOWN_ACK) {
+                *f = (*f)->next;
+                break;
+            }
+        }
+    }
+    ctrl->n_orphan_acks = 0;
+}
+
 static gboolean
 burst_ends_here(const eglink_burst_t *b, int data_len)
 {
@@ -1622,6 +1759,8 @@ analyse_packet(packet_info *pinfo, const eglink_info_t *info, eglink_frame_t *fd
         s = &ctrl->s;
     }
     join_if_alone(chan);
+    if (ctrl && ctrl->n_orphan_acks && chan->n_bus)
+        match_orphan_acks(ctrl);
     fd->bu = input ? bu : ctrl->bu;
     fd->ctrl = fd->bu ? NULL : ctrl;
     if (fd->bu) {
@@ -1699,6 +1838,8 @@ analyse_packet(packet_info *pinfo, const eglink_info_t *info, eglink_frame_t *fd
             eglink_cmd_t *cmd = fd->cmd;
             fd->cmd = NULL;
             track_ack(cmd, fd, pinfo, input ? EGLINK_DIR_OUT : EGLINK_DIR_IN, info->command_id);
+            if (!cmd && !input && chan->own_port && !chan->n_bus)
+                remember_orphan_ack(ctrl, pinfo, info->command_id);
         }
         break;
     default:
@@ -1796,6 +1937,7 @@ show_command(proto_tree *at, proto_item *aitem, tvbuff_t *tvb, packet_info *pinf
     proto_item *ti;
     const char *what = cmd->dir == EGLINK_DIR_IN ? "VRCI" : "VRCO";
     const char *ack = cmd->dir == EGLINK_DIR_IN ? "VRAO" : "VRAI";
+    guint timeout_ms = cmd->dir == EGLINK_DIR_IN ? pref_vrci_ack_timeout_ms : pref_vrco_ack_timeout_ms;
 
     if (info->type == EGLINK_TYPE_VRCI || info->type == EGLINK_TYPE_VRCO) {
         if (fd->flags & FF_RETRANS) {
@@ -1840,8 +1982,7 @@ show_command(proto_tree *at, proto_item *aitem, tvbuff_t *tvb, packet_info *pinf
         if (late) {
             expert_add_info_format(pinfo, ti, &ei_late_ack,
                 "Acknowledges %s command %u %s after its first transmission, later than %u ms",
-                what, cmd->command_id, ns_str(pinfo->pool, late->ns),
-                info->type == EGLINK_TYPE_VRAO ? pref_vrci_ack_timeout_ms : pref_vrco_ack_timeout_ms);
+                what, cmd->command_id, ns_str_past(pinfo->pool, late->ns, timeout_ms), timeout_ms);
             col_append_str(pinfo->cinfo, COL_INFO, " [late ack]");
         } else if ((fd->flags & FF_FIRST_ACK) && (fd->flags & FF_DELTA)) {
             expert_add_info_format(pinfo, ti, &ei_ack, "Acknowledges %s command %u after %s",
@@ -1897,6 +2038,43 @@ show_time_backwards(proto_tree *at, tvbuff_t *tvb, packet_info *pinfo, const egl
     col_append_fstr(pinfo->cinfo, COL_INFO, " [time backwards %s]", t);
 }
 
+static void
+show_wrong_port(proto_tree *at, tvbuff_t *tvb, packet_info *pinfo, const eglink_info_t *info, guint32 expected)
+{
+    proto_item *ti = add_generated_uint(at, hf_expected_port, tvb, expected);
+
+    expert_add_info_format(pinfo, ti, &ei_wrong_port,
+        "%s sent to UDP port %u%s: the machine controller sends VRPO, VRCO and VRAO to the "
+        "BU's input port + 2 (%u here, TS-0006 §2.2); analysed with this controller's packets",
+        type_names[info->type], pinfo->destport,
+        pinfo->destport + 2 == expected ? ", the BU's input port" : "", expected);
+    col_append_str(pinfo->cinfo, COL_INFO, " [wrong port]");
+}
+
+/* A controller packet analysed on a port of its own, where no BU is. One
+ * pass cannot tell yet whether the controller turns up with a BU later
+ * (an excerpt that starts with a packet it sent to a wrong port): said.
+ * Once it has (eglink_ctrl_adopt(), the second pass and the GUI), the
+ * packet is that BU's, on the wrong port. */
+static void
+show_orphan(proto_tree *at, proto_item *aitem, tvbuff_t *tvb, packet_info *pinfo, const eglink_info_t *info,
+            const eglink_frame_t *fd)
+{
+    const eglink_ctrl_t *ctrl = fd->ctrl;
+
+    if (!ctrl || fd->bu)
+        return;
+    if (ctrl->chan->own_port && !ctrl->chan->n_bus) {
+        if (!PINFO_FD_VISITED(pinfo))
+            expert_add_info_format(pinfo, aitem, &ei_not_joined,
+                "%s sent to UDP port %u, where no BU has been seen: not joined to a BU yet (two passes "
+                "join it to the BU its controller turns up with later)", type_names[info->type], pinfo->destport);
+        return;
+    }
+    if (ctrl->adopted && pinfo->destport != ctrl->chan->port + 2 && !find_finding(fd, FND_WRONG_PORT))
+        show_wrong_port(at, tvb, pinfo, info, ctrl->chan->port + 2);
+}
+
 static const char *const vrpo_break_names[] = { "a gap with no packet lost", "a repeat", "a step back" };
 
 /* The VRPO rules of TS-0006 4.2 and 5.1.2. */
@@ -1912,13 +2090,15 @@ show_vrpo_rule(proto_item *aitem, packet_info *pinfo, const eglink_info_t *info,
     case FND_VRPO_INTERVAL:
         expert_add_info_format(pinfo, aitem, &ei_vrpo_interval,
             "VRPO %s after the previous one: TS-0006 §5.1.2 recommends a VRPO every %u to %u ms",
-            ns_str(pinfo->pool, f->ns), EGLINK_VRPO_INTERVAL_MIN_MS, EGLINK_VRPO_INTERVAL_MAX_MS);
+            ns_str_past(pinfo->pool, f->ns, f->ns < ms_to_ns(EGLINK_VRPO_INTERVAL_MIN_MS)
+                                            ? EGLINK_VRPO_INTERVAL_MIN_MS : EGLINK_VRPO_INTERVAL_MAX_MS),
+            EGLINK_VRPO_INTERVAL_MIN_MS, EGLINK_VRPO_INTERVAL_MAX_MS);
         break;
     case FND_BURST_SPREAD:
         expert_add_info_format(pinfo, aitem, &ei_burst_spread,
             "VRPO packet %u %s after the packet before it in its burst (more than %u ms): TS-0006 "
             "§5.1.2 sends the packets of a split VRPO without delay", info->packet_number,
-            ns_str(pinfo->pool, f->ns), pref_burst_spread_ms);
+            ns_str_past(pinfo->pool, f->ns, pref_burst_spread_ms), pref_burst_spread_ms);
         break;
     case FND_VRPO_NOT_FULL:
         expert_add_info_format(pinfo, aitem, &ei_vrpo_not_full,
@@ -1931,6 +2111,17 @@ show_vrpo_rule(proto_item *aitem, packet_info *pinfo, const eglink_info_t *info,
     }
 }
 
+/* The edge of the resend window (100 ms +- the tolerance) a resend
+ * interval falls outside of. */
+static guint
+resend_edge_ms(gint64 ns)
+{
+    if (ns > ms_to_ns(EGLINK_RESEND_INTERVAL_MS))
+        return EGLINK_RESEND_INTERVAL_MS + pref_resend_tolerance_ms;
+    return pref_resend_tolerance_ms < EGLINK_RESEND_INTERVAL_MS
+           ? EGLINK_RESEND_INTERVAL_MS - pref_resend_tolerance_ms : 0;
+}
+
 /* The command rules of TS-0006 4.3, 4.5, 5.1.3 and 5.1.4. */
 static void
 show_command_rule(proto_item *aitem, packet_info *pinfo, const eglink_info_t *info, const eglink_finding_t *f)
@@ -1940,18 +2131,20 @@ show_command_rule(proto_item *aitem, packet_info *pinfo, const eglink_info_t *in
     const char *ack = vrci ? "VRAO" : "VRAI";
     const char *flow = vrci ? "5.1.3" : "5.1.4";
     guint id = f->value & 0xFFFF;
+    guint timeout_ms = vrci ? pref_vrci_ack_timeout_ms : pref_vrco_ack_timeout_ms;
 
     switch ((eglink_finding_kind_t)f->kind) {
     case FND_RESEND_INTERVAL:
         expert_add_info_format(pinfo, aitem, &ei_resend_interval,
             "%s command %u resent %s after its previous transmission (frame %u): TS-0006 §%s "
-            "resends it every %u ms (tolerance %u ms)", what, id, ns_str(pinfo->pool, f->ns), f->frame,
+            "resends it every %u ms (tolerance %u ms)", what, id, ns_str_past(pinfo->pool, f->ns, resend_edge_ms(f->ns)), f->frame,
             flow, EGLINK_RESEND_INTERVAL_MS, pref_resend_tolerance_ms);
         break;
     case FND_NOT_RESENT:
         expert_add_info_format(pinfo, aitem, &ei_not_resent,
             "%s command %u (frame %u) not resent for %s while unacknowledged: TS-0006 §%s "
-            "resends it every %u ms until a %s", what, id, f->frame, ns_str(pinfo->pool, f->ns), flow,
+            "resends it every %u ms until a %s", what, id, f->frame,
+            ns_str_past(pinfo->pool, f->ns, EGLINK_RESEND_INTERVAL_MS + pref_resend_tolerance_ms), flow,
             EGLINK_RESEND_INTERVAL_MS, ack);
         break;
     case FND_RESENT_AFTER_ACK:
@@ -1963,8 +2156,7 @@ show_command_rule(proto_item *aitem, packet_info *pinfo, const eglink_info_t *in
         expert_add_info_format(pinfo, aitem, &ei_resent_after_deadline,
             "%s command %u resent %s after its first transmission (frame %u), past its %u ms "
             "deadline: TS-0006 §%s stops resending at the timeout", what, id,
-            ns_str(pinfo->pool, f->ns), f->frame,
-            vrci ? pref_vrci_ack_timeout_ms : pref_vrco_ack_timeout_ms, flow);
+            ns_str_past(pinfo->pool, f->ns, timeout_ms), f->frame, timeout_ms, flow);
         break;
     case FND_CMD_ID_SEQUENCE:
         expert_add_info_format(pinfo, aitem, &ei_command_id_sequence,
@@ -1985,7 +2177,9 @@ show_findings(proto_tree *at, proto_item *aitem, tvbuff_t *tvb, packet_info *pin
     const char *t;
 
     for (f = fd->findings; f; f = f->next) {
-        t = ns_str(pinfo->pool, f->ns);
+        /* (the gaps below: a VRPI's or a VRPO's, past its threshold) */
+        t = ns_str_past(pinfo->pool, f->ns, f->kind == FND_VRPI_GAP || f->kind == FND_VRPI_MISSING
+                                            ? pref_vrpi_gap_ms : pref_vrpo_gap_ms);
         switch ((eglink_finding_kind_t)f->kind) {
         case FND_REPEAT:
             ti = aitem;
@@ -2083,13 +2277,7 @@ show_findings(proto_tree *at, proto_item *aitem, tvbuff_t *tvb, packet_info *pin
                 f->value & 0xFFFF, (f->value & EGLINK_CORRUPTED_CRC) ? "bad CRC" : "wrong size", f->frame);
             break;
         case FND_WRONG_PORT:
-            ti = add_generated_uint(at, hf_expected_port, tvb, f->value);
-            expert_add_info_format(pinfo, ti, &ei_wrong_port,
-                "%s sent to UDP port %u%s: the machine controller sends VRPO, VRCO and VRAO to the "
-                "BU's input port + 2 (%u here, TS-0006 §2.2); analysed with this controller's packets",
-                type_names[info->type], pinfo->destport,
-                pinfo->destport + 2 == f->value ? ", the BU's input port" : "", f->value);
-            col_append_str(pinfo->cinfo, COL_INFO, " [wrong port]");
+            show_wrong_port(at, tvb, pinfo, info, f->value);
             break;
         case FND_TIME_BACKWARDS:
             show_time_backwards(at, tvb, pinfo, f);
@@ -2239,7 +2427,7 @@ eglink_analysis_dissect(tvbuff_t *tvb, packet_info *pinfo, proto_tree *eglink_tr
 {
     guint32 key = EGLINK_ANALYSIS_KEY_BASE + pinfo->curr_layer_num;
     const eglink_frame_t *fd;
-    eglink_frame_t buf;
+    eglink_frame_t buf, *stored;
     proto_item *aitem;
     proto_tree *at;
 
@@ -2263,8 +2451,11 @@ eglink_analysis_dissect(tvbuff_t *tvb, packet_info *pinfo, proto_tree *eglink_tr
         if (PINFO_FD_VISITED(pinfo))
             return;
         memset(&buf, 0, sizeof(buf));
+        eglink_orphan_pending = NULL;
         analyse_packet(pinfo, info, &buf);
-        eglink_frame_store(pinfo, key, info->serial, &buf);
+        stored = eglink_frame_store(pinfo, key, info->serial, &buf);
+        if (eglink_orphan_pending)
+            eglink_orphan_pending->fd = stored;
         fd = &buf;
     }
 
@@ -2291,6 +2482,7 @@ eglink_analysis_dissect(tvbuff_t *tvb, packet_info *pinfo, proto_tree *eglink_tr
         if (fd->cmd)
             show_command(at, aitem, tvb, pinfo, info, fd);
         show_findings(at, aitem, tvb, pinfo, info, fd);
+        show_orphan(at, aitem, tvb, pinfo, info, fd);
         show_reassembly(tvb, pinfo, eglink_tree, info, fd);
     }
     queue_tap(pinfo, info, fd);
@@ -2533,6 +2725,10 @@ eglink_analysis_register(int proto, module_t *prefs)
         { &ei_revision_ignored,
           { "eglink.analysis.revision_ignored", PI_PROTOCOL, PI_NOTE,
             "Packet of another header revision kept out of the analysis (TS-0006 5.1.5)", EXPFILL } },
+        { &ei_not_joined,
+          { "eglink.analysis.not_joined", PI_SEQUENCE, PI_NOTE,
+            "Controller packet on a port where no BU has been seen: not joined to a BU yet (one pass)",
+            EXPFILL } },
     };
     expert_module_t *expert;
 

@@ -321,6 +321,7 @@ typedef struct {
     int len;            /* payload bytes actually present (UDP length - 20) */
     int cap;            /* ... of which the capture holds these (less when cut by the snap length) */
     gboolean undefined; /* an undefined or out-of-range value was found */
+    gboolean untrusted; /* its CRC fits no variant: its values are not judged */
 } eglink_payload_t;
 
 /* Adds an unsigned payload field if it fits; FALSE (and *value 0) if not. */
@@ -370,6 +371,28 @@ eglink_add_bytes(eglink_payload_t *p, int hf, int off, int len, proto_item **ite
     return len;
 }
 
+/* A finding on a payload value; none in a packet whose CRC fits no variant,
+ * whose values are its corrupted bytes (its CRC finding says so, once).
+ * TRUE when it was added. */
+static gboolean
+eglink_value_finding(eglink_payload_t *p, proto_item *ti, expert_field *ei, const char *format, ...)
+    G_GNUC_PRINTF(4, 5);
+
+static gboolean
+eglink_value_finding(eglink_payload_t *p, proto_item *ti, expert_field *ei, const char *format, ...)
+{
+    va_list ap;
+    char *text;
+
+    if (p->untrusted)
+        return FALSE;
+    va_start(ap, format);
+    text = wmem_strdup_vprintf(p->pinfo->pool, format, ap);
+    va_end(ap);
+    expert_add_info_format(p->pinfo, ti, ei, "%s", text);
+    return TRUE;
+}
+
 static void
 eglink_check_payload_spare(eglink_payload_t *p, int off, int len)
 {
@@ -379,7 +402,7 @@ eglink_check_payload_spare(eglink_payload_t *p, int off, int len)
 
     for (i = 0; i < present; i++) {
         if (tvb_get_uint8(p->tvb, p->base + off + i) != 0) {
-            expert_add_info_format(p->pinfo, ti, &ei_eglink_payload_spare_nonzero,
+            eglink_value_finding(p, ti, &ei_eglink_payload_spare_nonzero,
                 "Payload spare bytes are not 0: reserved for future use, the sender "
                 "may use a newer layout than TS-0006");
             break;
@@ -389,22 +412,8 @@ eglink_check_payload_spare(eglink_payload_t *p, int off, int len)
 
 /* An undefined or out-of-range value: an error in the Protocol group (the
  * "one voice" table of the README), and the Info tag [undefined]. */
-static void
-eglink_undefined(eglink_payload_t *p, proto_item *ti, expert_field *ei, const char *format, ...)
-    G_GNUC_PRINTF(4, 5);
-
-static void
-eglink_undefined(eglink_payload_t *p, proto_item *ti, expert_field *ei, const char *format, ...)
-{
-    va_list ap;
-    char *text;
-
-    va_start(ap, format);
-    text = wmem_strdup_vprintf(p->pinfo->pool, format, ap);
-    va_end(ap);
-    expert_add_info_format(p->pinfo, ti, ei, "%s", text);
-    p->undefined = TRUE;
-}
+#define eglink_undefined(p, ti, ei, ...) \
+    ((p)->undefined |= eglink_value_finding((p), (ti), (ei), __VA_ARGS__))
 
 /* A value a value_string does not name reads "Unknown (0x42)", in the tree as
  * everywhere else (Wireshark would print a decimal field as "Unknown (66)"). */
@@ -454,10 +463,10 @@ eglink_check_passive(eglink_payload_t *p, proto_item *ti, int i, guint32 value, 
     if (!ti || value != EGLINK_LINK_PASSIVE)
         return;
     if (i != 2)
-        expert_add_info_format(p->pinfo, ti, &ei_eglink_link_status_passive,
+        eglink_value_finding(p, ti, &ei_eglink_link_status_passive,
             "%s status Passive: only the C-Link reports Passive", names[i]);
     else if (have_armed && armed_ru != 0)
-        expert_add_info_format(p->pinfo, ti, &ei_eglink_link_status_passive,
+        eglink_value_finding(p, ti, &ei_eglink_link_status_passive,
             "C-Link status Passive while RU 0x%04x is armed: Passive only when no remote is armed",
             armed_ru);
 }
@@ -593,7 +602,7 @@ dissect_eglink_vrpi(eglink_payload_t *p, eglink_info_t *info)
         proto_item_set_generated(ti);
     }
     if (bu_state < EGLINK_BU_STATE_DISARMED)
-        expert_add_info_format(p->pinfo, bu_ti, &ei_eglink_relays_open,
+        eglink_value_finding(p, bu_ti, &ei_eglink_relays_open,
             "ES-Link relays open: BU state %s (0x%02x), %s",
             val_to_str_const(bu_state, eglink_bu_state_vals, "Unknown"), bu_state,
             val_to_str_const(bu_state, eglink_bu_state_advice, "an undefined state below Disarmed"));
@@ -613,11 +622,11 @@ dissect_eglink_vrpi(eglink_payload_t *p, eglink_info_t *info)
         eglink_check_passive(p, link_ti[i], i, link[i], have_armed, armed_ru);
     if (eglink_add_uint(p, hf_eglink_ru_state, 8, 1, &ru_state, &ru_ti)) {
         if (ru_state == EGLINK_RU_STATE_STOPPED)
-            expert_add_info_format(p->pinfo, ru_ti, &ei_eglink_ru_state_stopped,
+            eglink_value_finding(p, ru_ti, &ei_eglink_ru_state_stopped,
                 "RU stopped (stop switch, free-fall/shock sensor or RU fault): ES-Link relays open");
         else if (ru_state == EGLINK_RU_STATE_DISARMED)
             /* TS-0006 4.1.3: Disarmed is used inside the BU only */
-            expert_add_info_format(p->pinfo, ru_ti, &ei_eglink_ru_state_disarmed,
+            eglink_value_finding(p, ru_ti, &ei_eglink_ru_state_disarmed,
                 "RU state 1 (Disarmed) on the wire: TS-0006 uses it only inside the BU");
         else if (try_val_to_str(ru_state, eglink_ru_state_vals) == NULL) {
             eglink_show_unknown(ru_ti, hf_eglink_ru_state, ru_state);
@@ -762,45 +771,77 @@ eglink_type_sizes(eglink_type_t type, int *min, int *max)
     }
 }
 
-/* CRC: verify with the configured variant; on failure say which one fits. */
-static gboolean
-dissect_eglink_crc(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, int crc_offset)
+/* The CRC check of one packet: with the configured variant and byte order,
+ * and when that fails, the first other variant and byte order that fits. */
+typedef struct {
+    gboolean ok;
+    guint32 computed;           /* with the configured variant */
+    int match;                  /* the other variant that fits, -1 none */
+    gboolean match_be;          /* ... stored big-endian */
+} eglink_crc_t;
+
+static void
+eglink_crc_check(tvbuff_t *tvb, packet_info *pinfo, int crc_offset, eglink_crc_t *c)
 {
-    guint32 computed[EGLINK_CRC_NUM_VARIANTS];
-    guint32 stored_le, stored_be;
-    proto_item *ti;
+    guint32 stored_le = tvb_get_letohl(tvb, crc_offset);
+    guint32 stored_be = tvb_get_ntohl(tvb, crc_offset);
+    guint32 computed;
     int v;
 
-    computed[eglink_crc_variant] = eglink_crc_compute(tvb, pinfo, crc_offset,
-                                                      (eglink_crc_variant_t)eglink_crc_variant);
-    ti = proto_tree_add_checksum(tree, tvb, crc_offset, hf_eglink_crc, hf_eglink_crc_status,
-                                 &ei_eglink_crc_bad, pinfo, computed[eglink_crc_variant],
-                                 eglink_crc_order == EGLINK_CRC_BE ? ENC_BIG_ENDIAN : ENC_LITTLE_ENDIAN,
-                                 PROTO_CHECKSUM_VERIFY);
-    stored_le = tvb_get_letohl(tvb, crc_offset);
-    stored_be = tvb_get_ntohl(tvb, crc_offset);
-    if ((eglink_crc_order == EGLINK_CRC_BE ? stored_be : stored_le) == computed[eglink_crc_variant])
-        return TRUE;
-
-    col_append_str(pinfo->cinfo, COL_INFO, " [bad CRC]");
-    for (v = 0; v < EGLINK_CRC_NUM_VARIANTS; v++) {
-        if (v != eglink_crc_variant)
-            computed[v] = eglink_crc_compute(tvb, pinfo, crc_offset, (eglink_crc_variant_t)v);
-        if (computed[v] == stored_le && (v != eglink_crc_variant || eglink_crc_order != EGLINK_CRC_LE)) {
-            expert_add_info_format(pinfo, ti, &ei_eglink_crc_variant,
-                "CRC matches %s, little-endian: set the preference "
-                "(eglink.crc_variant: %s, eglink.crc_byte_order: le)",
-                eglink_crc_variant_names[v], eglink_crc_variant_vals[v].name);
+    c->computed = eglink_crc_compute(tvb, pinfo, crc_offset, (eglink_crc_variant_t)eglink_crc_variant);
+    c->ok = (eglink_crc_order == EGLINK_CRC_BE ? stored_be : stored_le) == c->computed;
+    c->match = -1;
+    c->match_be = FALSE;
+    for (v = 0; !c->ok && v < EGLINK_CRC_NUM_VARIANTS; v++) {
+        computed = v == eglink_crc_variant ? c->computed
+                                           : eglink_crc_compute(tvb, pinfo, crc_offset, (eglink_crc_variant_t)v);
+        if (computed == stored_le && (v != eglink_crc_variant || eglink_crc_order != EGLINK_CRC_LE)) {
+            c->match = v;
             break;
         }
-        if (computed[v] == stored_be && (v != eglink_crc_variant || eglink_crc_order != EGLINK_CRC_BE)) {
-            expert_add_info_format(pinfo, ti, &ei_eglink_crc_variant,
-                "CRC matches %s, big-endian: set the preference "
-                "(eglink.crc_variant: %s, eglink.crc_byte_order: be)",
-                eglink_crc_variant_names[v], eglink_crc_variant_vals[v].name);
+        if (computed == stored_be && (v != eglink_crc_variant || eglink_crc_order != EGLINK_CRC_BE)) {
+            c->match = v;
+            c->match_be = TRUE;
             break;
         }
     }
+}
+
+/* A CRC that fails in every variant and byte order: the packet is
+ * corrupted, and no value in it is trusted. */
+static gboolean
+eglink_crc_corrupted(const eglink_crc_t *c)
+{
+    return !c->ok && c->match < 0;
+}
+
+/* CRC: the check's result; on failure which variant fits, or that the
+ * packet's values are not trusted (said once, instead of a finding per
+ * value its corrupted bytes make undefined). */
+static gboolean
+dissect_eglink_crc(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, int crc_offset, const eglink_crc_t *c)
+{
+    proto_item *ti;
+
+    ti = proto_tree_add_checksum(tree, tvb, crc_offset, hf_eglink_crc, hf_eglink_crc_status,
+                                 NULL, pinfo, c->computed,
+                                 eglink_crc_order == EGLINK_CRC_BE ? ENC_BIG_ENDIAN : ENC_LITTLE_ENDIAN,
+                                 PROTO_CHECKSUM_VERIFY);
+    if (c->ok)
+        return TRUE;
+
+    col_append_str(pinfo->cinfo, COL_INFO, " [bad CRC]");
+    if (c->match < 0) {
+        expert_add_info_format(pinfo, ti, &ei_eglink_crc_bad,
+            "Bad CRC [should be 0x%08x]: no CRC variant fits, the packet is corrupted: its payload "
+            "values are not trusted, none is judged", c->computed);
+        return FALSE;
+    }
+    expert_add_info_format(pinfo, ti, &ei_eglink_crc_bad, "Bad CRC [should be 0x%08x]", c->computed);
+    expert_add_info_format(pinfo, ti, &ei_eglink_crc_variant,
+        "CRC matches %s, %s-endian: set the preference (eglink.crc_variant: %s, eglink.crc_byte_order: %s)",
+        eglink_crc_variant_names[c->match], c->match_be ? "big" : "little",
+        eglink_crc_variant_vals[c->match].name, c->match_be ? "be" : "le");
     return FALSE;
 }
 
@@ -835,6 +876,7 @@ dissect_eglink(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data _
     proto_tree *eglink_tree;
     eglink_info_t info;
     eglink_payload_t p;
+    eglink_crc_t crc;
     guint32 value;
     int reported = (int)tvb_reported_length(tvb);
     int captured = (int)tvb_captured_length(tvb);
@@ -930,6 +972,12 @@ dissect_eglink(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data _
     p.len = reported - EGLINK_MIN_LEN;
     p.cap = MAX(0, MIN(p.len, captured - EGLINK_HEADER_LEN));
     p.undefined = FALSE;
+    /* (checked before the payload: a corrupted packet's values are not judged) */
+    memset(&crc, 0, sizeof crc);
+    crc.match = -1;
+    if (captured >= reported)
+        eglink_crc_check(tvb, pinfo, reported - EGLINK_CRC_LEN, &crc);
+    p.untrusted = captured >= reported && eglink_crc_corrupted(&crc);
     info.size_ok = TRUE;
     if (info.size != p.len) {
         info.size_ok = FALSE;
@@ -983,7 +1031,7 @@ dissect_eglink(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data _
         eglink_add_bytes(&p, hf_eglink_extra_payload, max_len, p.len - max_len, NULL);
 
     if (captured >= reported)
-        info.crc_ok = dissect_eglink_crc(tvb, pinfo, eglink_tree, reported - EGLINK_CRC_LEN);
+        info.crc_ok = dissect_eglink_crc(tvb, pinfo, eglink_tree, reported - EGLINK_CRC_LEN, &crc);
     else
         info.crc_ok = info.cut;     /* not checked: counted as received when analysable */
 

@@ -375,6 +375,7 @@ class Capture:
         self._ids = 0
         self._eglink_channels = {}  # EG-Link channel: its first BU (see _eglink_device)
         self._eglink_apart = {}     # EG-Link controller not joined to a BU: [device, BU it joined later]
+        self._eglink_orphans = {}   # (group, controller) on a port of its own: its _eglink_apart key
         self._failed = {}           # (device, command field, command frame): its entry
         self.candidates = {}        # connection or PROFINET run: what its candidate notes say
         self._pnio_decoded = {}     # PROFINET run (pair of MAC addresses): last frame decoded
@@ -491,7 +492,9 @@ class Capture:
             dev = self._eglink_device(c, typ, stream, frame, t)
         if self._eglink_apart and stream and typ.endswith("O"):
             apart = self._eglink_apart.get(self._eglink_controller_key(c, typ))
-            if apart is not None and apart[1] is None:
+            if apart is None:  # first seen on a port of its own (see _eglink_device)
+                apart = self._eglink_apart.get(self._eglink_orphans.get((c[C["ip_dst"]], c[C["ip_src"]])))
+            if apart is not None and apart[1] is None and apart[0] is not dev:
                 apart[1] = dev  # joined now: its packets before are this BU's
         dev.ports.add(c[EG_DPORT])
         dev.frames += 1
@@ -549,6 +552,14 @@ class Capture:
             dev = self._new_device(stream or ("eglink", channel), "eglink", frame, t)
             dev.address = {"group": dst, "port": port}
             self._eglink_channels.setdefault(channel, dev)
+            if not stream and typ.endswith("O") and channel[1] not in port_range(
+                    self.limits.get("eglink.input_port", "5825")):
+                # A controller on a port that fits no BU (yet): the analysis
+                # joins it to the BU of its group it turns up with later (an
+                # excerpt starting with a packet sent to a wrong port), and
+                # so does the report.
+                self._eglink_apart[("eglink", channel)] = [dev, None]
+                self._eglink_orphans[(dst, src)] = ("eglink", channel)
         if stream:
             dev.stream = stream
             self.devices[stream] = dev
