@@ -47,6 +47,8 @@ EG_DPORT = C["udp_dstport"]
 TCP_SPORT = C["tcp_srcport"]
 MODBUS_CANDIDATE, PNIO_CANDIDATE = C["eclink_modbus_candidate_setting"], C["mcmb2_candidate_setting"]
 CONNECT_CUT = C["mcmb2_connect_cut"]  # (an expert field: a Connect the capture cut)
+# (an expert field: TCP data from inside an ADU of a BU's connection, a frame with no image)
+MID_ADU = C["eclink_modbus_mid_adu"]
 LAYOUT_INFERRED = ("mcmb2.layout.inferred", "eclink_pnio.layout.inferred")
 # A failed command (its warning, or the note that its deadline passed): the
 # field that links to the command's frame.
@@ -363,7 +365,7 @@ class Capture:
             self._mcmb2(c, frame, t)
         elif c[C["eclink_pnio_layout"]]:
             self._eclink_pnio(c, frame, t)
-        elif c[C["eclink_modbus_table"]] or c[C["eclink_image"]]:
+        elif c[C["eclink_modbus_table"]] or c[C["eclink_image"]] or (len(c) > MID_ADU and c[MID_ADU]):
             self._eclink_modbus(c, frame, t)
         if c[MODBUS_CANDIDATE] or c[PNIO_CANDIDATE]:
             self._candidate(c, frame, t)
