@@ -1794,6 +1794,7 @@ function proto.dissector(tvb, pinfo, tree)
             -- (under the protocol's item, as a tree shows it; the bytes stay Data)
             local item = (not sp or sp.protos) and add(tree, proto, tvb())
             if item then append_text(item, ": TCP data from inside an ADU, not decoded") end
+            set_generated(add(item or tree, pf.server, server_text(pinfo, is_request)))
             if not sp or sp.experts then (item or tree):add_proto_expert_info(ef.mid_adu, note) end
             if not sp or sp.cols then pinfo.cols.info:append(" [EC-Link ADU not decoded]") end
         end

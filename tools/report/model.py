@@ -33,6 +33,8 @@ DEFAULT_LIMITS = {
     "eglink.input_port": "5825",
     # nor this: the Modbus/TCP servers decoded as BUs without evidence
     "eclink_modbus.servers": "",
+    # nor these: the Modbus/TCP ports, to tell a server from its client
+    "eclink_modbus.port": "502", "mbtcp.tcp.port": "502",
 }
 
 EXPERT_START = len(COL) - len(EXPERT_FIELDS)
@@ -67,7 +69,7 @@ def limits_from_prefs(prefs):
     limits = dict(DEFAULT_LIMITS)
     for pref in prefs:
         name, _, value = pref.partition(":")
-        if name in ("eglink.input_port", "eclink_modbus.servers"):
+        if name in ("eglink.input_port", "eclink_modbus.servers", "eclink_modbus.port", "mbtcp.tcp.port"):
             limits[name] = value
         elif name in limits:
             try:
@@ -510,7 +512,17 @@ class Capture:
         return "TS-0006 on UDP port%s %s" % ("s" if len(ports) > 1 else "", listed)
 
     def _modbus_server(self, c):
+        named = c[C["eclink_modbus_server"]]
+        if named:
+            # (the dissector's "address:port", the first of a frame's ADUs)
+            addr, port = named.split(",")[0].rsplit(":", 1)
+            return addr, int(port)
         sport, dport = int(c[C["tcp_srcport"]] or 0), int(c[C["tcp_dstport"]] or 0)
+        # (a frame with no server named, a candidate's: the side on a Modbus/TCP
+        # port, else the lower port, a client's being ephemeral)
+        ports = port_range(self.limits["eclink_modbus.port"]) | port_range(self.limits["mbtcp.tcp.port"])
+        if (sport in ports) != (dport in ports):
+            return (c[C["ip_src"]], sport) if sport in ports else (c[C["ip_dst"]], dport)
         if c[C["eclink_modbus_request_in"]] or (sport and sport < dport):
             return c[C["ip_src"]], sport
         return c[C["ip_dst"]], dport
