@@ -163,10 +163,19 @@ hs_experts[#hs_experts + 1] = ef.periodic_reassembled
 hs_experts[#hs_experts + 1] = ef.candidate
 hs_experts[#hs_experts + 1] = ef.dropped
 hs_experts[#hs_experts + 1] = ef.no_request
+-- TCP data of a decoded connection that does not start an ADU: what TCP hands
+-- over after segments out of order (either direction), never silent
+ef.mid_adu = ProtoExpert.new("eclink_modbus.mid_adu", "TCP data from inside an ADU, not decoded",
+    expert.group.SEQUENCE, expert.severity.NOTE)
+hs_experts[#hs_experts + 1] = ef.mid_adu
 -- A request Wireshark's TCP did not hand over, most often because its
 -- segments came out of order: TCP reassembles those only when told to.
 local NO_REQUEST_TEXT = "Response without a request in the capture: the request was not captured, or its TCP "
     .. "segments came out of order (TCP Previous segment not captured, Retransmission), which "
+    .. "tcp.reassemble_out_of_order:TRUE reassembles"
+-- (under the 240 characters of an expert message, whatever the size)
+local MID_ADU_TEXT = "TCP data from inside an ADU, not decoded (%d bytes from the %s): earlier segments not captured, "
+    .. "or out of order (TCP Previous segment not captured, Retransmission), which "
     .. "tcp.reassemble_out_of_order:TRUE reassembles"
 hs_experts[#hs_experts + 1] = ef.poll_gap
 proto.experts = hs_experts
@@ -379,6 +388,9 @@ local adus       -- ADU key -> what the first pass worked out for it (but plain 
 -- requests on a port no setting names (port_hint): per connection what they
 -- could prove (detect.requests), per frame the setting the note named
 local hint_conns, hint_of, hint_short
+-- per frame, worked out on its first pass: TCP data of a decoded connection
+-- that does not start an ADU (mid_adu_note()), or false
+local mid_adu_of
 
 -- seconds (a difference of pcap timestamps) to the microsecond: the times a
 -- record keeps (shown to the microsecond; the flat records keep them as
@@ -467,6 +479,7 @@ local function init_state()
     conns, keys_by_ports = {}, {}
     adus = {}
     hint_conns, hint_of, hint_short = {}, {}, {}
+    mid_adu_of = {}
     at_key, at_age, at_la, at_time, far_links = framemap.packed_refs(), framemap.packed_us(), framemap.packed_refs(),
         framemap.packed_us(), {}
     access_memo, access_memo_n = {}, 0
@@ -1581,6 +1594,65 @@ local function port_hint(tvb, pinfo, tree)
     return tvb:len()
 end
 
+-- Whether this plugin decodes the connection of a frame as its first pass
+-- stands: every connection ("always"), a listed server, one accepted.
+local function decodes(pinfo, is_request, src_port, dst_port)
+    if opt.detection == DETECT_ALWAYS then return true end
+    local c = conns[conn_key(pinfo, is_request, src_port, dst_port)]
+    if c and c.pinned ~= nil then
+        return c.pinned or (opt.detection == DETECT_HEURISTIC and c.accepted ~= nil)
+    end
+    local port = is_request and dst_port or src_port
+    return opt.any_servers and servers.listed(opt.servers, tostring(is_request and p_dst(pinfo) or p_src(pinfo)),
+        port, p_match_uint(pinfo)) or false
+end
+
+-- The first bytes of a BU's response alone in a segment, fewer than the 8
+-- that mbtcp needs to take it (it never asks TCP for the rest, and the
+-- response would be lost, in order or not): how many more bytes make the
+-- ADU (DESEGMENT_ONE_MORE_SEGMENT while its length is not in), for TCP to
+-- join them; false unless they are the head of the response to a pending
+-- request of a connection decoded (its transaction id, and its length where
+-- it is in: data from inside an ADU that looks like a head is noted instead).
+local RESPONSE_FIXED = { [5] = 6, [6] = 6, [15] = 6, [16] = 6 }
+local function head_more(tvb, pinfo, is_request, src_port, dst_port)
+    local n = tvb_len(tvb)
+    if is_request or n < 2 or tvb_reported_len(tvb) ~= n or p_visited(pinfo) then return false end
+    local t1, t2, p1, p2, l1, l2 = tvb_raw(tvb, 0, n):byte(1, n)
+    if (p1 or 0) ~= 0 or (p2 or 0) ~= 0 or not decodes(pinfo, false, src_port, dst_port) then return false end
+    local c = conns[conn_key(pinfo, false, src_port, dst_port)]
+    local plen = l2 and l1 * 256 + l2
+    for tkey, r in pairs(c and c.pending or NONE) do
+        if math.floor(tkey / 65536) == t1 * 256 + t2 then
+            local fc = tkey % 256
+            local want = RESPONSE_FIXED[fc] or (fc <= 2 and 3 + math.ceil((r.count or 0) / 8))
+                or 3 + 2 * (r.count or 0)
+            if not plen then return DESEGMENT_ONE_MORE_SEGMENT end
+            if plen == want or plen == 3 then return 6 + plen - n end  -- (3: an exception)
+        end
+    end
+    return false
+end
+
+-- A buffer that does not start with an MBAP header, on a connection this
+-- plugin decodes: TCP handed over the bytes after a gap in the sequence
+-- (segments out of order with Wireshark's default, or not captured), and
+-- the ADU they belong to reaches neither Modbus/TCP nor EC-Link. The note
+-- text, or false; worked out on the first pass, kept per frame and buffer
+-- (one pass and two agree).
+local function mid_adu_note(tvb, pinfo, is_request, src_port, dst_port, n, rl)
+    local _, _, p1, p2, l1, l2 = tvb_raw(tvb, 0, 6):byte(1, 6)
+    if p1 == 0 and p2 == 0 and l1 * 256 + l2 >= 2 then return false end  -- (an ADU, cut or whole)
+    local key = p_number(pinfo) .. ":" .. rl
+    local note = mid_adu_of[key]
+    if note == nil and not p_visited(pinfo) then
+        note = decodes(pinfo, is_request, src_port, dst_port)
+            and string.format(MID_ADU_TEXT, n, is_request and "controller" or "BU") or false
+        mid_adu_of[key] = note
+    end
+    return note
+end
+
 -- The note on an ADU of a connection with a BU's shape, not accepted: the
 -- setting in a field of its own, on the parent tree (the protocol item
 -- stays for decoded ADUs: "eclink_modbus" keeps matching those alone).
@@ -1707,6 +1779,25 @@ function proto.dissector(tvb, pinfo, tree)
             show_hint(tvb, tree, f_off, f_len, rec)
         end
         if found[i + 4] then spare_rec = rec end
+    end
+    if nf == 0 and n < 8 and pinfo.can_desegment > 0 and pinfo.desegment_len == 0 then
+        local more = head_more(tvb, pinfo, is_request, src_port, dst_port)
+        if more then
+            pinfo.desegment_offset, pinfo.desegment_len = 0, more
+            return n
+        end
+    end
+    if nf == 0 and n >= 6 then
+        local note = mid_adu_note(tvb, pinfo, is_request, src_port, dst_port, n, rl)
+        if note and not quiet then
+            sp = sparse_plan(view or not C and fe.lua_view(LUA_PROTOS, tree, p_visited(pinfo)) or nil) or false
+            -- (under the protocol's item, as a tree shows it; the bytes stay Data)
+            local item = (not sp or sp.protos) and add(tree, proto, tvb())
+            if item then append_text(item, ": TCP data from inside an ADU, not decoded") end
+            set_generated(add(item or tree, pf.server, server_text(pinfo, is_request)))
+            if not sp or sp.experts then (item or tree):add_proto_expert_info(ef.mid_adu, note) end
+            if not sp or sp.cols then pinfo.cols.info:append(" [EC-Link ADU not decoded]") end
+        end
     end
     infos = infos or NONE
     -- the tags first: after Modbus's own long text they stay in view in a

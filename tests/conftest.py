@@ -241,9 +241,17 @@ def profile_rules():
             if line.startswith("@")]
 
 
+def uat_buttons(path):
+    """[(label, display filter)] of a dfilter_buttons file, in order (the
+    escapes \\xNN of Wireshark's UAT files read as the characters)."""
+    found = re.findall(r'^"TRUE","([^"]+)","([^"]+)"', Path(path).read_text(), re.M)
+    unesc = lambda text: re.sub(r"\\x([0-9a-fA-F]{2})", lambda m: chr(int(m.group(1), 16)), text)  # noqa: E731
+    return [(unesc(label), unesc(expr)) for label, expr in found]
+
+
 def profile_buttons():
     """[(label, display filter)] of the vrshark profile's filter buttons, in order."""
-    return re.findall(r'^"TRUE","([^"]+)","([^"]+)"', (PROFILE_DIR / "dfilter_buttons").read_text(), re.M)
+    return uat_buttons(PROFILE_DIR / "dfilter_buttons")
 
 
 def profile_column_widths():

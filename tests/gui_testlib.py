@@ -4,7 +4,7 @@ drawn, take a screenshot, and read the colours of the packet-list rows from
 the picture.
 
 Rows are read along one column of pixels in the left part of the
-"Watchdog ms" column, where its right-aligned numbers leave the row
+"Age ms" column, where its right-aligned numbers leave the row
 background bare. Runs of one colour are rows of that colour; the height of one row is
 that of the shortest run (the selected first row is one)."""
 import os
@@ -20,7 +20,7 @@ WIDTH, HEIGHT = 1680, 1000     # the width the profile's columns are made for
 
 
 def _probe_x():
-    """The blank left part of the "Watchdog ms" column (its numbers sit on the
+    """The blank left part of the "Age ms" column (its numbers sit on the
     right), from the column widths of the profile (profile/vrshark/recent)."""
     return sum(w for _, w in profile_column_widths()[:8]) + 12
 

@@ -9,7 +9,7 @@ import subprocess
 import pytest
 
 from conftest import PROFILE_DIR as PROFILE
-from conftest import ROOT, _world_dir, profile_buttons, profile_column_widths
+from conftest import CAPTURES, ROOT, _world_dir, profile_buttons, profile_column_widths
 
 
 @pytest.fixture(scope="module")
@@ -103,6 +103,10 @@ def test_filter_buttons_compile(profile_conf):
         proc = run(profile_conf, ["-n", "-r", str(ROOT / "captures" / "eglink_armed.pcap"), "-c", "1",
                                   "-Y", expr])
         assert "isn't a valid" not in proc.stderr, (label, proc.stderr)
+        assert "deprecated" not in proc.stderr, (label, proc.stderr)
+    # a value string in quotes: Wireshark 4.6 warns on a bare one (the filter bar turns yellow)
+    assert dict(buttons)["Faults"] == ('_ws.expert.severity >= "warning" && '
+                                       "(eglink || eclink || mcmb2 || eclink_modbus || eclink_pnio)")
 
 
 def test_colours_lost_and_repeated_packets(profile_conf):
@@ -174,7 +178,7 @@ def test_healthy_eglink_is_not_wiresharks_tcp_or_udp_colour(profile_conf):
 
 
 COLUMNS = ["No.", "Time", "Source", "Protocol", "Device", "BU state", "RU state", "Armed RU",
-           "Watchdog ms", "Info"]
+           "Age ms", "Info"]
 
 
 def packet_list(conf, capture):
@@ -204,14 +208,14 @@ def test_watchdog_column_reads_whole_milliseconds(profile_conf):
     """The MC-MB2 watchdog age and the EC-Link PCI/PCO ages in whole ms (a
     time field there prints nine decimals and is cut off)."""
     rows = packet_list(profile_conf, "mcmb2_duplex_watchdog.pcap")
-    assert [rows[n]["Watchdog ms"] for n in (23, 25, 27, 28)] == ["1200", "1400", "0", "1600"]
+    assert [rows[n]["Age ms"] for n in (23, 25, 27, 28)] == ["1200", "1400", "0", "1600"]
     rows = packet_list(profile_conf, "eclink_modbus_faults.pcap")
-    assert rows[21]["Watchdog ms"] == "700"           # PCI, input image
-    assert rows[30]["Watchdog ms"] == "2050"          # PCO, output image
+    assert rows[21]["Age ms"] == "700"           # PCI, input image
+    assert rows[30]["Age ms"] == "2050"          # PCO, output image
     rows = packet_list(profile_conf, "eclink_pnio_connect.pcap")
-    assert rows[31]["Watchdog ms"] == "625"
-    assert rows[72]["Watchdog ms"] == "2125"
-    assert not [r for r in rows.values() if "." in r["Watchdog ms"]]
+    assert rows[31]["Age ms"] == "625"
+    assert rows[72]["Age ms"] == "2125"
+    assert not [r for r in rows.values() if "." in r["Age ms"]]
 
 
 def test_device_column_names_the_device_on_every_protocol(profile_conf):
@@ -236,24 +240,45 @@ def test_device_column_on_a_second_controller_of_a_shared_group(profile_conf, ts
     assert not [n for n, r in one.items() if not r["eglink.analysis.device"]]
 
 
-def test_every_column_has_a_width():
+# The packet list's monospace font at 1680 px (measured on the screenshots of
+# tests/test_gui_installed.py): 7.8 px a character (the Info text of
+# eclink_modbus_faults.pcap frame 28, 82 characters, spans 636 px); a cell's
+# text sits 4-5 px from its left edge and 4 px from its right one. The No.
+# column takes another 24 px for the related-frame marks, and the vertical
+# scroll bar 16 px. (test_long_capture_columns_not_cut checks No., Time and
+# Source in the GUI.)
+ADVANCE, MARGIN, MARKS, SCROLL_BAR = 7.8, 8, 24, 16
+
+
+def needs(text, title=None):
+    """Pixels a cell needs for the text."""
+    return ADVANCE * len(text) + MARGIN + (MARKS if title == "No." else 0)
+
+
+def test_every_column_has_a_width(tshark):
     """profile/vrshark/recent gives each column of the profile a width, keyed
-    as Wireshark keys it (a custom column by its fields), wide enough for the
-    longest texts the columns hold at 1680 px."""
+    as Wireshark keys it (a custom column by its fields), wide enough at
+    1680 px for the longest texts the columns hold: a MAC name as Wireshark
+    4.6 resolves it, and in Info, beside them, Modbus's own text of every
+    input image read of eclink_modbus_faults.pcap with its first tag."""
     prefs = re.findall(r'^\t"([^"]+)", "([^"]+)"', (PROFILE / "preferences").read_text(), re.M)
     pairs = profile_column_widths()
     keys = ['"%s"' % fmt.rsplit(":", 2)[0] if fmt.startswith("%Cus:") else fmt for _, fmt in prefs]
     assert [k for k, _ in pairs] == keys
     width = dict(zip([t for t, _ in prefs], [w for _, w in pairs]))
-    # The packet list's monospace font advances 7.5 px a character (measured
-    # on the screenshots of tests/test_gui_installed.py); a cell takes 12 px
-    # of margins, the No. column another 24 px for the related-frame marks.
-    # (test_long_capture_columns_not_cut checks No., Time and Source in the GUI.)
     for title, text in [("No.", "1000000"), ("Time", "12345.678901"), ("Source", "Siemens_00:00:01"),
-                        ("Source", "HMSIndus_00:00:02"), ("Source", "255.255.255.255"),
+                        ("Source", "HMSIndustria_00:00:02"), ("Source", "255.255.255.255"),
                         ("Protocol", "Modbus/TCP"), ("Device", "192.168.2.41:502"),
-                        ("BU state", "External link error"), ("Watchdog ms", "Watchdog ms")]:
-        assert width[title] >= 7.5 * len(text) + 12 + (24 if title == "No." else 0), (title, text)
-    # room for Modbus's own text and a tag (about 88 characters) in Info,
-    # beside the vertical scroll bar (16 px)
-    assert sum(width.values()) - width["Info"] <= 1680 - 16 - (7.5 * 88 + 12)
+                        ("BU state", "External link error"), ("RU state", "Disarmed"), ("Armed RU", "0x1234")]:
+        assert width[title] >= needs(text, title), (title, text)
+    # every title whole
+    for title, w in width.items():
+        assert w >= needs(title, title), title
+    info = 1680 - SCROLL_BAR - (sum(width.values()) - width["Info"])
+    rows = tshark.frames(CAPTURES / "eclink_modbus_faults.pcap", ["modbus.func_code", "_ws.col.Info"], two_pass=True)
+    infos = [v["_ws.col.Info"] for v in rows.values() if v["modbus.func_code"] == "4"]
+    # (the first bracket after Modbus's text: a tag, or the image summary)
+    texts = [t[:t.index("]") + 1] for t in infos if " [" in t and " [EC-Link" not in t[:t.index("]")]]
+    assert "Response: Trans:     9; Unit:   1, Func:   4: Read Input Registers [PCI stalled 0.700 s]" in texts
+    assert "   Query: Trans:     9; Unit:   1, Func:   4: Read Input Registers [poll gap 0.700 s]" in texts
+    assert [t for t in texts if needs(t) > info] == []

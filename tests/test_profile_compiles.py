@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import CAPTURES, PROFILE_DIR
+from conftest import CAPTURES, PROFILE_DIR, uat_buttons
 from installed_testlib import Installed, _folders
 
 KINDS = ["personal", "lua-only", "archive"]
@@ -41,7 +41,7 @@ def custom_columns(inst):
 
 
 def buttons(inst):
-    return re.findall(r'^"TRUE","([^"]+)","([^"]+)"', (profile_of(inst) / "dfilter_buttons").read_text(), re.M)
+    return uat_buttons(profile_of(inst) / "dfilter_buttons")
 
 
 def colour_rules(path):
@@ -82,7 +82,7 @@ def test_default_colour_rules_follow_ours(installed):
 @pytest.mark.parametrize("installed", KINDS, indirect=True)
 def test_columns_compile(installed):
     columns = custom_columns(installed)
-    assert [t for t, _ in columns] == ["Device", "BU state", "RU state", "Armed RU", "Watchdog ms"]
+    assert [t for t, _ in columns] == ["Device", "BU state", "RU state", "Armed RU", "Age ms"]
     assert errors(installed, columns) == {}
 
 
@@ -104,10 +104,10 @@ def test_colour_rules_compile(installed):
     assert proc.returncode == 0 and proc.stderr == ""
 
 
-COLUMNS = ["No.", "Time", "Source", "Protocol", "Device", "BU state", "RU state", "Armed RU", "Watchdog ms", "Info"]
+COLUMNS = ["No.", "Time", "Source", "Protocol", "Device", "BU state", "RU state", "Armed RU", "Age ms", "Info"]
 
 # capture, frame -> the profile's columns Device, BU state, RU state, Armed RU,
-# Watchdog ms there (tshark -C vrshark, one pass)
+# Age ms there (tshark -C vrshark, one pass)
 SHOWN = {
     ("eclink_modbus_basic.pcap", 45): ["192.168.2.41:502", "Blocked", "Initial", "0x1234", "0"],
     ("eglink_states.pcap", 2): ["0x1001", "Stopped", "Stopped", "0xbeef", ""],

@@ -9,7 +9,7 @@ import subprocess
 
 import pytest
 
-from conftest import CAPTURES, ROOT
+from conftest import CAPTURES, ROOT, profile_buttons
 from installed_testlib import Installed
 
 README = (ROOT / "README.md").read_text()
@@ -28,10 +28,7 @@ def profile_rule(name):
 
 
 def button(label):
-    for line in (PROFILE / "dfilter_buttons").read_text().splitlines():
-        if not line.startswith("#") and line.split('","')[1] == label:
-            return line.split('","')[2]
-    raise KeyError(label)
+    return dict(profile_buttons())[label]
 
 
 @pytest.fixture(scope="module")

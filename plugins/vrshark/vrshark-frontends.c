@@ -799,6 +799,7 @@ dissect_pn_cm(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
 #define MB_LIVE     0x40000000u     /* a request shaped like BU evidence was seen */
 #define MB_TRIES_MASK 0x0FFFFFFFu
 #define MB_TRIED    0               /* proto data key: a frame the decoder refused */
+#define MB_MID_ADU  1               /* packet-scope key: bytes mbtcp refused, handed to the decoder */
 
 /* Would this request, if the server were a BU, carry the evidence the Lua
  * heuristic accepts a connection on (vrshark/modbus_detect.luam): the whole
@@ -1098,6 +1099,31 @@ mb_conn_store(const mb_conn_key_t *conn, guint32 state)
     wmem_map_insert(mb_state, key, GUINT_TO_POINTER(state));
 }
 
+/* Bytes mbtcp refused, on a connection the decoder decodes (else they stay
+ * TCP's), go to the decoder once (TCP offers them to the server's port and
+ * then to the lower port, the same port): the head of a response alone in
+ * its segment, for which it asks TCP for the rest (mbtcp never would), or
+ * data from inside an ADU (segments out of order, or not captured), which
+ * it notes. */
+static int
+mb_refused(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, guint32 server_port)
+{
+    mb_conn_key_t conn;
+    lua_view_t *v = mb_hooks.always ? &view_mb_always : mb_listed(pinfo, server_port) ? &view_mb_server : NULL;
+
+    if (!v && mb_hooks.heuristic && pinfo->ptype == PT_TCP) {
+        mb_conn_key(pinfo, server_port, &conn);
+        if (GPOINTER_TO_UINT(wmem_map_lookup(mb_state, &conn)) & MB_ACCEPTED)
+            v = &view_mb_heuristic;
+    }
+    if (!v || p_get_proto_data(pinfo->pool, pinfo, proto_vrshark_mbtcp, MB_MID_ADU))
+        return 0;
+    p_add_proto_data(pinfo->pool, pinfo, proto_vrshark_mbtcp, MB_MID_ADU, GUINT_TO_POINTER(1));
+    pinfo->desegment_len = 0;
+    call_mb_decoder(v, FALSE, tvb, pinfo, tree);
+    return pinfo->desegment_len ? (int)tvb_captured_length(tvb) : 0;
+}
+
 static int
 dissect_mbtcp_front(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
 {
@@ -1111,9 +1137,11 @@ dissect_mbtcp_front(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *d
     if (pinfo->can_desegment > 0)
         pinfo->can_desegment++;
     consumed = call_mbtcp(tvb, pinfo, tree, data);
-    if (consumed <= 0)
+    if (consumed < 0)
         return consumed;
     mb_read_hooks();
+    if (consumed == 0)
+        return mb_refused(tvb, pinfo, tree, server_port);
     if (mb_hooks.always) {
         call_mb_decoder(&view_mb_always, FALSE, tvb, pinfo, tree);
         return consumed;

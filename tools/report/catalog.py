@@ -155,6 +155,8 @@ EXPERTS = {
     "eclink.bad_length": (ERROR, "finding", "not an EC-Link image length"),
     # EC-Link over Modbus/TCP
     "eclink_modbus.no_request": (NOTE, "finding", "response without its request"),
+    "eclink_modbus.mid_adu": (NOTE, "finding",
+                              "TCP data from inside an ADU not decoded: segments out of order or not captured"),
     "eclink_modbus.poll_gap": (WARNING, "poll_gap", "input image not read"),
     "eclink_modbus.dropped": (NOTE, "finding", "images no longer valid: not taken for a BU any more"),
     "eclink_modbus.candidate": (WARNING, "candidate", "looks like an EC-Link BU but was not recognised"),

@@ -37,8 +37,8 @@ DEFAULT_LIMITS = {
     "eglink.input_port": "5825",
     # nor this: the Modbus/TCP servers decoded as BUs without evidence
     "eclink_modbus.servers": "",
-    # nor this: the Modbus/TCP ports decoded, to name a cut frame's server port
-    "eclink_modbus.port": "502",
+    # nor these: the Modbus/TCP ports, to tell a server from its client
+    "eclink_modbus.port": "502", "mbtcp.tcp.port": "502",
 }
 
 EXPERT_START = len(COL) - len(EXPERT_FIELDS)
@@ -60,6 +60,8 @@ SEVERITY_CODES = {0x00400000: NOTE, 0x00600000: WARNING, 0x00800000: ERROR}
 # PROFINET RT FrameIDs of cyclic data (classes 3, 2 and 1); above: alarms, DCP
 CYCLIC_IDS = range(0x0100, 0xFC00)
 PROFINET_TYPE = "0x8892"   # (the EtherType; a frame the capture cut may have no FrameID)
+# (an expert field: TCP data from inside an ADU of a BU's connection, a frame with no image)
+MID_ADU = C["eclink_modbus_mid_adu"]
 LAYOUT_INFERRED = ("mcmb2.layout.inferred", "eclink_pnio.layout.inferred")
 # A failed command (its warning, or the note that its deadline passed): the
 # field that links to the command's frame.
@@ -78,7 +80,7 @@ def limits_from_prefs(prefs):
     limits = dict(DEFAULT_LIMITS)
     for pref in prefs:
         name, _, value = pref.partition(":")
-        if name in ("eglink.input_port", "eclink_modbus.servers", "eclink_modbus.port"):
+        if name in ("eglink.input_port", "eclink_modbus.servers", "eclink_modbus.port", "mbtcp.tcp.port"):
             limits[name] = value
         elif name in limits:
             try:
@@ -417,7 +419,7 @@ class Capture:
             self._mcmb2(c, frame, t)
         elif c[C["eclink_pnio_layout"]]:
             self._eclink_pnio(c, frame, t)
-        elif c[C["eclink_modbus_table"]] or c[C["eclink_image"]]:
+        elif c[C["eclink_modbus_table"]] or c[C["eclink_image"]] or (len(c) > MID_ADU and c[MID_ADU]):
             self._eclink_modbus(c, frame, t)
         else:
             formed = False
@@ -619,7 +621,17 @@ class Capture:
         return "TS-0006 on UDP port%s %s" % ("s" if len(ports) > 1 else "", listed)
 
     def _modbus_server(self, c):
+        named = c[C["eclink_modbus_server"]]
+        if named:
+            # (the dissector's "address:port", the first of a frame's ADUs)
+            addr, port = named.split(",")[0].rsplit(":", 1)
+            return addr, int(port)
         sport, dport = int(c[C["tcp_srcport"]] or 0), int(c[C["tcp_dstport"]] or 0)
+        # (a frame with no server named, a candidate's: the side on a Modbus/TCP
+        # port, else the lower port, a client's being ephemeral)
+        ports = port_range(self.limits["eclink_modbus.port"]) | port_range(self.limits["mbtcp.tcp.port"])
+        if (sport in ports) != (dport in ports):
+            return (c[C["ip_src"]], sport) if sport in ports else (c[C["ip_dst"]], dport)
         if c[C["eclink_modbus_request_in"]] or (sport and sport < dport):
             return c[C["ip_src"]], sport
         return c[C["ip_dst"]], dport

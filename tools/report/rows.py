@@ -35,7 +35,7 @@ FIELDS = [
     "eclink.image", "eclink.bu_state", "eclink.ru_state", "eclink.armed_ru",
     "eclink.joystick1", "eclink.joystick2", "eclink.joystick3", "eclink.joystick4",
     "eclink.pci", "eclink.pco",
-    "eclink_modbus.table", "eclink_modbus.request_in", "eclink_modbus.accepted_in",
+    "eclink_modbus.table", "eclink_modbus.request_in", "eclink_modbus.accepted_in", "eclink_modbus.server",
     "eclink_modbus.pci_age", "eclink_modbus.pco_age",
     "eclink_pnio.layout", "eclink_pnio.pci_age", "eclink_pnio.pco_age",
     # MC-MB2-PN
