@@ -777,7 +777,7 @@ local function settle(res)
                 .. "add to mcmb2.layouts: %s%s", res.first, res.last, cut_connect
                 and string.format("no Connect read: the capture cut the PNIO-CM datagram in frame %d", cut_connect)
                 or "no Connect in the capture", again and string.format(", re-opened in frame %d", again.frame)
-                or "", res.entry, res.alt_entry and string.format("; or, text as data (slot order): %s",
+                or "", res.entry, res.alt_entry and string.format("; or, text as ASCII (against the frame order): %s",
                 res.alt_entry) or ""))
         end
         fset(frames, f[1], rec and shared_record(rec, f[1]))
