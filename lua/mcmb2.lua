@@ -5,8 +5,9 @@ The carrier (vrshark_pnio.lua) finds the frames and their layout; this file
 checks and shows what an MC-MB2-PN sends and receives. Inside the C-SDU
 every submodule's data is followed by its IOPS byte; they are shown and
 stripped: the data of one terminal is the concatenation of its modules'
-data (SP-14-023 section 5.3: headers first, then per terminal the data
-modules, downlink data modules before downlink ASCII modules).
+data in frame order (SP-14-023 section 5.3: headers first, then per
+terminal the data modules, downlink data modules before downlink ASCII
+modules; the controllers we know keep that order in the frame).
 
 Duplex/simplex uplink (device -> controller, section 3.1):
   0 status (bits 0-3 status 0,1,2,7,0xA; bits 4-7 terminal) | 1 watchdog | 2.. data
@@ -630,13 +631,29 @@ end
 ------------------------------------------------------------------------
 -- Display
 ------------------------------------------------------------------------
+-- The modules of a list (slot order) in frame order, made once per list:
+-- a field's bytes are the frame's bytes in the order the frame holds them,
+-- whatever slot order the layout gives them (an inferred layout may take a
+-- data module holding text for ASCII, which moves it in the slot order).
+local by_offset = setmetatable({}, { __mode = "k" })
+local function frame_order(objs)
+    local f = by_offset[objs]
+    if not f then
+        f = {}
+        for i, o in ipairs(objs) do f[i] = o end
+        table.sort(f, function(a, b) return a.off < b.off end)
+        by_offset[objs] = f
+    end
+    return f
+end
+
 -- The data of several modules as one range (a new data source when they
 -- are not contiguous).
 local function data_range(tvb, base, objs, name)
     if #objs == 0 then return nil end
     if #objs == 1 then return range(tvb, base + objs[1].off, objs[1].len) end
     local parts = {}
-    for i, o in ipairs(objs) do parts[i] = tvb:raw(base + o.off, o.len) end
+    for i, o in ipairs(frame_order(objs)) do parts[i] = tvb:raw(base + o.off, o.len) end
     return ByteArray.new(table.concat(parts), true):tvb(name):range()
 end
 

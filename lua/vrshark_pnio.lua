@@ -101,6 +101,7 @@ local HEUR_TRIES = 64
 -- Per-capture state
 ------------------------------------------------------------------------
 local by_fid      -- FrameID -> { plan, ... } (plan.sender: Ethernet source Address, or nil = any)
+local noted_fid   -- FrameID -> true: in the C front end's table for a polled downlink's note (down_note())
 local pending_down -- { { ctl = Address, dev = Address, plan = downlink plan waiting for its FrameID }, ... }
 local cm_ports    -- UDP port -> true: controller ports added to udp.port for Connect responses
 local tries       -- FrameID -> failed header checks
@@ -227,6 +228,7 @@ local function init()
     if not C then own_ethertype() end
     for port in pairs(cm_ports or {}) do udp_table:remove(port, carrier) end
     by_fid, pending_down, tries, ars, cm_ports, not_ours, frags = {}, {}, {}, {}, {}, {}, {}
+    noted_fid = {}
     runs, gone = infer.new(), {}
     addr_of, hint_recs, unsettled, cut_connect, reopening = {}, {}, nil, nil, {}
     -- (packed: vrshark/framemap.luam says why; the ages are rounded to the ms)
@@ -533,6 +535,7 @@ end
 -- goes there.
 local function down_note(w, fid)
     if C then fe.pn_frame_id:add(fid, carrier) end
+    noted_fid[fid] = true
     if not w.note then
         local h = w.h
         w.note = { kind = "candidate", settings = { "mcmb2.layouts" }, head = "polled downlink layout not found",
@@ -777,7 +780,7 @@ local function settle(res)
                 .. "add to mcmb2.layouts: %s%s", res.first, res.last, cut_connect
                 and string.format("no Connect read: the capture cut the PNIO-CM datagram in frame %d", cut_connect)
                 or "no Connect in the capture", again and string.format(", re-opened in frame %d", again.frame)
-                or "", res.entry, res.alt_entry and string.format("; or, text as data (slot order): %s",
+                or "", res.entry, res.alt_entry and string.format("; or, text as ASCII (against the frame order): %s",
                 res.alt_entry) or ""))
         end
         fset(frames, f[1], rec and shared_record(rec, f[1]))
@@ -921,6 +924,11 @@ local function candidate(h, frame)
                     text = string.format("Not decoded: layout re-opened in frame %d, not inferred again (%s); a "
                         .. "Connect in the capture or mcmb2.layouts decides it (it was %s)", again.frame, h.why,
                         table.concat(settings, " or ")) }
+        elseif h.short then
+            -- (an excerpt too short for the evidence: the frame count, about how many it takes)
+            rec = { kind = "candidate", settings = settings, text = string.format(
+                "Shaped like %s, %s; to decode them: %s", SYSTEM_NAME[h.system], h.why,
+                table.concat(settings, " or ")) }
         else
             rec = { kind = "candidate", settings = settings, early = h.early, text = string.format(
                 "Looks like %s, but its layout was not inferred (%s); to decode it now: %s",
@@ -971,6 +979,16 @@ function inferred(fid, s, pinfo, n)
             for _, f in ipairs(runs.watch) do fe.pn_frame_id:add(f, carrier) end
         end
         runs.watch = {}
+    end
+    if #runs.unwatch > 0 then
+        -- (a FrameID watched only for an excerpt too short, whose runs grew
+        -- past it: out of the table again, unless a layout or a note has it)
+        if C then
+            for _, f in ipairs(runs.unwatch) do
+                if not by_fid[f] and not noted_fid[f] then fe.pn_frame_id:remove(f, carrier) end
+            end
+        end
+        runs.unwatch = {}
     end
     if not res then return reopening[fid] end
     if res.kind == "candidate" then

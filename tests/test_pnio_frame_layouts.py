@@ -17,17 +17,20 @@ layout-table entry the inference offers must pin the same layout.
   downlink (data objects first): a duplex base, a simplex base and an
   EC-Link BU with 0, 20 and 224 output bytes;
 - any order (hypothesis): any §5.3 configuration, EC-Link 0/20/224, DAP
-  1..8, any order of the objects and IOCS in each direction. Modules of one
-  size and kind keep their slot order among themselves (nothing in the
-  frames tells two of them apart), and the test data never hold 0x80 (a
-  data byte holding 0x80 where another layout has its IOPS:
-  test_pnio_midsession.py).
+  1..8, any order of the objects and IOCS in each direction, the downlink
+  data modules holding binary data or text-like bytes. The test data never
+  hold 0x80 (a data byte holding 0x80 where another layout has its IOPS:
+  test_pnio_midsession.py). Nothing in the frames tells two modules of one
+  size apart, nor always a data module holding text from an ASCII module:
+  whichever the inference takes, every data field holds the frame's bytes
+  at the offsets the Connect gives, in frame order (issue 54 item 1).
 """
 import random
 
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from scapy.utils import rdpcap
 
 from pnio_testlib import DATA_MODULES, CaptureFile, Device, data_first, eclink_submodules, iocs_first, \
     largest_first, mac, mcmb2_submodules
@@ -163,14 +166,15 @@ def module_kinds(cfg, d):
     return kinds
 
 
-def order_from(perms, kinds):
-    """order(direction, elements) for Device: each direction's permutation,
-    modules of one size and kind back in slot order among themselves."""
+def order_from(perms, kinds=None):
+    """order(direction, elements) for Device: each direction's permutation;
+    with kinds (module_kinds()), modules of one size and kind back in slot
+    order among themselves."""
     def order(direction, elements):
         out = [elements[i] for i in perms[direction] if i < len(elements)]
         groups = {}
         for pos, e in enumerate(out):
-            k = kinds.get(e[1]) if e[0] == "data" else None
+            k = kinds.get(e[1]) if kinds and e[0] == "data" else None
             if k:
                 groups.setdefault(k, []).append(pos)
         for positions in groups.values():
@@ -181,29 +185,49 @@ def order_from(perms, kinds):
     return order
 
 
-def random_mcmb2_traffic(d, cap, pairs, up, data, seed):
-    """Data that never look like a header or text: random bytes (not 0x80);
-    the ASCII modules hold letters (a module of digits and blanks could be
-    data as well, and of two ways to split the modules section 5.3 allows
-    data is taken); both watchdogs move; base unit number 0
-    (multiple select not configured: a downlink header that reads as an
-    uplink status byte, see test_pnio_candidate.py)."""
+TEXT = b"ABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789 "
+
+
+def random_mcmb2_traffic(d, cap, pairs, up, data, seed, text_data):
+    """Data that never look like a header: random bytes (not 0x80), the
+    downlink data modules text-like bytes (letters, digits, blanks) when
+    text_data; the ASCII modules hold letters; both watchdogs move; base
+    unit number 0 (multiple select not configured: a downlink header that
+    reads as an uplink status byte, see test_pnio_candidate.py)."""
     rnd = random.Random(seed)
     ins, outs = _slots(d, "in"), _slots(d, "out")
     ascii_ = sum(s.outlen for s in outs[1:]) - data
     byte = lambda: rnd.choice([b for b in range(1, 256) if b != 0x80])  # noqa: E731
+    data_byte = (lambda: rnd.choice(TEXT)) if text_data else byte  # noqa: E731
     for i in range(pairs):
         payload = bytes(byte() for _ in range(up))
         cap.add(d.cyclic("in", _spread(ins, "inlen", bytes([0x31, i & 0xFF]) + payload)), 0.002)
-        down = bytes(byte() for _ in range(data)) + (b"CRANEHOIST" * 64)[:ascii_]
+        down = bytes(data_byte() for _ in range(data)) + (b"CRANEHOIST" * 64)[:ascii_]
         cap.add(d.cyclic("out", _spread(outs, "outlen", bytes([0, i & 0xFF]) + down)), 0.002)
+
+
+def assert_data_in_frame_order(tshark, path, d, fields):
+    """Every decoded frame's uplink_data / downlink_data: the frame's bytes
+    at the offsets of the Connect's IOCR blocks (Device.offsets), the
+    modules taken in frame order."""
+    got = tshark.frames(path, fields, two_pass=True)
+    for n, pkt in enumerate(rdpcap(str(path)), start=1):
+        raw = bytes(pkt)
+        if len(raw) < 16 or raw[12:14] != b"\x88\x92":
+            continue
+        fid, c_sdu = int.from_bytes(raw[14:16], "big"), raw[16:]
+        direction, field = ("in", "mcmb2.uplink_data") if fid == d.in_fid else ("out", "mcmb2.downlink_data")
+        attr = "inlen" if direction == "in" else "outlen"
+        objs = [(s, off) for s, off in d.offsets(direction)[0] if s.slot > 0][1:]   # the header's first
+        want = b"".join(c_sdu[off:off + getattr(s, attr)] for s, off in sorted(objs, key=lambda p: p[1]))
+        assert got[n][field] == want.hex(), (n, field)
 
 
 @settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(cfg=config, perms=st.fixed_dictionaries({"in": st.permutations(range(80)),
                                                  "out": st.permutations(range(80))}),
-       seed=st.integers(0, 2 ** 16))
-def test_any_frame_layout(tshark, work_dir, cfg, perms, seed):
+       seed=st.integers(0, 2 ** 16), text_data=st.booleans())
+def test_any_frame_layout(tshark, work_dir, cfg, perms, seed, text_data):
     system, dap, a, b, c = cfg
     name = "any-%d" % len(list(work_dir.glob("with_any-*")))
     if system == "eclink":
@@ -212,12 +236,12 @@ def test_any_frame_layout(tshark, work_dir, cfg, perms, seed):
         fields = ECLINK_FIELDS
     else:
         subs = mcmb2_submodules("duplex", dap, a, b, c, 1)
-        traffic = lambda d, cap: random_mcmb2_traffic(d, cap, 60, a, b, seed)  # noqa: E731
+        traffic = lambda d, cap: random_mcmb2_traffic(d, cap, 60, a, b, seed, text_data)  # noqa: E731
         fields = MCMB2_FIELDS
-    probe = Device(subs, mac(300), 0x8300, 0x8301)
     # a permutation of the elements of each direction (at most 80 in these configurations)
-    assert len(probe.subs) <= 80
-    order = order_from(perms, module_kinds(cfg, probe))
-    with_connect, without = captures(work_dir, name, lambda: Device(subs, mac(300), 0x8300, 0x8301, order=order),
-                                     traffic)
+    device = lambda: Device(subs, mac(300), 0x8300, 0x8301, order=order_from(perms))  # noqa: E731
+    assert len(device().subs) <= 80
+    with_connect, without = captures(work_dir, name, device, traffic)
     assert_reads_as_with_connect(tshark, with_connect, without, fields, "eclink" if system == "eclink" else "mcmb2")
+    if system != "eclink":
+        assert_data_in_frame_order(tshark, with_connect, device(), fields)

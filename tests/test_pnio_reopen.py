@@ -290,15 +290,16 @@ def test_what_the_frames_cannot_tell_is_in_the_tree(tshark, work_dir):
 
 
 def test_a_text_like_data_module_next_to_ascii(tshark, work_dir):
-    """Issue 44 section 4: when two layouts fit, the one in the usual slot
-    order is offered. SP-14-023 5.3: the downlink holds the data modules,
-    then the ASCII modules, each of a size the catalogue has. A 4-byte data
-    module holding "PUMP" before a 20-byte ASCII module fits two ways: 4
-    data + 20 ASCII (the usual slot order, what the Connect says) or 24
-    ASCII bytes (20 + 4: the text taken for ASCII, against the frame order).
-    The tree says which it took and offers the other as a mcmb2.layouts
-    setting, the settling note too; that setting decodes every frame as
-    with the Connect."""
+    """Issue 44 section 4, issue 54 item 1: when two layouts fit, the one
+    that keeps the frame order is taken and the other offered. SP-14-023
+    5.3: the downlink holds the data modules, then the ASCII modules, each
+    of a size the catalogue has. A 4-byte data module holding "PUMP" before
+    a 20-byte ASCII module fits two ways: 4 data + 20 ASCII (the modules in
+    frame order, what the Connect says) or 24 ASCII bytes (20 + 4: the text
+    taken for ASCII, against the frame order). The tree says which it took
+    and offers the other as a mcmb2.layouts setting, the settling note too;
+    either entry decodes every frame as with the Connect, the bytes in
+    frame order."""
     subs = mcmb2_submodules("duplex", 2, 2, 4, 20, 1)
 
     def traffic(d, cap):
@@ -310,23 +311,26 @@ def test_a_text_like_data_module_next_to_ascii(tshark, work_dir):
 
     with_connect, without = captures(work_dir, "textlike", lambda: Device(subs, mac(0x46), 0x8461, 0x8462),
                                      traffic)
-    taken, usual = "0x8461/0x8462=duplex:2/a24@2[/2d,2c,h,a4,a20]", "0x8461/0x8462=duplex:2/4,a20@2"
+    taken, other = "0x8461/0x8462=duplex:2/4,a20@2", "0x8461/0x8462=duplex:2/a24@2[/2d,2c,h,a4,a20]"
     got = tshark.frames(without, ["mcmb2.layout_entry", "mcmb2.layout_order", "mcmb2.candidate_setting"],
                         two_pass=True)
     assert {tuple(r.values()) for r in got.values()} == {(
         taken,
-        "which downlink modules are ASCII taken from the text they hold, against the frame order; in the usual "
-        "slot order (data modules first) the layout is " + usual,
-        "mcmb2.layouts:" + usual)}
+        "which downlink modules are ASCII taken from the frame order (SP-14-023 5.3: data modules first), though "
+        "a data module holds text; with the text taken for ASCII (against the frame order) the layout is " + other,
+        "mcmb2.layouts:" + other)}
     # the same with -Y (the sparse display builds only what the filter uses)
     sparse = tshark.frames(without, ["mcmb2.candidate_setting"], display_filter="mcmb2.candidate_setting",
-                          two_pass=True)
-    assert len(sparse) == 200 and {r["mcmb2.candidate_setting"] for r in sparse.values()} == {"mcmb2.layouts:" + usual}
+                           two_pass=True)
+    assert len(sparse) == 200 and {r["mcmb2.candidate_setting"] for r in sparse.values()} == {"mcmb2.layouts:" + other}
     note = tshark.frames(without, ["_ws.expert.message"], display_filter="mcmb2.layout.inferred", two_pass=True)
     assert [r["_ws.expert.message"] for r in note.values()] == [
-        inferred_text(1, min(note), taken) + "; or, text as data (slot order): " + usual]
+        inferred_text(1, min(note), taken) + "; or, text as ASCII (against the frame order): " + other]
     fields = MCMB2_FIELDS + FIELDS
     a = tshark.frames(with_connect, fields, two_pass=True)
-    pinned = tshark.frames(without, fields, prefs={"mcmb2.layouts": usual}, two_pass=True)
-    assert all(row == a[n + 2] for n, row in pinned.items())
     assert a[4]["mcmb2.downlink_data"] == (b"PUMP" + b"CRANE HOIST NUMBER 1").hex()
+    b = tshark.frames(without, fields, two_pass=True)
+    assert all(row == a[n + 2] for n, row in b.items())
+    for entry in (taken, other):
+        pinned = tshark.frames(without, fields, prefs={"mcmb2.layouts": entry}, two_pass=True)
+        assert all(row == a[n + 2] for n, row in pinned.items()), entry
