@@ -10,8 +10,11 @@ import argparse
 import concurrent.futures
 import multiprocessing
 import os
+import shutil
+import stat
 import subprocess
 import sys
+import tempfile
 import time
 
 from . import catalog, expect, filetype, jsonout, junit, model, stop, text
@@ -88,11 +91,9 @@ def _init_worker(progress):
     stop.leave_to_parent()
 
 
-def report_one(index, path, tshark, extra, limits, keep_series):
-    """Run tshark on one capture and build its report dict (in a worker
-    process); returns (the report, the seconds it took)."""
-    start = time.monotonic()
-    rows = Rows(path, tshark[0], extra, tshark[1])
+def read_capture(index, path, tshark, extra, limits, two_pass=None):
+    """One tshark run over a capture into its model: (the model, an error)."""
+    rows = Rows(path, tshark[0], extra, tshark[1], two_pass)
     cap = model.Capture(path, limits)
     error = None
     try:
@@ -114,6 +115,44 @@ def report_one(index, path, tshark, extra, limits, keep_series):
         error = "cannot read: %s" % (exc.strerror or exc)
     if error and error.startswith("not a network capture"):
         cap = model.Capture(path, limits)
+    return cap, error
+
+
+# A capture read again in two passes (below) is copied first: up to this size.
+TWO_PASS_MAX = 16 << 20
+
+
+def two_pass_copy(path, folder):
+    """A copy of a regular capture file of at most TWO_PASS_MAX bytes that
+    any user may read (tools/tshark runs tshark as another user), or None."""
+    try:
+        with open(path, "rb") as src:
+            st = os.fstat(src.fileno())
+            if not stat.S_ISREG(st.st_mode) or st.st_size > TWO_PASS_MAX:
+                return None
+            copy = os.path.join(folder, "capture")
+            with open(copy, "wb") as dst:
+                shutil.copyfileobj(src, dst)
+    except OSError:
+        return None
+    os.chmod(folder, 0o755)
+    os.chmod(copy, 0o644)
+    return copy
+
+
+def report_one(index, path, tshark, extra, limits, keep_series):
+    """Run tshark on one capture and build its report dict (in a worker
+    process); returns (the report, the seconds it took). A capture of which
+    no device formed but that holds a short PROFINET run is read again in
+    two passes: only after the whole capture does tshark say whether such a
+    run has the shape of a base or a BU (an excerpt too short to decide)."""
+    start = time.monotonic()
+    cap, error = read_capture(index, path, tshark, extra, limits)
+    if not error and cap.short_profinet():
+        with tempfile.TemporaryDirectory() as folder:
+            copy = two_pass_copy(path, folder)
+            if copy:
+                cap, error = read_capture(index, path, tshark, extra, limits, copy)
     rep = cap.finish(error)
     if not keep_series:
         for dev in rep["devices"]:

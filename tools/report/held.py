@@ -38,9 +38,12 @@ def modbus_cut(rep):
             "without a snaplen" % (text, ", on port %s" % ", ".join(map(str, ports)) if ports else ""))
 
 
-def profinet_undecoded(rep):
+def profinet_undecoded(rep, cause_only=False):
     """PROFINET cyclic frames of which no device and no candidate formed,
-    with their count and the cause the capture shows."""
+    with their count and the cause the capture shows; with cause_only, only
+    when it shows one (a cut Connect, frames cut): frames that are whole,
+    with their whole capture, and that tshark did not find shaped like ours
+    are another device's, as far as the capture tells."""
     pn = rep["held"]["profinet"]
     if not pn["undecoded"]:
         return None
@@ -52,6 +55,8 @@ def profinet_undecoded(rep):
     what = "%d PROFINET cyclic frame%s%s formed no device" % (
         pn["undecoded"], "" if pn["undecoded"] == 1 else "s",
         " (FrameID %s)" % ids(pn["frame_ids"]) if pn["frame_ids"] else "")
+    if cause_only and not causes:
+        return None
     # (without a cut, what the frames show is their number: few for an excerpt)
     why = " and ".join(causes) if causes else "too few to infer a layout from, or no base's or BU's"
     return "%s: %s; a known layout decodes them: -o mcmb2.layouts, docs/profinet.md" % (what, why)
@@ -59,7 +64,7 @@ def profinet_undecoded(rep):
 
 def no_device(rep):
     """The lines of a capture of which no device formed: what it holds."""
-    lines = [line for line in (modbus_cut(rep), profinet_undecoded(rep)) if line]
+    lines = [line for line in (modbus_cut(rep), profinet_undecoded(rep, cause_only=True)) if line]
     if not lines and not rep["timeline"]:
         return ["no EG-Link, EC-Link or MC-MB2-PN traffic found"]
     lines.insert(0, "no device decoded" + (": tshark's notes in the timeline" if rep["timeline"] else ""))

@@ -59,7 +59,13 @@ MCMB2_ITEM, MESSAGES, SEVERITIES = C["mcmb2"], C["_ws_expert_message"], C["_ws_e
 SEVERITY_CODES = {0x00400000: NOTE, 0x00600000: WARNING, 0x00800000: ERROR}
 # PROFINET RT FrameIDs of cyclic data (classes 3, 2 and 1); above: alarms, DCP
 CYCLIC_IDS = range(0x0100, 0xFC00)
-PROFINET_TYPE = "0x8892"   # (the EtherType; a frame the capture cut may have no FrameID)
+PROFINET_TYPE = "0x8892"
+# The longest a run of a base or a BU may take to show what makes it one
+# (lua/vrshark/pnio_infer.luam's need_of: an EC-Link BU's PCO moving twice,
+# TS-0007 8.4, 4 s), with a margin for the frames' pace.
+SHORT_RUN = 4.5
+# tshark's words on the frames of such a run that has the shape of ours
+SHORT_NOTE = re.compile(r"too few frames to decide: [^;]*")   # (the EtherType; a frame the capture cut may have no FrameID)
 # (an expert field: TCP data from inside an ADU of a BU's connection, a frame with no image)
 MID_ADU = C["eclink_modbus_mid_adu"]
 LAYOUT_INFERRED = ("mcmb2.layout.inferred", "eclink_pnio.layout.inferred")
@@ -428,9 +434,10 @@ class Capture:
         elif not formed:
             frame_id = num(c[PN_FRAME_ID]) if c[PN_FRAME_ID] else None
             if held == "profinet" and (frame_id in CYCLIC_IDS or frame_id is None and self._cut):
-                run = self._undecoded.setdefault(frozenset((c[C["eth_src"]], c[C["eth_dst"]])), [0, set()])
+                run = self._undecoded.setdefault(frozenset((c[C["eth_src"]], c[C["eth_dst"]])), [0, set(), t, t])
                 run[0] += 1
                 run[1].update([frame_id] if frame_id is not None else [])
+                run[3] = t
             if c[MCMB2_ITEM] and c[MESSAGES]:
                 self._capture_notes(c, frame, t)
         if len(c) > CONNECT_CUT and c[CONNECT_CUT] and self._connect_cut is None:
@@ -654,6 +661,11 @@ class Capture:
                                           "frame_ids": set()}
             if key[0] == "pnio":
                 rec["macs"] = macs
+        if key[0] == "pnio" and "short" not in rec:
+            # (an excerpt too short to decide: tshark's note says how short)
+            short = SHORT_NOTE.search(c[MESSAGES]) if len(c) > MESSAGES else None
+            if short:
+                rec["short"] = short.group(0)
         rec.update(last_frame=frame, end=t, setting=setting)  # (a layouts entry has commas)
         rec["frames"] += 1
         if c[C["pn_rt_frame_id"]]:
@@ -975,7 +987,7 @@ class Capture:
                 name = "PROFINET IO %s to %s%s" % (rec["macs"] + ((" (FrameID %s)" % ids) if ids else "",))
                 address = {"macs": sorted(key[1]), "frame_ids": sorted(rec["frame_ids"])}
                 what = ("cyclic frames of %s look like an MC-MB2-PN or EC-Link device but were "
-                        "not recognised" % name)
+                        "not recognised%s" % (name, ": " + rec["short"] if "short" in rec else ""))
             dev = self._new_device(("candidate",) + key, "candidate", rec["first_frame"], rec["start"])
             dev.name = name + ", not decoded"
             dev.address = dict(address, setting=rec["setting"])
@@ -994,6 +1006,13 @@ class Capture:
                 if key not in self._pnio_decoded and ("pnio", key) not in self.candidates]
         return {"undecoded": sum(run[0] for run in runs),
                 "frame_ids": sorted(set().union(*[run[1] for run in runs]))}
+
+    def short_profinet(self):
+        """True when no device formed and a PROFINET run of no device spans
+        less time than the evidence of a base or a BU may take (SHORT_RUN):
+        tshark says whether it has their shape only once it has seen the
+        whole capture (its second pass), which one pass cannot know."""
+        return not self.devices and any(run[3] - run[2] < SHORT_RUN for run in self._undecoded.values())
 
     def finish(self, error=None):
         """Close what is still open at the end; the report as a plain dict."""

@@ -155,8 +155,11 @@ class Rows:
     column stays empty; a tshark without the vrshark plugins is an error.
     """
 
-    def __init__(self, path, cmd, extra_args=(), env=None):
+    def __init__(self, path, cmd, extra_args=(), env=None, two_pass=None):
         self.path = Path(path)
+        # (a copy of the capture that tshark may open itself: read in two
+        # passes, which a capture on standard input cannot be)
+        self.two_pass = two_pass
         self.cmd = list(cmd)
         self.env = env
         self.extra_args = list(extra_args)
@@ -166,7 +169,8 @@ class Rows:
         self._file = None
 
     def argv(self):
-        argv = self.cmd + ["-n", "-r", "-", "-T", "fields", "-E", "separator=/t",
+        source = ["-2", "-r", str(self.two_pass)] if self.two_pass else ["-r", "-"]
+        argv = self.cmd + ["-n"] + source + ["-T", "fields", "-E", "separator=/t",
                            "-E", "occurrence=a", "-E", "aggregator=,", "-E", "quote=n"]
         argv += self.extra_args
         for name in ALL_FIELDS:
