@@ -7,6 +7,7 @@ with it loses that join when the second BU appears: one pass from there on,
 with a note; -2 from its first packet. Both controllers end up alike, "BU
 not known", in both decoders and in the report.
 """
+import os
 import shutil
 import socket
 import time
@@ -14,6 +15,9 @@ import time
 import pytest
 
 from test_eglink_field_captures import analysis, devices, report
+from test_eglink_parity import assert_same, c_tshark, lua_tshark  # noqa: F401 (fixtures)
+
+LUA_ONLY = bool(os.environ.get("VRSHARK_NO_C_PLUGIN"))
 
 GROUP = "239.255.42.20"
 BU1, CTRL1, BU2, CTRL2 = "127.0.0.1", "127.0.0.11", "127.0.0.2", "127.0.0.12"
@@ -102,6 +106,37 @@ def test_two_passes_never_join_either_controller(tshark, late_second_bu):
     notes = {f: [e for e in v if e[0] == WITHDRAWN[0]]
              for f, v in analysis(tshark, late_second_bu, two_pass=True).items()}
     assert {f: v for f, v in notes.items() if v} == {9: [WITHDRAWN]}
+
+
+@pytest.mark.skipif(LUA_ONLY, reason="the first phase compares both decoders")
+def test_c_and_lua_alike(c_tshark, lua_tshark, late_second_bu):   # noqa: F811
+    for two_pass in (False, True):
+        assert_same(c_tshark, lua_tshark, late_second_bu, two_pass)
+
+
+def test_a_second_controller_withdraws_the_join(tshark, work_dir):
+    """The same with one BU and a second controller: the note on the second
+    controller's first packet; neither controller joined after it (nor, with -2,
+    the first before it)."""
+    from eglink_testlib import gen
+    first = gen.Link()
+    first.bu(0.0, "VRPI", gen.armed())
+    first.ctrl(0.01, "VRPO", gen.vrpo(0, gen.machine_data(0)))
+    second = gen.Link(cap=first.cap, ctrl_ip="192.168.32.21")
+    second.ctrl(0.05, "VRPO", gen.vrpo(0, gen.machine_data(50)))
+    first.ctrl(0.08, "VRPO", gen.vrpo(0, gen.machine_data(1)))
+    path = work_dir / "second_controller.pcap"
+    path.write_bytes(first.cap.to_bytes())
+    note = ("eglink.analysis.join_withdrawn",
+            "Controller 192.168.32.20 no longer joined to BU 0x1001 (192.168.32.10): only being alone with "
+            "it on 239.255.42.20 port 5825 joined them, and this packet is a second controller's there: BU "
+            "not known until a command acknowledged between them")
+    for two_pass, devices_seen in ((False, ["0x1001", "0x1001", "BU not known", "BU not known"]),
+                                   (True, ["0x1001", "BU not known", "BU not known", "BU not known"])):
+        rows = tshark.frames(path, ["eglink.analysis.device"], two_pass=two_pass)
+        assert [r["eglink.analysis.device"] for r in rows.values()] == devices_seen
+        notes = {f: [e for e in v if e[0] == note[0]] for f, v in analysis(tshark, path, two_pass).items()}
+        assert {f: v for f, v in notes.items() if v} == {3: [note]}
 
 
 def test_an_acknowledgement_keeps_the_join(tshark, work_dir):
