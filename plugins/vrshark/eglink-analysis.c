@@ -27,10 +27,10 @@
  * group and ports, so one channel may carry several BUs: on it, a BU is
  * its origin and source address, a controller its source address (its
  * packets carry origin 0). Each sender has its own serials, periodic
- * interval and commands. A controller is joined to its BU when it is the
- * only one beside the only BU of the channel, or by the command IDs
- * acknowledged between them (a VRAO for a BU's VRCI, a VRAI for the
- * controller's VRCO); until then its packets are analysed on their own.
+ * interval and commands. A controller is joined to its BU by the command
+ * IDs acknowledged between them (a VRAO for a BU's VRCI, a VRAI for the
+ * controller's VRCO), or while it is the only one beside the only BU of the
+ * channel; until then its packets are analysed on their own.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
@@ -65,6 +65,7 @@ static int hf_analysis = -1;
 static int hf_bu_stream = -1;
 static int hf_bu_origin = -1;
 static int hf_device = -1;
+static int hf_joined_alone = -1;
 static int hf_expected_serial = -1;
 static int hf_lost = -1;
 static int hf_repeat_of = -1;
@@ -133,6 +134,7 @@ static expert_field ei_resent_after_deadline = EI_INIT;
 static expert_field ei_command_id_sequence = EI_INIT;
 static expert_field ei_revision_ignored = EI_INIT;
 static expert_field ei_not_joined = EI_INIT;
+static expert_field ei_join_withdrawn = EI_INIT;
 
 /* Preferences */
 static guint pref_vrpi_gap_ms = 500;
@@ -311,6 +313,8 @@ struct eglink_ctrl {
     address addr;
     eglink_bu_t *bu;            /* its BU, NULL while not known */
     gboolean joined_by_ack;     /* ... known from a command it or the BU acknowledged */
+    eglink_bu_t *alone_bu;      /* the BU it was joined to for being alone with it */
+    guint32 withdrawn_frame;    /* where that stopped holding (a second BU or controller), 0: never */
     gboolean adopted;           /* first seen on a port of its own, then with this channel's BU */
     eglink_orphan_ack_t orphan_acks[EGLINK_ORPHAN_ACKS];
     guint n_orphan_acks;
@@ -349,7 +353,8 @@ typedef enum {
     FND_RESENT_AFTER_ACK,       /* frame: the acknowledgement, value: command ID | dir << 16 */
     FND_RESENT_AFTER_DEADLINE,  /* frame: first transmission, value: command ID | dir << 16 */
     FND_CMD_ID_SEQUENCE,        /* value: command ID expected | dir << 16, ns: previous ID */
-    FND_REVISION                /* value: the header revision */
+    FND_REVISION,               /* value: the header revision */
+    FND_JOIN_WITHDRAWN          /* value: the controller's index, ns: 1 for a second BU, 0 controller */
 } eglink_finding_kind_t;
 
 /* FND_VRPO_NUMBER: how the numbering broke */
@@ -394,7 +399,8 @@ typedef enum {
 /* The full record of one EG-Link layer of a frame. */
 typedef struct eglink_frame {
     eglink_bu_t *bu;            /* the BU of the packet: its own, or the one its controller talks to */
-    eglink_ctrl_t *ctrl;        /* a controller packet whose BU is not known (bu is NULL) */
+    eglink_ctrl_t *ctrl;        /* a controller packet whose BU is not known (bu is NULL), or
+                                 * joined to bu only for being alone with it (ctrl->alone_bu) */
     eglink_cmd_t *cmd;          /* VRCI/VRCO: its command; VRAO/VRAI: the one it acknowledges */
     eglink_finding_t *findings;
     gint64 delta_ns;            /* VRPI/VRPO: since the previous one; VRAO/VRAI: ack time */
@@ -536,7 +542,7 @@ eglink_frame_store(packet_info *pinfo, guint32 key, guint16 serial, const eglink
         if (eglink_frame_is_compact(fd, layer, serial)) {
             slot->flags = (guint16)(FF_USED | slot_layer_bits(layer) | (fd->flags & FF_FLAGS_MASK) |
                                     (fd->serial_status << FF_STATUS_SHIFT));
-            slot->unit = fd->bu ? fd->bu->index : (SLOT_CTRL | fd->ctrl->index);
+            slot->unit = fd->ctrl ? (SLOT_CTRL | fd->ctrl->index) : fd->bu->index;
             slot->delta_ns = (fd->flags & FF_DELTA) ? (guint32)fd->delta_ns : 0;
             slot->bu_origin = fd->bu_origin;
             return NULL;
@@ -559,12 +565,16 @@ eglink_frame_fetch(packet_info *pinfo, guint32 key, guint16 serial, eglink_frame
     if (slot && (slot->flags & FF_USED) && !(slot->flags & FF_FULL) &&
         slot_layer(slot->flags) == pinfo->curr_layer_num) {
         memset(buf, 0, sizeof(*buf));
-        if (slot->unit & SLOT_CTRL)
-            buf->ctrl = *(eglink_ctrl_t **)wmem_array_index(eglink_ctrl_by_index, slot->unit & ~SLOT_CTRL);
-        else
-            buf->bu = *(eglink_bu_t **)wmem_array_index(eglink_bu_by_index, slot->unit);
-        buf->delta_ns = slot->delta_ns;
         buf->flags = slot->flags & FF_FLAGS_MASK;
+        if (slot->unit & SLOT_CTRL) {
+            buf->ctrl = *(eglink_ctrl_t **)wmem_array_index(eglink_ctrl_by_index, slot->unit & ~SLOT_CTRL);
+            /* (a controller packet with a BU origin: joined for being alone) */
+            if (buf->flags & FF_ORIGIN)
+                buf->bu = buf->ctrl->alone_bu;
+        } else {
+            buf->bu = *(eglink_bu_t **)wmem_array_index(eglink_bu_by_index, slot->unit);
+        }
+        buf->delta_ns = slot->delta_ns;
         buf->serial_status = (guint8)((slot->flags >> FF_STATUS_SHIFT) & 0x7);
         buf->expected_serial = slot_expected_serial(buf->serial_status, serial);
         buf->bu_origin = slot->bu_origin;
@@ -904,16 +914,6 @@ eglink_ctrl_lookup(packet_info *pinfo, eglink_chan_t *chan)
     return ctrl;
 }
 
-/* One BU and one controller on a channel belong together (the usual
- * installation, and every single-BU capture). With more of either, a
- * controller is joined to its BU by the commands acknowledged between them. */
-static void
-join_if_alone(eglink_chan_t *chan)
-{
-    if (chan->n_bus == 1 && chan->n_ctrls == 1 && !chan->ctrls->bu)
-        chan->ctrls->bu = chan->bus;
-}
-
 static void
 add_finding(eglink_frame_t *fd, eglink_finding_kind_t kind, guint32 frame, guint32 value, gint64 ns)
 {
@@ -927,6 +927,30 @@ add_finding(eglink_frame_t *fd, eglink_finding_kind_t kind, guint32 frame, guint
     while (*tail)
         tail = &(*tail)->next;
     *tail = f;
+}
+
+/* One BU and one controller on a channel belong together (the usual
+ * installation, and every single-BU capture). That holds only while they
+ * are alone: a second BU or controller on the channel withdraws such a
+ * join (noted on this packet), and from then on a controller is joined to
+ * its BU only by the commands acknowledged between them. */
+static void
+join_if_alone(eglink_chan_t *chan, eglink_frame_t *fd, packet_info *pinfo)
+{
+    eglink_ctrl_t *ctrl;
+
+    if (chan->n_bus == 1 && chan->n_ctrls == 1) {
+        if (!chan->ctrls->bu)
+            chan->ctrls->bu = chan->ctrls->alone_bu = chan->bus;
+        return;
+    }
+    for (ctrl = chan->ctrls; ctrl; ctrl = ctrl->next) {
+        if (!ctrl->bu || ctrl->joined_by_ack)
+            continue;
+        ctrl->bu = NULL;
+        ctrl->withdrawn_frame = pinfo->num;
+        add_finding(fd, FND_JOIN_WITHDRAWN, 0, ctrl->index, chan->n_bus > 1);
+    }
 }
 
 /* ---------------------------------------------------------------------- */
@@ -1297,7 +1321,7 @@ vrci_acknowledged(eglink_ctrl_t *ctrl, guint16 command_id)
 static eglink_cmd_t *
 vrco_acknowledged(eglink_bu_t *bu, guint16 command_id)
 {
-    eglink_ctrl_t *ctrl, *best_ctrl = NULL;
+    eglink_ctrl_t *ctrl, *best_ctrl = NULL, *mine_ctrl = NULL;
     eglink_cmd_t *best = NULL, *mine = NULL;
 
     for (ctrl = bu->chan->ctrls; ctrl; ctrl = ctrl->next) {
@@ -1305,11 +1329,15 @@ vrco_acknowledged(eglink_bu_t *bu, guint16 command_id)
         if (ctrl->bu != bu)
             continue;
         c = find_command(&ctrl->s, command_id);
-        if (c && (!mine || c->first_frame > mine->first_frame))
+        if (c && (!mine || c->first_frame > mine->first_frame)) {
             mine = c;
+            mine_ctrl = ctrl;
+        }
     }
-    if (waits_for_ack(mine))
+    if (waits_for_ack(mine)) {
+        mine_ctrl->joined_by_ack = TRUE;    /* (evidence now, not only being alone) */
         return mine;
+    }
     for (ctrl = bu->chan->ctrls; ctrl; ctrl = ctrl->next) {
         eglink_cmd_t *c;
         if (ctrl->joined_by_ack)
@@ -1399,6 +1427,7 @@ match_orphan_acks(eglink_ctrl_t *ctrl)
         if (age > ack_timeout_ns(EGLINK_DIR_IN))
             continue;
         cmd->ack_frame = o->frame;
+        ctrl->joined_by_ack = TRUE;
         o->fd->cmd = cmd;
         o->fd->flags |= FF_FIRST_ACK;
         if (!cmd->clock_step) {
@@ -1758,11 +1787,11 @@ analyse_packet(packet_info *pinfo, const eglink_info_t *info, eglink_frame_t *fd
         ctrl = eglink_ctrl_lookup(pinfo, chan);
         s = &ctrl->s;
     }
-    join_if_alone(chan);
+    join_if_alone(chan, fd, pinfo);
     if (ctrl && ctrl->n_orphan_acks && chan->n_bus)
         match_orphan_acks(ctrl);
     fd->bu = input ? bu : ctrl->bu;
-    fd->ctrl = fd->bu ? NULL : ctrl;
+    fd->ctrl = input || ctrl->joined_by_ack ? NULL : ctrl;
     if (fd->bu) {
         fd->flags |= FF_ORIGIN;
         fd->bu_origin = fd->bu->origin;
@@ -1805,10 +1834,12 @@ analyse_packet(packet_info *pinfo, const eglink_info_t *info, eglink_frame_t *fd
     /* An acknowledgement may tell which BU a controller talks to. */
     if (info->type == EGLINK_TYPE_VRAO && info->has_command_id) {
         fd->cmd = vrci_acknowledged(ctrl, info->command_id);
+        if (waits_for_ack(fd->cmd))
+            ctrl->joined_by_ack = TRUE;     /* (evidence now, not only being alone) */
     } else if (info->type == EGLINK_TYPE_VRAI && info->has_command_id) {
         fd->cmd = vrco_acknowledged(bu, info->command_id);
     }
-    if (ctrl && ctrl->bu != fd->bu) {
+    if (ctrl && ctrl->joined_by_ack && (fd->ctrl || ctrl->bu != fd->bu)) {
         fd->bu = ctrl->bu;
         fd->ctrl = NULL;
         fd->flags |= FF_ORIGIN;
@@ -2075,6 +2106,22 @@ show_orphan(proto_tree *at, proto_item *aitem, tvbuff_t *tvb, packet_info *pinfo
         show_wrong_port(at, tvb, pinfo, info, ctrl->chan->port + 2);
 }
 
+/* The controller joined to its BU only for being alone with it on the
+ * channel, which this packet, from a second BU or controller there, withdrew.
+ * Also on a packet that is not analysed: the sender is on the channel. */
+static void
+show_withdrawn(packet_info *pinfo, proto_item *aitem, const eglink_finding_t *f)
+{
+    const eglink_ctrl_t *ctrl = *(eglink_ctrl_t **)wmem_array_index(eglink_ctrl_by_index, f->value);
+
+    expert_add_info_format(pinfo, aitem, &ei_join_withdrawn,
+        "Controller %s no longer joined to %s: only being alone with it on %s joined them, and "
+        "this packet is a second %s's there: BU not known until a command acknowledged between "
+        "them",
+        address_to_str(pinfo->pool, &ctrl->addr), ctrl->alone_bu->name, ctrl->chan->where,
+        f->ns ? "BU" : "controller");
+}
+
 static const char *const vrpo_break_names[] = { "a gap with no packet lost", "a repeat", "a step back" };
 
 /* The VRPO rules of TS-0006 4.2 and 5.1.2. */
@@ -2282,6 +2329,9 @@ show_findings(proto_tree *at, proto_item *aitem, tvbuff_t *tvb, packet_info *pin
         case FND_TIME_BACKWARDS:
             show_time_backwards(at, tvb, pinfo, f);
             break;
+        case FND_JOIN_WITHDRAWN:
+            show_withdrawn(pinfo, aitem, f);
+            break;
         case FND_VRPO_NUMBER:
         case FND_VRPO_INTERVAL:
         case FND_BURST_SPREAD:
@@ -2373,6 +2423,22 @@ show_reassembly(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, const eglin
     }
 }
 
+/* A controller packet joined to its BU only for the two being alone on the
+ * channel, when a second BU or controller there withdrew that later: the
+ * second pass and the GUI show it as the controller's, its BU not known
+ * (or the BU an acknowledgement joined it to later), as its packets after. */
+static const eglink_frame_t *
+frame_view(const eglink_frame_t *fd, eglink_frame_t *buf)
+{
+    if (!fd->bu || !fd->ctrl || !fd->ctrl->withdrawn_frame)
+        return fd;
+    *buf = *fd;
+    buf->bu = NULL;
+    buf->flags &= ~FF_ORIGIN;
+    buf->bu_origin = 0;
+    return buf;
+}
+
 static void
 queue_tap(packet_info *pinfo, const eglink_info_t *info, const eglink_frame_t *fd)
 {
@@ -2427,7 +2493,7 @@ eglink_analysis_dissect(tvbuff_t *tvb, packet_info *pinfo, proto_tree *eglink_tr
 {
     guint32 key = EGLINK_ANALYSIS_KEY_BASE + pinfo->curr_layer_num;
     const eglink_frame_t *fd;
-    eglink_frame_t buf, *stored;
+    eglink_frame_t buf, view, *stored;
     proto_item *aitem;
     proto_tree *at;
 
@@ -2458,6 +2524,7 @@ eglink_analysis_dissect(tvbuff_t *tvb, packet_info *pinfo, proto_tree *eglink_tr
             eglink_orphan_pending->fd = stored;
         fd = &buf;
     }
+    fd = frame_view(fd, &view);
 
     aitem = proto_tree_add_item(eglink_tree, hf_analysis, tvb, 0, 0, ENC_NA);
     proto_item_set_generated(aitem);
@@ -2465,6 +2532,8 @@ eglink_analysis_dissect(tvbuff_t *tvb, packet_info *pinfo, proto_tree *eglink_tr
     proto_item_append_text(aitem, ": %s", fd->bu ? fd->bu->name : fd->ctrl->name);
     if (fd->bu)
         add_generated_uint(at, hf_bu_stream, tvb, fd->bu->index);
+    if (fd->bu && fd->ctrl)
+        proto_item_set_generated(proto_tree_add_boolean(at, hf_joined_alone, tvb, 0, 0, TRUE));
     show_device(at, aitem, tvb, pinfo, fd);
 
     if (fd->flags & FF_INVALID) {
@@ -2473,6 +2542,9 @@ eglink_analysis_dissect(tvbuff_t *tvb, packet_info *pinfo, proto_tree *eglink_tr
         proto_item_append_text(aitem, " (not analysed: CRC or size check failed)");
         if (f)
             show_time_backwards(at, tvb, pinfo, f);
+        f = find_finding(fd, FND_JOIN_WITHDRAWN);
+        if (f)
+            show_withdrawn(pinfo, aitem, f);
     } else {
         show_serial(at, tvb, pinfo, info, fd);
         if ((fd->flags & FF_DELTA) && info->type == EGLINK_TYPE_VRPI)
@@ -2511,6 +2583,11 @@ eglink_analysis_register(int proto, module_t *prefs)
           { "Device", "eglink.analysis.device", FT_STRING, BASE_NONE, NULL, 0x0,
             "The BU this packet belongs to: its origin (0x1001), or \"BU not known\" on the "
             "packets of a controller not joined to a BU", HFILL } },
+        { &hf_joined_alone,
+          { "Joined for being alone", "eglink.analysis.joined_alone", FT_BOOLEAN, BASE_NONE, NULL, 0x0,
+            "A controller packet joined to its BU only because the two are the only controller "
+            "and the only BU of the channel so far (no command acknowledged between them yet); "
+            "a second BU or controller there withdraws it", HFILL } },
         { &hf_expected_serial,
           { "Expected serial", "eglink.analysis.expected_serial", FT_UINT16, BASE_DEC, NULL, 0x0,
             "Serial that follows the previous packet of the same sender", HFILL } },
@@ -2725,6 +2802,10 @@ eglink_analysis_register(int proto, module_t *prefs)
         { &ei_revision_ignored,
           { "eglink.analysis.revision_ignored", PI_PROTOCOL, PI_NOTE,
             "Packet of another header revision kept out of the analysis (TS-0006 5.1.5)", EXPFILL } },
+        { &ei_join_withdrawn,
+          { "eglink.analysis.join_withdrawn", PI_SEQUENCE, PI_NOTE,
+            "A controller joined to its BU only for being alone with it on the channel: no longer, "
+            "with a second BU or controller there", EXPFILL } },
         { &ei_not_joined,
           { "eglink.analysis.not_joined", PI_SEQUENCE, PI_NOTE,
             "Controller packet on a port where no BU has been seen: not joined to a BU yet (one pass)",

@@ -81,6 +81,8 @@ EXPERTS = {
     "eglink.analysis.bu_state_changed": (NOTE, "state", "BU state changed"),
     "eglink.analysis.origin_changed": (WARNING, "finding", "another origin at the same BU address"),
     "eglink.analysis.shared_group": (WARNING, "finding", "several BUs or controllers on one group and port"),
+    "eglink.analysis.join_withdrawn": (NOTE, "finding",
+                                       "controller no longer joined to the BU it was alone with"),
     "eglink.analysis.burst_incomplete": (WARNING, "finding", "split VRPO burst incomplete"),
     "eglink.analysis.burst_size": (WARNING, "finding", "VRPO burst size differs from the preference"),
     "eglink.analysis.serial_corrupted": (NOTE, "finding",

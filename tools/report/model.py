@@ -45,6 +45,7 @@ EXPERT_START = len(COL) - len(EXPERT_FIELDS)
 C = {name.replace(".", "_"): i for name, i in COL.items()}
 # Columns read on every EG-Link row (the busiest protocol).
 EG_TYPE, EG_STREAM, EG_CRC = C["eglink_type"], C["eglink_analysis_bu_stream"], C["eglink_crc_status"]
+EG_ALONE = C["eglink_analysis_joined_alone"]
 EG_BU, EG_RU, EG_ARMED = C["eglink_bu_state"], C["eglink_ru_state"], C["eglink_armed_ru"]
 EG_JOYSTICKS = [(i, C["eglink_joystick%d" % i]) for i in range(1, 5)]
 EG_INTERVALS = [("VRPI", C["eglink_analysis_time_since_prev_vrpi"], "eglink.vrpi_gap_ms"),
@@ -384,6 +385,9 @@ class Capture:
         self._eglink_channels = {}  # EG-Link channel: its first BU (see _eglink_device)
         self._eglink_apart = {}     # EG-Link controller not joined to a BU: [device, BU it joined later]
         self._eglink_orphans = {}   # (group, controller) on a port of its own: its _eglink_apart key
+        # EG-Link controller whose packets are its BU's only for the two being alone on the
+        # channel so far: what they gave that BU (_eglink_withdraw)
+        self._eglink_alone = {}
         self._failed = {}           # (device, command field, command frame): its entry
         self.candidates = {}        # connection or PROFINET run: what its candidate notes say
         self._pnio_decoded = {}     # PROFINET run (pair of MAC addresses): last frame decoded
@@ -499,6 +503,14 @@ class Capture:
         dev = self.devices.get(stream) if stream else None
         if dev is None:
             dev = self._eglink_device(c, typ, stream, frame, t)
+        alone = None
+        if typ.endswith("O") and (c[EG_ALONE] or not stream) and dev.address.get("bu", "") is not None:
+            alone = self._eglink_alone.setdefault(self._eglink_controller_key(c, typ),
+                                                  {"bu": dev, "frames": 0, "first": (frame, t),
+                                                   "ports": set(), "entries": []})
+            alone["frames"] += 1
+            alone["ports"].add(c[EG_DPORT])
+            entries = len(self.entries)
         if self._eglink_apart and stream and typ.endswith("O"):
             apart = self._eglink_apart.get(self._eglink_controller_key(c, typ))
             if apart is None:  # first seen on a port of its own (see _eglink_device)
@@ -521,6 +533,8 @@ class Capture:
             if c[col]:
                 dev.plot(what + " interval", "age", t, float(c[col]), self.limits[limit])
         self._experts(dev, c, frame, t)
+        if alone is not None:
+            alone["entries"] += self.entries[entries:]
         if good and (typ == "VRPI" or typ == "VRPO"):
             dev.last_seen[typ] = (frame, t)
         if "bu" not in dev.address and typ.endswith("I"):  # the BU's own packets
@@ -542,9 +556,11 @@ class Capture:
         A controller the analysis does not join to a BU while its channel
         has one (several BUs or controllers share it, and no command was
         acknowledged between them) is a device of its own: the capture does
-        not tell which BU it serves, and the report does not guess. Joined
-        later (an acknowledgement), its packets go to that BU after all
-        (_eglink_join_apart)."""
+        not tell which BU it serves, and the report does not guess: once
+        the analysis withdraws a join that rested only on the controller
+        being alone with the channel's BU, its packets from before are its
+        own too (_eglink_withdraw). Joined later (an acknowledgement), its
+        packets go to that BU after all (_eglink_join_apart)."""
         port = int(c[EG_DPORT] or 0)
         dst, src = c[C["ip_dst"]], c[C["ip_src"]]
         channel = self._eglink_channel(c, typ)
@@ -556,6 +572,8 @@ class Capture:
                 ctrl = self._new_device(key, "eglink", frame, t)
                 ctrl.address = {"group": dst, "port": port, "controller": src, "bu": None}
                 self._eglink_apart[key] = [ctrl, None]
+            if key in self._eglink_alone:
+                self._eglink_withdraw(self._eglink_alone.pop(key), ctrl)
             return ctrl
         if dev is None or (stream and dev.stream is not None):
             dev = self._new_device(stream or ("eglink", channel), "eglink", frame, t)
@@ -584,6 +602,31 @@ class Capture:
 
     def _eglink_controller_key(self, c, typ):
         return ("eglink controller", self._eglink_channel(c, typ), c[C["ip_src"]])
+
+    @staticmethod
+    def _eglink_withdraw(alone, ctrl):
+        """A controller joined to its BU only for the two being alone on the
+        channel, whose join the analysis withdrew (a second BU or controller
+        there): its packets before are its own too, as two passes show, not
+        that BU's (its frames, ports, VRPO intervals and findings)."""
+        bu = alone["bu"]
+        bu.frames -= alone["frames"]
+        ctrl.frames += alone["frames"]
+        ctrl.first_frame, ctrl.first_time = alone["first"]
+        bu.ports -= alone["ports"] - {str(bu.address.get("port"))}
+        ctrl.ports |= alone["ports"]
+        if bu.address.get("controller") == ctrl.address["controller"]:
+            del bu.address["controller"]
+        for name in ("VRPO interval",):
+            if name in bu.series:
+                ctrl.series[name] = bu.series.pop(name)
+        if "VRPO" in bu.last_seen:
+            ctrl.last_seen["VRPO"] = bu.last_seen.pop("VRPO")
+        for entry in alone["entries"]:
+            entry.device = ctrl
+            for field, latest in list(bu.bursts.items()):
+                if latest is entry:
+                    ctrl.bursts[field] = bu.bursts.pop(field)
 
     def _eglink_join_apart(self):
         """A controller listed apart that the analysis joined to a BU later

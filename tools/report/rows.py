@@ -28,7 +28,8 @@ FIELDS = [
     "eglink.bu_state", "eglink.ru_state", "eglink.armed_ru",
     "eglink.joystick1", "eglink.joystick2", "eglink.joystick3", "eglink.joystick4",
     "eglink.command_id",
-    "eglink.analysis.bu_stream", "eglink.analysis.bu_origin", "eglink.analysis.lost",
+    "eglink.analysis.bu_stream", "eglink.analysis.bu_origin", "eglink.analysis.joined_alone",
+    "eglink.analysis.lost",
     "eglink.analysis.time_since_prev_vrpi", "eglink.analysis.time_since_prev_vrpo",
     "eglink.analysis.failed_command", "eglink.analysis.ack_time",
     # EC-Link images (Modbus/TCP and PROFINET)
