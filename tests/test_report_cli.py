@@ -881,6 +881,17 @@ def test_short_profinet_excerpt_says_so(cmd, work):
     assert "no vrshark traffic" not in names and "no device decoded" not in names
 
 
+def test_pnio_cm_is_no_udp_for_eglink(cmd):
+    """A PROFINET capture whose only UDP is its Connect (PNIO-CM, port
+    34964): no hint that EG-Link may be on another UDP port."""
+    path = CAPTURES / "eclink_pnio_connect.pcap"
+    proc = run(cmd, "--expect", "eglink", path)
+    assert proc.returncode == 1
+    assert proc.stderr == (
+        "vrshark-report: %s: expected EG-Link, none found (82 frames read; the capture holds no UDP but "
+        "PROFINET's PNIO-CM (2 frames, UDP port 34964))\n" % path)
+
+
 def test_foreign_profinet_is_no_traffic(cmd):
     """Another vendor's PROFINET with its Connect (a public capture): whole
     frames tshark did not find shaped like ours are nobody's of ours, and the

@@ -70,8 +70,11 @@ def hint(rep, name):
     if held is None:  # (an unreadable capture's)
         return PROTOCOLS[name][2]
     if name == "eglink":
-        return ("the capture holds no UDP (no UDP frame at all)" if not held["udp"]["frames"]
-                else PROTOCOLS[name][2])
+        if held["udp"]["frames"]:
+            return PROTOCOLS[name][2]
+        cm = held.get("pnio_cm", {}).get("frames")
+        return ("the capture holds no UDP but PROFINET's PNIO-CM (%d frame%s, UDP port 34964)"
+                % (cm, "" if cm == 1 else "s") if cm else "the capture holds no UDP (no UDP frame at all)")
     pnio = about.profinet_undecoded(rep)
     if name == "mcmb2":
         if not held["profinet"]["frames"]:

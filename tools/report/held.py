@@ -16,12 +16,12 @@ def cut(rep, name=None):
     if not held["snaplen"]:
         return None
     if name is None:
-        count = sum(held[n]["cut"] for n in ("udp", "tcp", "profinet"))
+        count = sum(held[n]["cut"] for n in ("udp", "pnio_cm", "tcp", "profinet"))
         total = rep["frames"]
         what = "frames"
     else:
         count, total = held[name]["cut"], held[name]["frames"]
-        what = {"udp": "UDP frames", "tcp": "TCP frames", "profinet": "PROFINET frames"}[name]
+        what = {"udp": "UDP frames", "pnio_cm": "PNIO-CM frames", "tcp": "TCP frames", "profinet": "PROFINET frames"}[name]
     if not count:
         return None
     return "%d of %d %s cut by the capture at %d bytes (snaplen)" % (count, total, what, held["snaplen"])

@@ -60,6 +60,7 @@ MCMB2_ITEM, MESSAGES, SEVERITIES = C["mcmb2"], C["_ws_expert_message"], C["_ws_e
 SEVERITY_CODES = {0x00400000: NOTE, 0x00600000: WARNING, 0x00800000: ERROR}
 # PROFINET RT FrameIDs of cyclic data (classes 3, 2 and 1); above: alarms, DCP
 CYCLIC_IDS = range(0x0100, 0xFC00)
+PNIO_CM_PORT = "34964"
 PROFINET_TYPE = "0x8892"
 # The longest a run of a base or a BU may take to show what makes it one
 # (lua/vrshark/pnio_infer.luam's need_of: an EC-Link BU's PCO moving twice,
@@ -396,7 +397,7 @@ class Capture:
         # what the capture holds, for the hints (expect.py): frames and cut
         # frames per transport, the cut frames' TCP server ports, the
         # PROFINET cyclic frames that formed no device and no candidate
-        self.held = {name: {"frames": 0, "cut": 0} for name in ("udp", "tcp", "profinet")}
+        self.held = {name: {"frames": 0, "cut": 0} for name in ("udp", "pnio_cm", "tcp", "profinet")}
         self._undecoded = {}        # PROFINET run (pair of MAC addresses): [frames, FrameIDs] of no device
         self.snaplen = None         # the longest cut frame's captured length
         self._cut_ports = set()
@@ -449,7 +450,9 @@ class Capture:
 
     def _held(self, c):
         """Counts the frame by its transport; the transport's name."""
-        name = ("udp" if c[EG_DPORT] else "tcp" if c[TCP_SPORT]
+        # (PROFINET's PNIO-CM, UDP port 34964 either way, is no UDP that EG-Link could be on)
+        name = ("pnio_cm" if PNIO_CM_PORT in (c[EG_DPORT], c[C["udp_srcport"]]) else "udp" if c[EG_DPORT]
+                else "tcp" if c[TCP_SPORT]
                 else "profinet" if PROFINET_TYPE in (c[C["eth_type"]], c[C["vlan_etype"]]) else None)
         if name is None:
             return None
@@ -1092,7 +1095,7 @@ class Capture:
             "error": error,
             "frames": self.frames,
             "tcp_frames": self.tcp_frames,
-            "held": {"udp": self.held["udp"], "tcp": dict(self.held["tcp"], cut_ports=sorted(self._cut_ports)),
+            "held": {"udp": self.held["udp"], "pnio_cm": self.held["pnio_cm"], "tcp": dict(self.held["tcp"], cut_ports=sorted(self._cut_ports)),
                      "profinet": dict(self.held["profinet"], connect_cut=self._connect_cut,
                                       **self._profinet_undecoded()),
                      "snaplen": self.snaplen},

@@ -22,7 +22,7 @@ PACKAGE_DIR = Path(__file__).resolve().parent
 # Protocol and address fields, in column order; the expert fields follow.
 FIELDS = [
     "frame.number", "frame.time_epoch", "frame.encap_type",
-    "eth.src", "eth.dst", "ip.src", "ip.dst", "udp.dstport", "tcp.srcport", "tcp.dstport",
+    "eth.src", "eth.dst", "ip.src", "ip.dst", "udp.srcport", "udp.dstport", "tcp.srcport", "tcp.dstport",
     # EG-Link
     "eglink.type", "eglink.origin", "eglink.crc.status",
     "eglink.bu_state", "eglink.ru_state", "eglink.armed_ru",
