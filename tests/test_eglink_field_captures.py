@@ -395,3 +395,55 @@ def test_clock_set_back_by_editcap(tshark, work_dir):
     assert (41, "warning", "time went backwards (clock step): gap and deadline rules restart") in timeline(rep)
     for entry in rep["timeline"]:
         assert entry["duration"] is None or entry["duration"] >= 0, entry
+
+
+# --- what the capture cut is not captured, in the report ------------------------------------
+
+@pytest.fixture(scope="module")
+def half_cut_sockets():
+    """Real UDP sockets on lo: an armed BU (RU 0xbeef Enabled) and its controller,
+    twelve VRPIs; the capture a user gets when the second half came through a
+    64-byte snaplen (editcap -s 64 on frames 13 on, mergecap -a)."""
+    import time
+    from test_report_model import capture_on_lo, mcast_socket
+    from eglink_testlib import gen
+    from conftest import _world_dir
+    folder = _world_dir("vrshark-half-cut-", 0o755)    # (tshark may run as nobody)
+    whole = folder / "whole.pcap"
+    bu, ctrl = mcast_socket(), mcast_socket()
+
+    def send():
+        for i in range(12):
+            bu.sendto(gen.packet("VRPI", gen.armed(), origin=0x1001, serial=i), ("239.255.42.20", 5825))
+            ctrl.sendto(gen.packet("VRPO", gen.vrpo(0, gen.machine_data(i)), serial=i), ("239.255.42.20", 5827))
+            time.sleep(0.06)    # (VRPO inside the recommended 50 to 200 ms)
+
+    capture_on_lo(whole, (bu, ctrl), send)
+    first = editcap(folder, whole, "first.pcap", "-r", frames="1-12")
+    second = editcap(folder, whole, "second.pcap", "-s", "64", "-r", frames="13-24")
+    path = folder / "half_cut.pcap"
+    subprocess.run(["mergecap", "-a", "-w", str(path), str(first), str(second)], check=True)
+    path.chmod(0o644)
+    yield path
+    shutil.rmtree(folder, ignore_errors=True)
+
+
+def test_cut_state_is_not_captured_from_real_sockets(tshark, half_cut_sockets):
+    """tshark leaves the cut VRPIs' RU state and armed RU empty (one pass and -2);
+    the report says the RU state was not captured from the first cut VRPI on and
+    reports no state change that the wire did not carry."""
+    path = half_cut_sockets
+    rows = both_passes(tshark, path, ["eglink.type", "eglink.ru_state", "eglink.armed_ru", "eglink.cut"])
+    vrpis = {f: r for f, r in rows.items() if r.get("eglink.type") == "VRPI"}
+    cut = sorted(f for f, r in vrpis.items() if r.get("eglink.cut"))
+    assert cut and min(cut) > 12
+    assert all("eglink.ru_state" not in vrpis[f] and "eglink.armed_ru" not in vrpis[f] for f in cut)
+    status, rep = report("--fail-on", "warn", path)
+    assert status == 0
+    (dev,) = rep["devices"]
+    assert dev["initial"] == {"BU state": "Armed", "RU state": "Enabled (RU 0xbeef)"}
+    assert dev["final"]["RU state"] == "not captured from frame %d on (before: Enabled (RU 0xbeef))" % min(cut)
+    assert dev["not_captured"]["RU state"]["first_frame"] == min(cut)
+    # the cut note, and no state change
+    assert [e["text"].split(" (12x")[0] for e in rep["timeline"]] == [
+        "packet cut by the capture (snaplen): decoded as far as captured"]
