@@ -845,7 +845,7 @@ local function show_down(rec, tvb, root, hr, wr, pinfo) -- vrshark_io hook: pinf
 end
 
 -- The Info column tags of the findings that matter in the packet list
--- (README "How findings read"): [E010], [no valid data], [watchdog stalled
+-- (docs/findings.md "How findings read"): [E010], [no valid data], [watchdog stalled
 -- 1.200 s], [undefined].
 local function info_tags(rec)
     local tags = ""

@@ -29,7 +29,7 @@ plugin.
 Layouts (vrshark/pnio_layout.luam) come from, best first:
   1. the Connect request/response in the capture (IOCR blocks give FrameIDs
      and frame offsets, ExpectedSubmodule blocks the lengths);
-  2. the preference table (mcmb2.layouts, format in README and
+  2. the preference table (mcmb2.layouts, format in docs/profinet.md and
      vrshark/pnio_layout.luam);
   3. a polled MC-MB2-PN uplink header, which describes itself (Y, Z, slot
      status); the downlink from the controller to the same device is laid

@@ -28,7 +28,7 @@ DISSECTOR_EXPERTS = {
 
 
 # Wireshark's expert severities and groups (epan/proto.h PI_*) by the names
-# the README's "How findings read" table uses.
+# the table of docs/findings.md "How findings read" uses.
 SEVERITIES = {0x00200000: "chat", 0x00400000: "note", 0x00600000: "warning",
               0x00800000: "error"}
 GROUPS = {0x01000000: "checksum", 0x02000000: "sequence", 0x03000000: "response code",

@@ -2,7 +2,7 @@
 capture generator (tools/capgen/) follows, not by what the dissectors say:
 {expert field: (capture, [frames that carry the fact])}.
 
-The README's "How findings read" table names, per kind of finding, the
+The table of docs/findings.md "How findings read" names, per kind of finding, the
 expert fields of each protocol; tests/test_findings_table.py checks that
 each field sits on exactly these frames. Frame numbers count from 1; a
 Modbus/TCP cycle of eclink_modbus.py is 4 frames (read query, response,

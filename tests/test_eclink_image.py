@@ -118,7 +118,7 @@ def test_input_checks(tshark, raw_capture):
         "Encoder switch Unknown (0x02): only 0 and 1 are defined",
         "Spare bytes 60..63 are not 0",
     ]
-    # severity and group as in every vrshark protocol (README "How findings read")
+    # severity and group as in every vrshark protocol (docs/findings.md "How findings read")
     # relays open / RU stopped: warning, Response code; undefined or out of range: error, Protocol;
     # spare not 0: warning, Protocol
     kinds = {"eclink.relays_open": ("6291456", "50331648"), "eclink.ru_stopped": ("6291456", "50331648"),

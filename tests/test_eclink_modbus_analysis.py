@@ -86,7 +86,7 @@ def test_stalls_and_late_echoes(tshark, capture_file):
 
 
 def test_severities_one_voice(tshark, capture_file):
-    """README "How findings read": a PCI/PCO stall is an error in Sequence, a late or
+    """docs/findings.md "How findings read": a PCI/PCO stall is an error in Sequence, a late or
     unacknowledged command a warning in Sequence, a new command or ack chat."""
     cap = capture_file("eclink_modbus_faults.pcap")
     names = ["_ws.expert.severity", "_ws.expert.group"]
@@ -141,7 +141,7 @@ def test_info_tags_for_stalls_and_unacked_commands(tshark, capture_file):
     assert "Write Multiple Registers [unacked] [EC-Link output PCO=2 CCO=2 " in two[18]
     assert two[28].endswith("Read Input Registers [poll gap 2.050 s]")
     assert [n for n, i in two.items() if "[unacked]" in i] == [17, 18]
-    # a late echo reads [late ack], as README "How findings read" says (not [unacked])
+    # a late echo reads [late ack], as docs/findings.md "How findings read" says (not [unacked])
     assert "Write Multiple Registers [late ack] [EC-Link output " in info[34]
     assert "stalled" not in info[25] and "stalled" not in info[17]
     assert not any("?" in i for i in info.values())
@@ -231,7 +231,7 @@ def test_two_pass_agrees(tshark, capture_file, name):
 
 
 def test_times_in_the_tree_read_to_the_millisecond(tshark, capture_file):
-    """README "How findings read": times rounded to the millisecond, in the
+    """docs/findings.md "How findings read": times rounded to the millisecond, in the
     tree too (the field keeps its exact value for filters)."""
     text = tshark.verbose(capture_file("eclink_modbus_faults.pcap"), display_filter="frame.number == 21")
     assert "[Time since PCI changed: 0.700 s]" in text

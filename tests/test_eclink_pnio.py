@@ -70,7 +70,7 @@ def test_handshake_severities_and_info_tags(tshark, capture_file):
                         display_filter="eclink_pnio.pci_stalled || eclink_pnio.pco_stalled")
     assert list(got) == [31, 72]
     for n in (31, 72):
-        # PI_ERROR in PI_SEQUENCE (README "How findings read")
+        # PI_ERROR in PI_SEQUENCE (docs/findings.md "How findings read")
         assert_fields(got[n], {"_ws.expert.severity": "8388608", "_ws.expert.group": "33554432"}, "frame %d" % n)
     assert got[31]["_ws.col.Info"].endswith("BU=Armed RU 0x1234=Enabled [PCI stalled 0.625 s]")
     assert got[72]["_ws.col.Info"].endswith("block=0 [PCO stalled 2.125 s]")
@@ -144,7 +144,7 @@ def test_profile_colours_every_stalled_frame(tshark, capture_file):
 def test_late_echo_reads_late_ack(tshark, work_dir):
     """CAO echoes CCI 2.5 s after the command (scapy-built, with its Connect):
     the command says it is not acknowledged ([unacked], second pass); the
-    echo itself reads [late ack] (README "How findings read"), with its own
+    echo itself reads [late ack] (docs/findings.md "How findings read"), with its own
     expert field."""
     from pnio_testlib import CaptureFile, Device, eclink_submodules, mac
     from test_pnio_midsession import eclink_image_in, eclink_image_out

@@ -164,7 +164,7 @@ SEQUENCE = "33554432"
     ("vrci_unacked", "vrci_deadline", "note"), ("vrco_unacked", "vrco_deadline", "note"),
 ])
 def test_severity_and_group(tshark, cap, name, expert, severity):
-    """README "How findings read": gaps are errors, losses and the like warnings,
+    """docs/findings.md "How findings read": gaps are errors, losses and the like warnings,
     changes notes, commands chat; all in the Sequence group."""
     field = "eglink.analysis." + expert
     rows = tshark.fields(cap(name), ["_ws.expert.severity", "_ws.expert.group", field],
@@ -384,7 +384,7 @@ def test_vrco_late_ack_is_the_first_packet_after_the_deadline(tshark, cap):
     """With a 2250 ms timeout, the VRAI at 2.3 s is the first packet past the
     deadline of command 5: the deadline was seen passing at the acknowledgement.
     The second pass puts the unacknowledged warning on the command; one pass,
-    as at any first packet past a deadline, on that packet (README "How
+    as at any first packet past a deadline, on that packet (docs/findings.md "How
     findings read")."""
     prefs = {"eglink.vrco_ack_timeout_ms": 2250}
     exp = names(analysis_experts(tshark, cap("vrco_unacked"), two_pass=True, prefs=prefs))

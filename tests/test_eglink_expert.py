@@ -1,5 +1,5 @@
 """EG-Link: every single-packet expert message, exact text, on exactly the right
-frames; the severity and group of each (the README's "How findings read"
+frames; the severity and group of each (docs/findings.md "How findings read"
 table); the Info tags [relays open] and [undefined]."""
 import pytest
 
@@ -86,7 +86,7 @@ def test_relays_open_is_a_warning(tshark, capture_file):
     assert sorted(tshark.frames(cap, [], display_filter="eglink.relays_open == 1")) == [1, 2, 3, 4, 5]
 
 
-# The README's "How findings read": (severity, group) of every expert the
+# docs/findings.md "How findings read": (severity, group) of every expert the
 # dissector raises.
 VOICE = {
     # safety state the BU reports

@@ -1,4 +1,4 @@
-"""README "How findings read" is the source: every row, on every protocol it
+"""docs/findings.md "How findings read" is the source: every row, on every protocol it
 names, read as a user reads the capture (two passes, as the GUI), against
 the independent list of where each fault happened (findings_faults.py):
 
@@ -21,8 +21,8 @@ GROUP = {"16777216": "Checksum", "33554432": "Sequence", "50331648": "Response c
 PROTOCOLS = ["EG-Link", "EC-Link", "MC-MB2-PN"]
 
 
-def readme_rows():
-    text = (ROOT / "README.md").read_text()
+def table_rows():
+    text = (ROOT / "docs" / "findings.md").read_text()
     section = text[text.index("## How findings read"):]
     section = section[:section.index("\n## ", 4)]
     lines = [ln for ln in section.splitlines() if ln.startswith("|")]
@@ -45,7 +45,7 @@ def readme_rows():
     return rows
 
 
-ROWS = readme_rows()
+ROWS = table_rows()
 
 
 def tag_pattern(tag):

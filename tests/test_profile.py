@@ -129,7 +129,7 @@ def test_colours_eglink_gaps_have_their_own_rule(profile_conf):
 
 
 def test_colours_a_failed_command_where_the_pass_puts_it(profile_conf):
-    """README "How findings read": `tshark -C vrshark --color` reads one pass,
+    """docs/findings.md "How findings read": `tshark -C vrshark --color` reads one pass,
     so the first packet past the deadline of VRCI 8 (frame 61) has the colour
     of a command not acknowledged, not the command (frame 5); the Commands
     button shows it. The GUI (second pass) colours the command

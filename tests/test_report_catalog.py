@@ -1,7 +1,7 @@
 """The report's expert catalog (tools/report/catalog.py) against the plugins
-and the one source of severities, README "How findings read": every name is
+and the one source of severities, docs/findings.md "How findings read": every name is
 registered, every expert field of our protocols is either in it or known to
-be chat-level, its severities are the README table's and those the
+be chat-level, its severities are the findings table's and those the
 dissectors raise (except the documented promotion of candidates), and
 docs/report.md says the same (its severities table is the catalog's, its
 kinds and its text example are what the report gives)."""
@@ -81,19 +81,19 @@ def test_severities_match_the_dissectors(tshark, registered):
     assert len(seen) >= 40  # most of the catalog is checked by the captures
 
 
-# --- README "How findings read", the one source ------------------------------------
+# --- docs/findings.md "How findings read", the one source ---------------------------
 
-def readme_severities():
-    """{expert field: severity} of the README findings table."""
+def table_severities():
+    """{expert field: severity} of the findings table (docs/findings.md)."""
     return {name: row["severity"] for row in ROWS for proto in TABLE_PROTOCOLS
             for name in row["fields"][proto]}
 
 
-def test_catalog_is_the_readme_table():
-    """Every catalog entry the README table names has the table's severity; the
+def test_catalog_is_the_findings_table():
+    """Every catalog entry the findings table names has the table's severity; the
     only exception is the promotion of a candidate (a note in the dissector, a
     warning in the report), which must itself be the table's severity."""
-    table = readme_severities()
+    table = table_severities()
     checked = {n: (catalog.EXPERTS[n][0], table[n]) for n in catalog.EXPERTS if n in table}
     assert {n: s for n, s in checked.items() if s[1] != dissector_severity(n)} == {}
     assert len(checked) >= 40
@@ -115,10 +115,10 @@ def test_promotion_is_only_the_candidates():
         assert name in catalog.CANDIDATE_SETTINGS
 
 
-def test_readme_table_against_a_wrong_catalog(monkeypatch):
+def test_findings_table_against_a_wrong_catalog(monkeypatch):
     """The check above fails on a catalog that drifts from the table."""
     monkeypatch.setitem(catalog.EXPERTS, "eglink.analysis.vrpo_gap", ("warning", "gap", "VRPO"))
-    table = readme_severities()
+    table = table_severities()
     assert table["eglink.analysis.vrpo_gap"] != dissector_severity("eglink.analysis.vrpo_gap")
 
 

@@ -388,7 +388,7 @@ def test_finding_detail_and_gate(vrshark_report):
 
 
 @pytest.mark.parametrize("name, gate, status", [
-    ("eglink_analysis_vrpi_gap.pcap", "error", 1),      # a gap is an error, as the README table says
+    ("eglink_analysis_vrpi_gap.pcap", "error", 1),      # a gap is an error, as docs/findings.md says
     ("eclink_pnio_connect.pcap", "error", 1),           # so is a PCI/PCO stall
     ("eglink_analysis_repeated.pcap", "error", 0),      # a repeated packet is a warning
     ("eglink_analysis_repeated.pcap", "warn", 1),

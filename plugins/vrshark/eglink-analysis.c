@@ -2695,7 +2695,7 @@ eglink_analysis_register(int proto, module_t *prefs)
         &ett_fragments,
     };
 
-    /* Severities and groups as README.md "How findings read" says: a VRPI or
+    /* Severities and groups as docs/findings.md "How findings read" says: a VRPI or
      * VRPO gap forces the safe state (error); lost, repeated, unacknowledged
      * and late packets and a shared group are warnings; state changes,
      * retransmissions and restarts notes; commands and acknowledgements chat. */

@@ -411,7 +411,7 @@ eglink_check_payload_spare(eglink_payload_t *p, int off, int len)
 }
 
 /* An undefined or out-of-range value: an error in the Protocol group (the
- * "one voice" table of the README), and the Info tag [undefined]. */
+ * "one voice" table of docs/findings.md), and the Info tag [undefined]. */
 #define eglink_undefined(p, ti, ei, ...) \
     ((p)->undefined |= eglink_value_finding((p), (ti), (ei), __VA_ARGS__))
 

@@ -22,7 +22,7 @@ Roles:
 Chat-level experts (acknowledged commands, layouts learned, partial access)
 are not asked for: they are no findings.
 
-The severities are the dissectors' (README "How findings read" is their
+The severities are the dissectors' (docs/findings.md "How findings read" is their
 one source; tests/test_report_catalog.py checks this list against it and
 against the captures, and docs/report.md against this list), except
 PROMOTED: a candidate the dissector notes is a warning in the report, so
