@@ -2202,8 +2202,11 @@ show_command_rule(proto_item *aitem, packet_info *pinfo, const eglink_info_t *in
     case FND_RESENT_AFTER_DEADLINE:
         expert_add_info_format(pinfo, aitem, &ei_resent_after_deadline,
             "%s command %u resent %s after its first transmission (frame %u), past its %u ms "
-            "deadline: TS-0006 §%s stops resending at the timeout", what, id,
-            ns_str_past(pinfo->pool, f->ns, timeout_ms), f->frame, timeout_ms, flow);
+            "deadline: %s", what, id,
+            ns_str_past(pinfo->pool, f->ns, timeout_ms), f->frame, timeout_ms,
+            /* only 5.1.4 (VRCO) has the sender stop; 5.1.3 has the VRCI failed */
+            vrci ? "TS-0006 §5.1.3 has the command failed by then"
+                 : "TS-0006 §5.1.4 stops sending the command at the timeout");
         break;
     case FND_CMD_ID_SEQUENCE:
         expert_add_info_format(pinfo, aitem, &ei_command_id_sequence,
