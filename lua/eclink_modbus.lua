@@ -227,6 +227,9 @@ proto.prefs.swap = Pref.bool("Swap register bytes", true,
     "A register carries image byte 2n in its low 8 bits (as the BU does); off: in its high 8 bits")
 proto.prefs.pci_timeout = Pref.uint("PCI timeout (ms)", 500,
     "A controller that does not read the input image for longer than this gets a poll gap warning")
+proto.prefs.cai_timeout = Pref.uint("CAI timeout (ms)", 2000,
+    "A command to the RU (a new CCO) that CAI does not echo within this is a warning. TS-0007 8.2 gives no "
+    .. "time: the limit is this project's own, by default the 2000 ms that 8.1 gives CAO")
 proto.prefs.assembled = Pref.bool("Show assembled images", false,
     "Show on every EC-Link frame the input and output images as assembled from all accesses so far")
 
@@ -259,6 +262,7 @@ end
 local function read_prefs()
     opt.detection, opt.swap, opt.assembled = proto.prefs.detection, proto.prefs.swap, proto.prefs.assembled
     opt.pci_timeout = proto.prefs.pci_timeout / 1000
+    opt.cai_timeout = proto.prefs.cai_timeout / 1000
     read_servers()
 end
 
@@ -627,7 +631,7 @@ local function get_conn(key)
             watch = {},        -- accepted: the run of invalid input images
             pre = {},          -- records analysed before acceptance (shown once accepted)
             periodic = nil,
-            hs = handshake.new(),
+            hs = handshake.new(opt.cai_timeout),
         }
         conns[key] = c
     end
