@@ -10,7 +10,7 @@ read_globals = {
     "ByteArray", "Tvb", "TvbRange", "UInt64", "Int64", "Address", "NSTime", "Pinfo", "TreeItem", "Column",
     "base", "ftypes", "frametype", "bit", "wtap", "wtap_encaps", "expert", "register_postdissector",
     "set_plugin_info", "get_version", "register_stat_cmd_arg", "Listener", "GUI_ENABLED",
-    "register_menu", "MENU_TOOLS_UNSORTED", "MENU_STAT_GENERIC", "TextWindow", "retap_packets",
+    "register_menu", "MENU_TOOLS_UNSORTED", "MENU_STAT_UNSORTED", "TextWindow", "retap_packets",
     "DESEGMENT_ONE_MORE_SEGMENT", "persconffile_path", "datafile_path", "all_field_infos",
     "dissect_tcp_pdus", "Dir", "report_failure", "gui_enabled", "critical", "warn", "message", "info", "debug",
 }

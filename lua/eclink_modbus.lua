@@ -227,6 +227,18 @@ proto.prefs.swap = Pref.bool("Swap register bytes", true,
     "A register carries image byte 2n in its low 8 bits (as the BU does); off: in its high 8 bits")
 proto.prefs.pci_timeout = Pref.uint("PCI timeout (ms)", 500,
     "A controller that does not read the input image for longer than this gets a poll gap warning")
+-- the EC-Link mode of the BUs (TS-0007 2.1); an entry of the servers
+-- preference may name its own (vrshark/modbus_servers.luam)
+local MODES = { [0] = "auto", "standard", "input_commands", "input_only" }
+proto.prefs.mode = Pref.enum("EC-Link mode", 0,
+    "auto: Input + Commands when the controller writes only the first 20 output bytes (holding registers 0..9), "
+    .. "else Standard; a PCO stall then is a warning (a fault if the BU runs in Standard mode). standard, "
+    .. "input_commands, input_only: the BU runs in that mode (PCO supervised only in standard; input_only: "
+    .. "no output image supervised). A server in \"BU servers\" may name its own: 192.168.2.41:502=standard",
+    { { 1, "auto", 0 }, { 2, "standard", 1 }, { 3, "input_commands", 2 }, { 4, "input_only", 3 } }, false)
+proto.prefs.cai_timeout = Pref.uint("CAI timeout (ms)", 2000,
+    "A command to the RU (a new CCO) that CAI does not echo within this is a warning. TS-0007 8.2 gives no "
+    .. "time: the limit is this project's own, by default the 2000 ms that 8.1 gives CAO")
 proto.prefs.assembled = Pref.bool("Show assembled images", false,
     "Show on every EC-Link frame the input and output images as assembled from all accesses so far")
 
@@ -259,6 +271,8 @@ end
 local function read_prefs()
     opt.detection, opt.swap, opt.assembled = proto.prefs.detection, proto.prefs.swap, proto.prefs.assembled
     opt.pci_timeout = proto.prefs.pci_timeout / 1000
+    opt.cai_timeout = proto.prefs.cai_timeout / 1000
+    opt.mode = MODES[proto.prefs.mode] or "auto"
     read_servers()
 end
 
@@ -627,7 +641,7 @@ local function get_conn(key)
             watch = {},        -- accepted: the run of invalid input images
             pre = {},          -- records analysed before acceptance (shown once accepted)
             periodic = nil,
-            hs = handshake.new(),
+            hs = handshake.new(opt.cai_timeout),
         }
         conns[key] = c
     end
@@ -876,13 +890,21 @@ local function analyse(c, rec, t, frame, touched_in, touched_out)
         end
         iv.bu = known(inp, 20, 1) and val(inp, 20) or nil
     end
-    if touched_out and known(out, 0, 4) then
+    -- (Input Only mode: no output image to supervise)
+    if touched_out and known(out, 0, 4) and c.mode ~= "input_only" then
         ov = out_values
         local pco, cco, _, cao = sbyte(out.data, 1, 4)
-        -- a controller that has written only the first 20 bytes (10 holding
-        -- registers) uses Input + Commands mode (TS-0007 2.1, 5.2)
         ov.pco, ov.cco, ov.cao = pco, cco, cao
-        ov.len = known(out, 20, 2) and 224 or handshake.COMMANDS_LEN
+        if c.mode == "auto" then
+            -- a controller that has written only the first 20 bytes (10 holding
+            -- registers) is taken for Input + Commands mode (TS-0007 2.1, 5.2):
+            -- a guess, which the PCO stall's warning then names
+            ov.len = known(out, 20, 2) and 224 or handshake.COMMANDS_LEN
+            ov.guessed = ov.len == handshake.COMMANDS_LEN
+        else
+            ov.len = c.mode == "standard" and 224 or handshake.COMMANDS_LEN
+            ov.guessed = false
+        end
         -- the mode's note waits for a frame of the recognised connection
         -- (one pass shows none before it)
         ov.pending = rec.pending
@@ -1032,6 +1054,7 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb, 
         local addr = tostring(is_request and pinfo.dst or pinfo.src)
         local port = is_request and pinfo.dst_port or pinfo.src_port
         c.pinned = opt.any_servers and servers.listed(opt.servers, addr, port, pinfo.match_uint) or false
+        c.mode = c.pinned and servers.mode(opt.servers, addr, port, pinfo.match_uint) or opt.mode
         c.setting = servers.setting(addr, port, proto.prefs.servers)
     end
     -- a connection the heuristic gave up on stays Modbus's: nothing more to work out

@@ -40,6 +40,9 @@ local api = require("vrshark.api")
 local add, range, set_generated = api.add, api.range, api.set_generated
 
 local eclp = Proto("eclink_pnio", "EC-Link over PROFINET IO")
+eclp.prefs.cai_timeout = Pref.uint("CAI timeout (ms)", 2000,
+    "A command to the RU (a new CCO) that CAI does not echo within this is a warning. TS-0007 8.2 gives no "
+    .. "time: the limit is this project's own, by default the 2000 ms that 8.1 gives CAO")
 
 ------------------------------------------------------------------------
 -- Fields and experts
@@ -144,7 +147,7 @@ local function analyse(rec, ba, t, frame)
     local plan = rec.plan
     local hs = devs[plan.dev]
     if not hs then
-        hs = eclink_handshake.new()
+        hs = eclink_handshake.new(eclp.prefs.cai_timeout / 1000)
         devs[plan.dev] = hs
     end
     local o = plan.image.off

@@ -58,6 +58,8 @@ FAULTS = {
     # the conversation (Modbus: the first write request of the recognised
     # connection, recognised at 13 by cycle 2's read response: cycle 2's write, 14)
     "eclink_modbus.commands_mode": ("eclink_modbus_commands.pcap", [14]),
+    # PCO 0 since frame 6 (0.1 s), past 2000 ms at frame 74 (2.235 s), an output write
+    "eclink_modbus.pco_stalled.guessed": ("eclink_modbus_commands.pcap", [74]),
     "eclink_pnio.commands_mode": ("eclink_pnio_commands.pcap", [4]),
     # --- EG-Link periodic gaps (eglink_analysis.py)
     # vrpi_gap: VRPI every 125 ms, none from frame 10 (t 0.5 s) to frame 20

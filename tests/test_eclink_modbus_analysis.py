@@ -242,3 +242,23 @@ def test_times_in_the_tree_read_to_the_millisecond(tshark, capture_file):
     assert "[Time since PCO changed: 0.125 s]" in text
     assert tshark.field(capture_file("eclink_modbus_faults.pcap"), "frame.number",
                         display_filter="eclink_modbus.pci_age == 0.7") == ["21"]
+
+
+def test_cai_timeout_preference(tshark, capture_file):
+    """TS-0007 8.2 gives no time for the CAI echo: the limit is the project's own
+    preference eclink_modbus.cai_timeout (2000 ms by default, test_stalls_and_late_echoes).
+    At 700 ms the command to RU of frame 18 (0.485 s) fails at frame 22 (1.185 s) instead
+    of 28; the command from RU keeps the 2000 ms TS-0007 8.1 gives CAO."""
+    cap = capture_file("eclink_modbus_faults.pcap")
+    prefs = {"eclink_modbus.cai_timeout": "700"}
+    one = tshark.experts(cap, prefs=prefs)
+    assert "Command to RU (CCO 2 in frame 18) not acknowledged by CAI within 0.700 s" in one[22]
+    assert not [m for m in one[28] if "CAI" in m]
+    assert "Command from RU (CCI 2 in frame 17) not acknowledged by CAO within 2.000 s: " \
+           "the BU shows \"EC: Bad data\"" in one[28]
+    tshark.expect(cap, 22, {"eclink_modbus.cmd_to_ru.late": True, "eclink_modbus.cmd_to_ru_in": 18}, prefs=prefs)
+    two = tshark.experts(cap, prefs=prefs, two_pass=True)
+    assert two[18] == ["New command to RU: CCO 1 -> 2",
+                       "Command to RU (CCO 2) not acknowledged by CAI within 0.700 s (deadline at frame 22)"]
+    assert "Deadline of the command to RU (CCO 2) passed with no CAI echo" in two[22]
+    tshark.expect(cap, 18, {"eclink_modbus.deadline_in": 22}, prefs=prefs, two_pass=True)

@@ -106,3 +106,76 @@ def test_input_only_mode(tshark, input_only_capture, two_pass):
     assert not any(v["eclink.image"] == "output" for v in got.values())
     assert not any(v["eclink_modbus.pco_stalled"] or v["eclink_modbus.commands_mode"] or v["eclink_modbus.pco_age"]
                    for v in got.values())
+
+
+# --- the mode: guessed (auto) or set (eclink_modbus.mode, an entry of eclink_modbus.servers) ---
+
+GUESSED = ("PCO 0 has not changed for %s (limit 2.000 s): if this BU runs in Standard mode, it shows "
+           "\"EC: Bad data\" and opens the relays with an RU armed; Input + Commands mode is guessed "
+           "(set it: eclink_modbus.mode)")
+MODE_NAMES = ["eclink.image", "eclink_modbus.pco_stalled", "eclink_modbus.pco_stalled.guessed",
+              "eclink_modbus.commands_mode", "eclink_modbus.pco_since", "_ws.expert.message", "_ws.expert.severity"]
+
+
+def _mode_frames(tshark, cap, prefs, two_pass):
+    got = tshark.frames(cap, MODE_NAMES, prefs=dict(rs.PREFS, **prefs), two_pass=two_pass)
+    kinds = {k: [n for n, v in sorted(got.items()) if v[k]] for k in
+             ("eclink_modbus.pco_stalled", "eclink_modbus.pco_stalled.guessed", "eclink_modbus.commands_mode")}
+    return got, kinds
+
+
+@pytest.mark.parametrize("two_pass", [False, True])
+def test_guessed_mode_says_what_a_pco_stall_would_be(tshark, commands_capture, two_pass):
+    """auto (the default): the PLC writes only holding registers 0..9, so the BU is
+    taken for Input + Commands and PCO is not supervised as an error; but a PCO that
+    stands over 2000 ms is exactly when a Standard-mode BU shows "EC: Bad data": a
+    warning (not a note) that names the guess, once, on the first write past the limit."""
+    cap, _ = commands_capture
+    got, kinds = _mode_frames(tshark, cap, {}, two_pass)
+    assert kinds["eclink_modbus.pco_stalled"] == []
+    warned = kinds["eclink_modbus.pco_stalled.guessed"]
+    assert len(warned) == 1 and kinds["eclink_modbus.commands_mode"], kinds
+    v = got[warned[0]]
+    assert v["eclink.image"] == "output" and v["eclink_modbus.pco_since"]
+    msg = [m for m in v["_ws.expert.message"].split(",") if m.startswith("PCO 0 has not")]
+    assert len(msg) == 1
+    age = msg[0].split("for ", 1)[1].split(" (", 1)[0]
+    assert float(age.split()[0]) > 2.0
+    assert v["_ws.expert.message"].count(GUESSED % age) == 1
+    assert "6291456" in v["_ws.expert.severity"].split(",")        # warning
+
+
+@pytest.mark.parametrize("prefs", [
+    {"eclink_modbus.mode": "standard"},
+    {"eclink_modbus.servers": "%s:%d=standard" % (rs.BU, rs.PORT)},
+    # the server's own mode wins over the preference
+    {"eclink_modbus.mode": "input_commands", "eclink_modbus.servers": "%s:%d=standard" % (rs.BU, rs.PORT)},
+], ids=["preference", "server-entry", "entry-over-preference"])
+@pytest.mark.parametrize("two_pass", [False, True])
+def test_standard_mode_set_makes_the_stall_an_error(tshark, commands_capture, prefs, two_pass):
+    """Set to Standard (the preference, or the server's entry in eclink_modbus.servers):
+    the PCO that stands is the error it is at the BU, with what the BU shows; no note of
+    Input + Commands mode, no guess."""
+    cap, _ = commands_capture
+    got, kinds = _mode_frames(tshark, cap, prefs, two_pass)
+    assert kinds["eclink_modbus.commands_mode"] == [] and kinds["eclink_modbus.pco_stalled.guessed"] == []
+    assert len(kinds["eclink_modbus.pco_stalled"]) == 1, kinds
+    v = got[kinds["eclink_modbus.pco_stalled"][0]]
+    assert "8388608" in v["_ws.expert.severity"].split(",")        # error
+    assert [m for m in v["_ws.expert.message"].split(",") if m.startswith("PCO 0 has not")][0].endswith(
+        "(limit 2.000 s): the BU shows \"EC: Bad data\"")
+
+
+@pytest.mark.parametrize("prefs,noted", [
+    ({"eclink_modbus.mode": "input_commands"}, True),
+    ({"eclink_modbus.servers": "%s:%d=input_commands" % (rs.BU, rs.PORT)}, True),
+    ({"eclink_modbus.mode": "input_only"}, False),
+], ids=["input_commands", "server-entry", "input_only"])
+@pytest.mark.parametrize("two_pass", [False, True])
+def test_mode_set_to_one_without_pco(tshark, commands_capture, prefs, noted, two_pass):
+    """Set to Input + Commands: the user knows the mode, the note stays and PCO is
+    not watched (no warning); Input Only: no output image is supervised at all."""
+    cap, _ = commands_capture
+    got, kinds = _mode_frames(tshark, cap, prefs, two_pass)
+    assert kinds["eclink_modbus.pco_stalled"] == [] and kinds["eclink_modbus.pco_stalled.guessed"] == []
+    assert bool(kinds["eclink_modbus.commands_mode"]) == noted

@@ -23,6 +23,21 @@ def test_connect_learned(tshark, capture_file):
     assert ex[1] == ["Cyclic data layout learned: eclink device: uplink FrameID 0x8010, downlink FrameID 0x8011"]
 
 
+def test_cai_timeout_preference(tshark, capture_file):
+    """The CAI limit is the project's own preference (TS-0007 8.2 gives none):
+    at 100 ms the echo of frame 21, 0.124 s after the command, comes late; in
+    one pass and with -2 alike."""
+    for two_pass in (False, True):
+        ex = tshark.experts(capture_file(CAP), prefs={"eclink_pnio.cai_timeout": "100"}, two_pass=two_pass)
+        assert [m for m in ex[21] if "CAI" in m] == [
+            "CAI echoed CCO 1 after 0.124 s (limit 0.100 s)",
+            "Command to RU (CCO 1 in frame 20) not acknowledged by CAI within 0.100 s"] if not two_pass else [
+            "CAI echoed CCO 1 after 0.124 s (limit 0.100 s)"], two_pass
+        if two_pass:
+            assert ex[20] == ["New command to RU: CCO 0 -> 1",
+                              "Command to RU (CCO 1) not acknowledged by CAI within 0.100 s (deadline at frame 21)"]
+
+
 def test_handshake_experts(tshark, capture_file):
     ex = tshark.experts(capture_file(CAP))
     assert "BU state Disarmed -> Armed" in ex[7]

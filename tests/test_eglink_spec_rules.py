@@ -252,15 +252,16 @@ def test_resend_interval_and_after_ack(tshark, work_dir):
 
 
 def test_resent_after_the_deadline(tshark, work_dir):
-    """TS-0006 5.1.3: "If no acknowledge is received within 2000 ms" the BU gives up: a
-    resend 2.1 s after the first transmission is noted (and the command failed)."""
+    """TS-0006 5.1.3: "If no acknowledge is received within 2000 ms" the command has failed:
+    a resend 2.1 s after the first transmission is noted as one of a failed command (only
+    5.1.4 has the sender stop: that is the VRCO's wording)."""
     link = gen.Link()
     for i in range(22):
         vrci(link, 0.1 + 0.1 * i, 1)
     cap = write(work_dir, link)
     late = ("eglink.analysis.resent_after_deadline",
             "VRCI command 1 resent 2.100 s after its first transmission (frame 1), past its "
-            "2000 ms deadline: TS-0006 §5.1.3 stops resending at the timeout")
+            "2000 ms deadline: TS-0006 §5.1.3 has the command failed by then")
     # one pass: the failed command's warning on the first packet past its deadline, the resend
     assert findings(tshark, cap, passes=(False,)) == {
         22: [("eglink.analysis.vrci_unacked",
@@ -273,6 +274,22 @@ def test_resent_after_the_deadline(tshark, work_dir):
              "reports to the RU application that the command failed")],
         22: [("eglink.analysis.vrci_deadline",
               "Deadline of VRCI command 1 (frame 1) passed with no VRAO (2000 ms)"), late]}
+
+
+def test_vrco_resent_after_the_deadline(tshark, work_dir):
+    """TS-0006 5.1.4: the machine controller "should detect this as an error and stop
+    sending the command" at its timeout: a VRCO resent 2.1 s after its first
+    transmission says so, citing 5.1.4 (not 5.1.3, which says nothing of stopping)."""
+    link = gen.Link()
+    for i in range(22):
+        vrco(link, 0.1 + 0.1 * i, 1)
+    cap = write(work_dir, link)
+    for two_pass in (False, True):
+        got = findings(tshark, cap, passes=(two_pass,))
+        assert [m for m in got[22] if m[0] == "eglink.analysis.resent_after_deadline"] == [
+            ("eglink.analysis.resent_after_deadline",
+             "VRCO command 1 resent 2.100 s after its first transmission (frame 1), past its "
+             "2000 ms deadline: TS-0006 §5.1.4 stops sending the command at the timeout")], two_pass
 
 
 @pytest.mark.parametrize("ids,bad", [

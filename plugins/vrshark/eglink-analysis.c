@@ -809,6 +809,29 @@ eglink_ctrl_chan(packet_info *pinfo, guint32 *expected)
     return chan;
 }
 
+/* The channel of a BU packet: its destination port, the input packet port
+ * (TS-0006 2.2). One sent to an input port + 2, the output packet port,
+ * belongs to that input port's channel, on the wrong port, as a controller
+ * packet sent to the input port does: when a BU is seen there, or that port
+ * is a configured input port and this one is not. */
+static eglink_chan_t *
+eglink_bu_chan(packet_info *pinfo, guint32 *expected)
+{
+    guint32 port = pinfo->destport;
+    eglink_chan_t *chan = eglink_chan_find(pinfo, port, FALSE);
+    eglink_chan_t *input;
+
+    *expected = 0;
+    if (port < 2 || (chan && chan->n_bus) || eglink_is_input_port(port))
+        return chan ? chan : eglink_chan_find(pinfo, port, TRUE);
+    input = eglink_chan_find(pinfo, port - 2, FALSE);
+    if ((input && input->n_bus) || eglink_is_input_port(port - 2)) {
+        *expected = port - 2;
+        return input ? input : eglink_chan_find(pinfo, port - 2, TRUE);
+    }
+    return chan ? chan : eglink_chan_find(pinfo, port, TRUE);
+}
+
 /* Two BUs with the same origin and address on different ports or groups
  * get the port or group in their name, so that each has its own row in
  * the statistics. */
@@ -1773,7 +1796,7 @@ analyse_packet(packet_info *pinfo, const eglink_info_t *info, eglink_frame_t *fd
 {
     gboolean input = eglink_is_input(info->type);
     guint32 expected_port = 0;
-    eglink_chan_t *chan = input ? eglink_chan_find(pinfo, pinfo->destport, TRUE)
+    eglink_chan_t *chan = input ? eglink_bu_chan(pinfo, &expected_port)
                                 : eglink_ctrl_chan(pinfo, &expected_port);
     eglink_bu_t *bu = NULL;
     eglink_ctrl_t *ctrl = NULL;
@@ -2074,11 +2097,17 @@ show_wrong_port(proto_tree *at, tvbuff_t *tvb, packet_info *pinfo, const eglink_
 {
     proto_item *ti = add_generated_uint(at, hf_expected_port, tvb, expected);
 
-    expert_add_info_format(pinfo, ti, &ei_wrong_port,
-        "%s sent to UDP port %u%s: the machine controller sends VRPO, VRCO and VRAO to the "
-        "BU's input port + 2 (%u here, TS-0006 §2.2); analysed with this controller's packets",
-        type_names[info->type], pinfo->destport,
-        pinfo->destport + 2 == expected ? ", the BU's input port" : "", expected);
+    if (eglink_is_input(info->type))
+        expert_add_info_format(pinfo, ti, &ei_wrong_port,
+            "%s sent to UDP port %u, the output packet port: the BU sends VRPI, VRCI and VRAI to its "
+            "input packet port (%u here, TS-0006 §2.2); analysed with this BU's packets",
+            type_names[info->type], pinfo->destport, expected);
+    else
+        expert_add_info_format(pinfo, ti, &ei_wrong_port,
+            "%s sent to UDP port %u%s: the machine controller sends VRPO, VRCO and VRAO to the "
+            "BU's input port + 2 (%u here, TS-0006 §2.2); analysed with this controller's packets",
+            type_names[info->type], pinfo->destport,
+            pinfo->destport + 2 == expected ? ", the BU's input port" : "", expected);
     col_append_str(pinfo->cinfo, COL_INFO, " [wrong port]");
 }
 
@@ -2202,8 +2231,11 @@ show_command_rule(proto_item *aitem, packet_info *pinfo, const eglink_info_t *in
     case FND_RESENT_AFTER_DEADLINE:
         expert_add_info_format(pinfo, aitem, &ei_resent_after_deadline,
             "%s command %u resent %s after its first transmission (frame %u), past its %u ms "
-            "deadline: TS-0006 §%s stops resending at the timeout", what, id,
-            ns_str_past(pinfo->pool, f->ns, timeout_ms), f->frame, timeout_ms, flow);
+            "deadline: %s", what, id,
+            ns_str_past(pinfo->pool, f->ns, timeout_ms), f->frame, timeout_ms,
+            /* only 5.1.4 (VRCO) has the sender stop; 5.1.3 has the VRCI failed */
+            vrci ? "TS-0006 §5.1.3 has the command failed by then"
+                 : "TS-0006 §5.1.4 stops sending the command at the timeout");
         break;
     case FND_CMD_ID_SEQUENCE:
         expert_add_info_format(pinfo, aitem, &ei_command_id_sequence,

@@ -196,6 +196,9 @@ HANDSHAKE = {
 }
 for _transport in ("eclink_modbus", "eclink_pnio"):
     EXPERTS.update({_transport + "." + name: entry for name, entry in HANDSHAKE.items()})
+# Modbus/TCP only: there the mode is guessed from the registers written
+EXPERTS["eclink_modbus.pco_stalled.guessed"] = (
+    WARNING, "finding", "PCO stalled where Input + Commands mode is only guessed: a fault in Standard mode")
 
 # The dissector's severity of the findings the report rates higher (see above).
 PROMOTED = {"eclink_modbus.candidate": NOTE, "mcmb2.candidate": NOTE}

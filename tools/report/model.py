@@ -728,7 +728,8 @@ class Capture:
             dev.address = {"server": server[0], "port": server[1]}
         accepted = c[C["eclink_modbus_accepted_in"]]
         if not dev.layout and c[C["eclink_image"]]:
-            listed = self.limits.get("eclink_modbus.servers", "").replace(" ", "").split(",")
+            # (an entry may name the BU's mode after "=": 192.168.2.41:502=standard)
+            listed = [e.split("=")[0] for e in self.limits.get("eclink_modbus.servers", "").replace(" ", "").split(",")]
             dev.layout = ("heuristic, recognised in frame %s" % last(accepted) if accepted
                           else "listed in eclink_modbus.servers"
                           if server[0] in listed or "%s:%d" % server in listed
