@@ -167,10 +167,12 @@ def test_expect_excerpt_and_subsets(cmd, work):
         "vrshark-report: %s: expected EG-Link, EC-Link and MC-MB2-PN, none found (8 frames read; "
         "the capture holds no UDP (no UDP frame at all); not recognised, to decode: "
         "-o eclink_modbus.servers:192.168.2.41; the capture holds no PROFINET cyclic frame)" % excerpt,
-        "vrshark-report: %s: expected EG-Link and MC-MB2-PN, none found (82 frames read; EG-Link on "
-        "another UDP port: -o eglink.input_port:PORT; its PROFINET frames are all another device's)" % pnio,
-        "vrshark-report: %s: expected EG-Link and EC-Link, none found (52 frames read; EG-Link on "
-        "another UDP port: -o eglink.input_port:PORT; %s)" % (MCMB2, NO_MODBUS)]
+        # (their only UDP is the Connect, PNIO-CM: no UDP port to try)
+        "vrshark-report: %s: expected EG-Link and MC-MB2-PN, none found (82 frames read; the capture "
+        "holds no UDP but PROFINET's PNIO-CM (2 frames, UDP port 34964); its PROFINET frames are all "
+        "another device's)" % pnio,
+        "vrshark-report: %s: expected EG-Link and EC-Link, none found (52 frames read; the capture "
+        "holds no UDP but PROFINET's PNIO-CM (2 frames, UDP port 34964); %s)" % (MCMB2, NO_MODBUS)]
     proc = run(cmd, "--expect", "eclink", pnio)
     assert (proc.returncode, proc.stderr) == (0, "")
 
