@@ -279,6 +279,8 @@ local ei = {
         G.PROTOCOL, S.ERROR),
     joystick_range = E("eglink.joystick.range", "Joystick position outside -1000..+1000", G.PROTOCOL, S.ERROR),
     unarmed_data = E("eglink.armed_ru.unarmed_data", "No RU is armed but RU fields are not 0", G.PROTOCOL, S.ERROR),
+    fields_disagree = E("eglink.fields_disagree", "VRPI fields contradict each other", G.PROTOCOL, S.WARN),
+    link_status_fault = E("eglink.link_status.fault", "Link status reports a fault (2..5)", G.RESPONSE_CODE, S.WARN),
     cut = E("eglink.cut", "Packet cut by the capture (snaplen)", G.UNDECODED, S.NOTE),
 }
 local expert_list = {
@@ -287,7 +289,7 @@ local expert_list = {
     ei.bu_state_unknown, ei.link_status_unknown, ei.vlaps_range, ei.ru_state_stopped, ei.link_status_passive,
     ei.ru_state_disarmed, ei.ru_state_unknown,
     ei.ru_battery_range, ei.ru_rssi_range, ei.flag_invalid, ei.ru_disabled_unknown, ei.joystick_range,
-    ei.unarmed_data, ei.cut,
+    ei.unarmed_data, ei.fields_disagree, ei.link_status_fault, ei.cut,
 }
 if analysis then analysis.experts(expert_list) end
 proto.experts = expert_list
@@ -683,6 +685,72 @@ local function check_passive(p, ti, i, value, armed_ru)
     end
 end
 
+-- TS-0006 4.1.2: what a link status 2..5 says of a link in use (0 Unused
+-- and 6 Passive say it is not in use).
+local LINK_FAULT = {
+    [2] = "the link is not operating: no valid data has been received",
+    [3] = "a configuration error keeps the link from operating",
+    [4] = "the link's interface module reports an error",
+    [5] = "the link is up, but the data exchanged is in error",
+}
+local function check_link_fault(p, ti, name, value)
+    local why = LINK_FAULT[value]
+    if why then
+        value_finding(p, ti, ei.link_status_fault,
+            string.format("%s %s (%d): %s", name, LINK_STATUS[value], value, why))
+    end
+end
+
+local BU_STATE_INITIAL, BU_STATE_STOPPED, BU_STATE_LINK_ERROR, BU_STATE_ARMED = 0x00, 0x01, 0x02, 0x11
+local RU_STATE_INITIAL, RU_STATE_ARMED, RU_STATE_ENABLED = 0, 2, 3
+
+-- Fields that contradict each other (one warning each, naming both fields
+-- and their values): RU state against RU disabled and Armed RU (TS-0006 4.1,
+-- 4.1.3), BU state against the armed RU (4.1.1), an EC-Link error while the
+-- BU goes on (TS-0007 9: an EC-Link error locks the BU in Initial). f: the
+-- values and items, nil where the capture does not hold the field. The same
+-- rules and texts as the C plugin and the EC-Link images.
+local function check_disagree(p, f)
+    local bu = BU_STATE[f.bu_state] or "Unknown"
+    local ru = f.ru_state and (RU_STATE[f.ru_state] or "Unknown")
+    local dis = f.ru_disabled and (RU_DISABLED[f.ru_disabled] or "Unknown")
+    if f.ru_state and f.ru_disabled then
+        if f.ru_state == RU_STATE_ENABLED and f.ru_disabled >= 1 and f.ru_disabled <= 3 then
+            value_finding(p, f.disabled_ti, ei.fields_disagree, string.format(
+                "RU state %s (%d) but RU disabled %s (%d): an enabled RU is not disabled",
+                ru, f.ru_state, dis, f.ru_disabled))
+        elseif f.ru_state == RU_STATE_ARMED and f.ru_disabled == 0 then
+            value_finding(p, f.disabled_ti, ei.fields_disagree, string.format(
+                "RU state %s (%d) but RU disabled %s (%d): Armed means movements are disabled, "
+                .. "by tilting or inactivity", ru, f.ru_state, dis, f.ru_disabled))
+        end
+    end
+    if f.armed_ru and f.ru_state and f.armed_ru ~= 0 and f.ru_state == RU_STATE_INITIAL then
+        value_finding(p, f.ru_ti, ei.fields_disagree, string.format(
+            "Armed RU 0x%04x but RU state %s (%d): Initial means no RU is armed yet", f.armed_ru, ru, f.ru_state))
+    end
+    if f.armed_ru and f.bu_state == BU_STATE_DISARMED and f.armed_ru ~= 0 then
+        value_finding(p, f.bu_ti, ei.fields_disagree, string.format(
+            "BU state %s (0x%02x) but Armed RU 0x%04x: a disarmed BU is armed against no RU",
+            bu, f.bu_state, f.armed_ru))
+    elseif f.armed_ru == 0 and (f.bu_state == BU_STATE_ARMED or f.bu_state == BU_STATE_STOPPED) then
+        value_finding(p, f.bu_ti, ei.fields_disagree, string.format(
+            "BU state %s (0x%02x) but Armed RU 0: in that state the BU is armed against an RU", bu, f.bu_state))
+    end
+    if f.ru_state and f.bu_state == BU_STATE_STOPPED
+        and (f.ru_state == RU_STATE_ARMED or f.ru_state == RU_STATE_ENABLED) then
+        value_finding(p, f.bu_ti, ei.fields_disagree, string.format(
+            "BU state %s (0x%02x) but RU state %s (%d): the BU stops when its RU signals stop "
+            .. "(RU state Stopped)", bu, f.bu_state, ru, f.ru_state))
+    end
+    if f.ec_link and LINK_FAULT[f.ec_link] and BU_STATE[f.bu_state]
+        and f.bu_state ~= BU_STATE_INITIAL and f.bu_state ~= BU_STATE_LINK_ERROR then
+        value_finding(p, f.ec_ti, ei.fields_disagree, string.format(
+            "EC-Link status %s (%d) but BU state %s (0x%02x): an EC-Link error holds the BU in Initial",
+            LINK_STATUS[f.ec_link], f.ec_link, bu, f.bu_state))
+    end
+end
+
 local function check_percent(p, ti, e, name, value)
     if value > 100 then undefined(p, ti, e, string.format("%s %d %% is above 100 %%", name, value)) end
 end
@@ -778,17 +846,28 @@ local function dissect_vrpi(p, info)
     end
     add_uint(p, pf.unarmed_rus, 2, 1)
     local eg, eg_ti = add_uint(p, pf.eg_link_status, 3, 1)
-    if eg then check_link_status(p, eg_ti, "eg_link_status", "EG-Link status", eg) end
+    if eg then
+        check_link_status(p, eg_ti, "eg_link_status", "EG-Link status", eg)
+        check_link_fault(p, eg_ti, "EG-Link status", eg)
+    end
     local ec, ec_ti = add_uint(p, pf.ec_link_status, 4, 1)
-    if ec then check_link_status(p, ec_ti, "ec_link_status", "EC-Link status", ec) end
+    if ec then
+        check_link_status(p, ec_ti, "ec_link_status", "EC-Link status", ec)
+        check_link_fault(p, ec_ti, "EC-Link status", ec)
+    end
     local cl, cl_ti = add_uint(p, pf.c_link_status, 5, 1)
-    if cl then check_link_status(p, cl_ti, "c_link_status", "C-Link status", cl) end
+    if cl then
+        check_link_status(p, cl_ti, "c_link_status", "C-Link status", cl)
+        check_link_fault(p, cl_ti, "C-Link status", cl)
+    end
 
     local armed_ru, armed_ti = add_uint(p, pf.armed_ru, 6, 2)
     check_passive(p, eg_ti, 1, eg, armed_ru)
     check_passive(p, ec_ti, 2, ec, armed_ru)
     check_passive(p, cl_ti, 3, cl, armed_ru)
     local ru_state, ru_ti = add_uint(p, pf.ru_state, 8, 1)
+    local fields = { bu_state = bu_state, bu_ti = bu_ti, ec_link = ec, ec_ti = ec_ti, armed_ru = armed_ru,
+                     ru_state = ru_state, ru_ti = ru_ti }
     if ru_state then
         if ru_state == RU_STATE_STOPPED then
             value_finding(p, ru_ti, ei.ru_state_stopped,
@@ -813,6 +892,7 @@ local function dissect_vrpi(p, info)
     value, ti = add_uint(p, pf.ru_docked, 12, 1)
     if value then check_flag(p, ti, "ru_docked", "RU docked", value) end
     value, ti = add_uint(p, pf.ru_disabled, 13, 1)
+    fields.ru_disabled, fields.disabled_ti = value, ti
     if value and not RU_DISABLED[value] then
         show_unknown(ti, "ru_disabled", value)
         undefined(p, ti, ei.ru_disabled_unknown, string.format(
@@ -837,6 +917,7 @@ local function dissect_vrpi(p, info)
     check_payload_spare(p, 40, 6)
 
     if armed_ru == 0 then check_unarmed(p, armed_ti) end
+    check_disagree(p, fields)
 
     if p.undefined then col_append(p.cinfo, " [undefined]") end
 end

@@ -24,6 +24,7 @@ DISSECTOR_EXPERTS = {
     "eglink.ru_state.unknown", "eglink.ru_battery.range", "eglink.ru_rssi.range",
     "eglink.flag.invalid", "eglink.ru_disabled.unknown", "eglink.joystick.range",
     "eglink.armed_ru.unarmed_data", "eglink.link_status.passive", "eglink.ru_state.disarmed",
+    "eglink.fields_disagree", "eglink.link_status.fault",
 }
 
 

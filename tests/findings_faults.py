@@ -102,6 +102,10 @@ FAULTS = {
     # Passive (29) is allowed
     "eclink.link_status.passive": ("eclink_modbus_link_states.pcap", [17, 25]),
     "eclink.ru_state.disarmed": ("eclink_modbus_link_states.pcap", [21]),
+    # ... EC-Link Data error while the BU stays Armed (33: the fault, and the
+    # contradiction TS-0007 9 makes of it); RU Enabled while tilted (37)
+    "eclink.link_status.fault": ("eclink_modbus_link_states.pcap", [33]),
+    "eclink.fields_disagree": ("eclink_modbus_link_states.pcap", [33, 37]),
     # mcmb2_polled_connect: the uplink of frame 15 says Y=20, the Connect 24
     "mcmb2.layout_mismatch": ("mcmb2_polled_connect.pcap", [15]),
     # --- checksum and size (eglink.py)
@@ -165,6 +169,10 @@ FAULTS = {
     # eglink_states: a VRPI with RU state 1 (8), one with EG-Link status Passive (13)
     "eglink.ru_state.disarmed": ("eglink_states.pcap", [8]),
     "eglink.link_status.passive": ("eglink_states.pcap", [13]),
+    # ... links No link (1: EG-Link, C-Link), Link error, Interface error, Data
+    # error (3); RU 0xbeef armed with RU state Initial (7)
+    "eglink.link_status.fault": ("eglink_states.pcap", [1, 3]),
+    "eglink.fields_disagree": ("eglink_states.pcap", [7]),
     # corrupted: serial 103 with a bad CRC (8) before the VRPI at 10, the VRPO
     # with a wrong Size (13) before the VRPO at 14
     "eglink.analysis.serial_corrupted": ("eglink_analysis_corrupted.pcap", [10, 14]),

@@ -134,7 +134,9 @@ def test_input_checks(tshark, raw_capture):
             pairs = list(zip(r["_ws.expert.severity"].split(","), r["_ws.expert.group"].split(",")))
             assert (severity, group) in pairs, (name, n, pairs)
     assert exp[2] == ["RU stopped: ES-Link relays open"]
-    assert exp[3][0] == "Armed RU is 0 but RU state is not 0"
+    # (TS-0007 6.1.1: an Armed BU is armed against an RU: the BU state disagrees with Armed RU 0)
+    assert exp[3][0] == "BU state Armed (0x11) but Armed RU 0: in that state the BU is armed against an RU"
+    assert "Armed RU is 0 but RU state is not 0" in exp[3]
     assert "Armed RU is 0 but Joystick 1 is not 0" in exp[3]
     relays = tshark.frames(cap, ["eclink.es_relays_open"], extra=["-o", USER_DLT])
     assert_fields(relays[1], {"eclink.es_relays_open": 1})

@@ -33,8 +33,10 @@ def test_command_handshake(tshark, capture_file):
 def test_bu_state_change(tshark, capture_file):
     cap = capture_file("eclink_modbus_basic.pcap")
     exp = tshark.experts(cap)
-    assert exp[45] == ["ES-Link relays open: BU state Blocked (0x03)", "BU state Armed -> Blocked"]
-    assert exp[49] == ["ES-Link relays open: BU state Blocked (0x03)"]
+    # (the capture's Blocked BU still names RU 0x1234 but reports RU state Initial: TS-0007 6.1.3)
+    initial = "Armed RU 0x1234 but RU state Initial (0): Initial means no RU is armed yet"
+    assert exp[45] == ["ES-Link relays open: BU state Blocked (0x03)", initial, "BU state Armed -> Blocked"]
+    assert exp[49] == ["ES-Link relays open: BU state Blocked (0x03)", initial]
     changed = tshark.frames(cap, ["eclink_modbus.bu_state_prev", "eclink.es_relays_open", "_ws.col.Info"],
                             display_filter="eclink_modbus.bu_state_prev")
     assert list(changed) == [45]

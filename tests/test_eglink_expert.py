@@ -61,15 +61,23 @@ def test_range_expert_names(tshark, capture_file):
 
 def test_relays_open_and_stopped(tshark, capture_file):
     assert messages(tshark, capture_file("eglink_states.pcap")) == {
-        1: ["ES-Link relays open: BU state Initial (0x00), the BU is not fully operative yet"],
+        # TS-0006 4.1.2: links in use reporting a fault
+        1: ["ES-Link relays open: BU state Initial (0x00), the BU is not fully operative yet",
+            "EG-Link status No link (2): the link is not operating: no valid data has been received",
+            "C-Link status No link (2): the link is not operating: no valid data has been received"],
         2: ["ES-Link relays open: BU state Stopped (0x01), the armed RU asked the BU to stop",
             "RU stopped (stop switch, free-fall/shock sensor or RU fault): ES-Link relays open"],
         3: ["ES-Link relays open: BU state External link error (0x02), monitoring found an "
-            "error on the EC-Link or EG-Link"],
+            "error on the EC-Link or EG-Link",
+            "EG-Link status Link error (3): a configuration error keeps the link from operating",
+            "EC-Link status Interface error (4): the link's interface module reports an error",
+            "C-Link status Data error (5): the link is up, but the data exchanged is in error"],
         4: ["ES-Link relays open: BU state Blocked (0x03), contact with the armed RU is lost: "
             "switch the RU on and arm it again"],
         5: ["ES-Link relays open: BU state Failed (0x04), the BU self-test found a fatal "
             "internal error"],
+        # TS-0006 4.1.3: an armed RU is not in state Initial (no RU armed yet)
+        7: ["Armed RU 0xbeef but RU state Initial (0): Initial means no RU is armed yet"],
         # TS-0006 4.1.3: RU state 1 is used inside the BU only
         8: ["RU state 1 (Disarmed) on the wire: TS-0006 uses it only inside the BU"],
         # TS-0006 4.1.2: Passive is reported on the C-Link only
@@ -117,6 +125,10 @@ VOICE = {
     # TS-0006 4.1.2 / 4.1.3: Passive where it is not allowed, RU state 1 on the wire
     "eglink.link_status.passive": ("warning", "protocol"),
     "eglink.ru_state.disarmed": ("note", "protocol"),
+    # TS-0006 4.1-4.1.3: fields that contradict each other; a link in use
+    # reporting a fault, as the BU reports its safety state
+    "eglink.fields_disagree": ("warning", "protocol"),
+    "eglink.link_status.fault": ("warning", "response code"),
     # what Wireshark says of its own kind: a packet type it cannot decode, a
     # CRC that another variant explains
     "eglink.type.unknown": ("warning", "undecoded"),

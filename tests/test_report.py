@@ -94,6 +94,8 @@ TIMELINES = {
     ],
     "eglink_states.pcap": [
         (1, 'warning', 1, 'ES-Link relays open (BU state Initial) for 0.625 s, closed in frame 6'),
+        # links No link (1), Link error, Interface error, Data error (3)
+        (1, 'warning', 1, 'a link reports a fault (2x, frames 1-3 over 0.250 s)'),
         (2, 'note', 1, 'BU state Initial -> Stopped (after 0.125 s or more)'),
         (2, 'note', 1, 'RU state Initial (no RU armed) -> Stopped (RU 0xbeef) (after 0.125 s or more)'),
         (3, 'note', 1, 'BU state Stopped -> External link error (after 0.125 s)'),
@@ -103,6 +105,8 @@ TIMELINES = {
         (6, 'note', 1, 'BU state Failed -> Disarmed (after 0.125 s)'),
         (7, 'note', 1, 'BU state Disarmed -> Armed (after 0.125 s)'),
         (7, 'note', 1, 'RU state Initial (no RU armed) -> Initial (RU 0xbeef) (after 0.500 s)'),
+        # RU 0xbeef armed, RU state Initial (TS-0006 4.1.3)
+        (7, 'warning', 1, 'status fields contradict each other'),
         (8, 'note', 1, 'RU 0xbeef state Initial -> Disarmed (after 0.125 s)'),
         (8, 'note', 1, 'RU state Disarmed (used inside the BU only) on the wire'),
         (9, 'note', 1, 'RU 0xbeef state Disarmed -> Armed (after 0.125 s)'),
@@ -175,6 +179,8 @@ TIMELINES = {
         (40, 'error', 1, 'periodic data size over 51200: 60000 bytes'),
     ],
     "eclink_pnio_connect.pcap": [
+        # the Disarmed BU's images name RU 0x1234 (TS-0007 6.1.1)
+        (3, 'warning', 1, 'status fields contradict each other (2x, frames 3-5 over 0.125 s)'),
         (7, 'note', 1, 'BU state Disarmed -> Armed (after 0.250 s or more)'),
         (31, 'error', 1, 'PCI stalled at 10 for 0.875 s (unchanged since frame 21, limit 500 ms), moving again in frame 35'),
         (72, 'error', 1, 'PCO stalled at 18 for 2.625 s (unchanged since frame 38, limit 2000 ms: the BU shows "EC: Bad data"), moving again in frame 80'),

@@ -119,6 +119,8 @@ static expert_field ei_eglink_ru_battery_range = EI_INIT;
 static expert_field ei_eglink_ru_rssi_range = EI_INIT;
 static expert_field ei_eglink_flag_invalid = EI_INIT;
 static expert_field ei_eglink_ru_disabled_unknown = EI_INIT;
+static expert_field ei_eglink_fields_disagree = EI_INIT;
+static expert_field ei_eglink_link_status_fault = EI_INIT;
 static expert_field ei_eglink_joystick_range = EI_INIT;
 static expert_field ei_eglink_unarmed_data = EI_INIT;
 static expert_field ei_eglink_cut = EI_INIT;
@@ -471,6 +473,90 @@ eglink_check_passive(eglink_payload_t *p, proto_item *ti, int i, guint32 value, 
             armed_ru);
 }
 
+/* TS-0006 4.1.2: what a link status 2..5 says of a link in use (0 Unused
+ * and 6 Passive say it is not in use). */
+static const value_string eglink_link_fault_vals[] = {
+    { 2, "the link is not operating: no valid data has been received" },
+    { 3, "a configuration error keeps the link from operating" },
+    { 4, "the link's interface module reports an error" },
+    { 5, "the link is up, but the data exchanged is in error" },
+    { 0, NULL }
+};
+
+static void
+eglink_check_link_fault(eglink_payload_t *p, proto_item *ti, const char *name, guint32 value)
+{
+    const char *why = try_val_to_str(value, eglink_link_fault_vals);
+
+    if (why)
+        eglink_value_finding(p, ti, &ei_eglink_link_status_fault, "%s %s (%u): %s", name,
+            val_to_str_const(value, eglink_link_status_vals, "Unknown"), value, why);
+}
+
+/* The VRPI fields one finding compares; have_* FALSE where the capture does
+ * not hold the field (nothing is judged from it then). */
+typedef struct {
+    guint32 bu_state, ec_link, armed_ru, ru_state, ru_disabled;
+    gboolean have_ec_link, have_armed, have_ru_state, have_ru_disabled;
+    proto_item *bu_ti, *ec_ti, *ru_ti, *disabled_ti;
+} eglink_vrpi_fields_t;
+
+#define EGLINK_BU_STATE_INITIAL      0x00
+#define EGLINK_BU_STATE_STOPPED      0x01
+#define EGLINK_BU_STATE_LINK_ERROR   0x02
+#define EGLINK_BU_STATE_ARMED        0x11
+#define EGLINK_RU_STATE_INITIAL      0
+#define EGLINK_RU_STATE_ARMED        2
+#define EGLINK_RU_STATE_ENABLED      3
+
+/* Fields that contradict each other (one warning each, naming both fields
+ * and their values): RU state against RU disabled and Armed RU (TS-0006 4.1,
+ * 4.1.3), BU state against the armed RU (4.1.1), an EC-Link error while the
+ * BU goes on (TS-0007 9: an EC-Link error locks the BU in Initial). The same
+ * rules and texts as lua/eglink.lua and the EC-Link images. */
+static void
+eglink_check_disagree(eglink_payload_t *p, const eglink_vrpi_fields_t *f)
+{
+    const char *bu = val_to_str_const(f->bu_state, eglink_bu_state_vals, "Unknown");
+    const char *ru = val_to_str_const(f->ru_state, eglink_ru_state_vals, "Unknown");
+    const char *dis = val_to_str_const(f->ru_disabled, eglink_ru_disabled_vals, "Unknown");
+
+    if (f->have_ru_state && f->have_ru_disabled) {
+        if (f->ru_state == EGLINK_RU_STATE_ENABLED && f->ru_disabled >= 1 && f->ru_disabled <= 3)
+            eglink_value_finding(p, f->disabled_ti, &ei_eglink_fields_disagree,
+                "RU state %s (%u) but RU disabled %s (%u): an enabled RU is not disabled",
+                ru, f->ru_state, dis, f->ru_disabled);
+        else if (f->ru_state == EGLINK_RU_STATE_ARMED && f->ru_disabled == 0)
+            eglink_value_finding(p, f->disabled_ti, &ei_eglink_fields_disagree,
+                "RU state %s (%u) but RU disabled %s (%u): Armed means movements are disabled, "
+                "by tilting or inactivity", ru, f->ru_state, dis, f->ru_disabled);
+    }
+    if (f->have_armed && f->have_ru_state && f->armed_ru != 0 && f->ru_state == EGLINK_RU_STATE_INITIAL)
+        eglink_value_finding(p, f->ru_ti, &ei_eglink_fields_disagree,
+            "Armed RU 0x%04x but RU state %s (%u): Initial means no RU is armed yet",
+            f->armed_ru, ru, f->ru_state);
+    if (f->have_armed && f->bu_state == EGLINK_BU_STATE_DISARMED && f->armed_ru != 0)
+        eglink_value_finding(p, f->bu_ti, &ei_eglink_fields_disagree,
+            "BU state %s (0x%02x) but Armed RU 0x%04x: a disarmed BU is armed against no RU",
+            bu, f->bu_state, f->armed_ru);
+    else if (f->have_armed && f->armed_ru == 0 &&
+             (f->bu_state == EGLINK_BU_STATE_ARMED || f->bu_state == EGLINK_BU_STATE_STOPPED))
+        eglink_value_finding(p, f->bu_ti, &ei_eglink_fields_disagree,
+            "BU state %s (0x%02x) but Armed RU 0: in that state the BU is armed against an RU",
+            bu, f->bu_state);
+    if (f->have_ru_state && f->bu_state == EGLINK_BU_STATE_STOPPED &&
+        (f->ru_state == EGLINK_RU_STATE_ARMED || f->ru_state == EGLINK_RU_STATE_ENABLED))
+        eglink_value_finding(p, f->bu_ti, &ei_eglink_fields_disagree,
+            "BU state %s (0x%02x) but RU state %s (%u): the BU stops when its RU signals stop "
+            "(RU state Stopped)", bu, f->bu_state, ru, f->ru_state);
+    if (f->have_ec_link && try_val_to_str(f->ec_link, eglink_link_fault_vals) &&
+        try_val_to_str(f->bu_state, eglink_bu_state_vals) &&
+        f->bu_state != EGLINK_BU_STATE_INITIAL && f->bu_state != EGLINK_BU_STATE_LINK_ERROR)
+        eglink_value_finding(p, f->ec_ti, &ei_eglink_fields_disagree,
+            "EC-Link status %s (%u) but BU state %s (0x%02x): an EC-Link error holds the BU in Initial",
+            val_to_str_const(f->ec_link, eglink_link_status_vals, "Unknown"), f->ec_link, bu, f->bu_state);
+}
+
 static void
 eglink_check_percent(eglink_payload_t *p, proto_item *ti, expert_field *ei, const char *name,
                      guint32 value)
@@ -580,6 +666,7 @@ dissect_eglink_vrpi(eglink_payload_t *p, eglink_info_t *info)
     guint32 bu_state, value, armed_ru = 0, ru_state, link[3] = { 0, 0, 0 };
     gint32 svalue;
     gboolean have_armed, relays_known, relays_open;
+    eglink_vrpi_fields_t fields;
     int i;
 
     if (!eglink_add_uint(p, hf_eglink_bu_state, 0, 1, &bu_state, &bu_ti)) {
@@ -610,17 +697,34 @@ dissect_eglink_vrpi(eglink_payload_t *p, eglink_info_t *info)
     if (eglink_add_uint(p, hf_eglink_vlaps, 1, 1, &value, &ti) && value > 3)
         eglink_undefined(p, ti, &ei_eglink_vlaps_range, "%u VLAPs reported: a BU has at most 3", value);
     eglink_add_uint(p, hf_eglink_unarmed_rus, 2, 1, &value, NULL);
-    if (eglink_add_uint(p, hf_eglink_eg_link_status, 3, 1, &link[0], &link_ti[0]))
+    memset(&fields, 0, sizeof fields);
+    fields.bu_state = bu_state;
+    fields.bu_ti = bu_ti;
+    if (eglink_add_uint(p, hf_eglink_eg_link_status, 3, 1, &link[0], &link_ti[0])) {
         eglink_check_link_status(p, link_ti[0], hf_eglink_eg_link_status, "EG-Link status", link[0]);
-    if (eglink_add_uint(p, hf_eglink_ec_link_status, 4, 1, &link[1], &link_ti[1]))
+        eglink_check_link_fault(p, link_ti[0], "EG-Link status", link[0]);
+    }
+    if (eglink_add_uint(p, hf_eglink_ec_link_status, 4, 1, &link[1], &link_ti[1])) {
         eglink_check_link_status(p, link_ti[1], hf_eglink_ec_link_status, "EC-Link status", link[1]);
-    if (eglink_add_uint(p, hf_eglink_c_link_status, 5, 1, &link[2], &link_ti[2]))
+        eglink_check_link_fault(p, link_ti[1], "EC-Link status", link[1]);
+        fields.have_ec_link = TRUE;
+        fields.ec_link = link[1];
+        fields.ec_ti = link_ti[1];
+    }
+    if (eglink_add_uint(p, hf_eglink_c_link_status, 5, 1, &link[2], &link_ti[2])) {
         eglink_check_link_status(p, link_ti[2], hf_eglink_c_link_status, "C-Link status", link[2]);
+        eglink_check_link_fault(p, link_ti[2], "C-Link status", link[2]);
+    }
 
     have_armed = eglink_add_uint(p, hf_eglink_armed_ru, 6, 2, &armed_ru, &armed_ti);
+    fields.have_armed = have_armed;
+    fields.armed_ru = armed_ru;
     for (i = 0; i < 3; i++)
         eglink_check_passive(p, link_ti[i], i, link[i], have_armed, armed_ru);
-    if (eglink_add_uint(p, hf_eglink_ru_state, 8, 1, &ru_state, &ru_ti)) {
+    fields.have_ru_state = eglink_add_uint(p, hf_eglink_ru_state, 8, 1, &ru_state, &ru_ti);
+    fields.ru_state = ru_state;
+    fields.ru_ti = ru_ti;
+    if (fields.have_ru_state) {
         if (ru_state == EGLINK_RU_STATE_STOPPED)
             eglink_value_finding(p, ru_ti, &ei_eglink_ru_state_stopped,
                 "RU stopped (stop switch, free-fall/shock sensor or RU fault): ES-Link relays open");
@@ -643,8 +747,10 @@ dissect_eglink_vrpi(eglink_payload_t *p, eglink_info_t *info)
         eglink_check_flag(p, ti, hf_eglink_ru_cable, "RU cable", value);
     if (eglink_add_uint(p, hf_eglink_ru_docked, 12, 1, &value, &ti))
         eglink_check_flag(p, ti, hf_eglink_ru_docked, "RU docked", value);
-    if (eglink_add_uint(p, hf_eglink_ru_disabled, 13, 1, &value, &ti) &&
-        try_val_to_str(value, eglink_ru_disabled_vals) == NULL) {
+    fields.have_ru_disabled = eglink_add_uint(p, hf_eglink_ru_disabled, 13, 1, &value, &ti);
+    fields.ru_disabled = value;
+    fields.disabled_ti = ti;
+    if (fields.have_ru_disabled && try_val_to_str(value, eglink_ru_disabled_vals) == NULL) {
         eglink_show_unknown(ti, hf_eglink_ru_disabled, value);
         eglink_undefined(p, ti, &ei_eglink_ru_disabled_unknown,
             "RU disabled reason Unknown (0x%02x): defined are 0 enabled, 1 tilted, 2 inactivity, "
@@ -669,6 +775,7 @@ dissect_eglink_vrpi(eglink_payload_t *p, eglink_info_t *info)
 
     if (have_armed && armed_ru == 0)
         eglink_check_unarmed(p, armed_ti);
+    eglink_check_disagree(p, &fields);
 
     if (p->undefined)
         col_append_str(p->pinfo->cinfo, COL_INFO, " [undefined]");
@@ -1289,6 +1396,12 @@ proto_register_eglink(void)
         { &ei_eglink_unarmed_data,
           { "eglink.armed_ru.unarmed_data", PI_PROTOCOL, PI_ERROR,
             "No RU is armed but RU fields are not 0", EXPFILL } },
+        { &ei_eglink_fields_disagree,
+          { "eglink.fields_disagree", PI_PROTOCOL, PI_WARN,
+            "VRPI fields contradict each other", EXPFILL } },
+        { &ei_eglink_link_status_fault,
+          { "eglink.link_status.fault", PI_RESPONSE_CODE, PI_WARN,
+            "Link status reports a fault (2..5)", EXPFILL } },
         { &ei_eglink_cut,
           { "eglink.cut", PI_UNDECODED, PI_NOTE,
             "Packet cut by the capture (snaplen)", EXPFILL } },

@@ -283,7 +283,8 @@ def faults():
 
 @capture("eclink_modbus_link_states.pcap",
          "EC-Link over Modbus/TCP: values TS-0007 6.1.2/6.1.3 allow only in some states: C-Link Passive "
-         "with an armed RU, EG-Link Passive, RU state 1 (Disarmed, internal)")
+         "with an armed RU, EG-Link Passive, RU state 1 (Disarmed, internal); an EC-Link Data error while "
+         "the BU stays Armed, RU state Enabled while RU disabled is tilted")
 def link_states():
     cap = Capture()
     mb = ModbusClient(cap)
@@ -296,6 +297,10 @@ def link_states():
     # 24-27: EG-Link Passive (25); 28-31: a disarmed BU with C-Link Passive, as allowed
     cycle(mb, t + 0.25, input_image(pci=6, eg=6), output_image(pco=6))
     cycle(mb, t + 0.375, unarmed_image(pci=7), output_image(pco=7))
+    # 32-35: EC-Link Data error while the BU stays Armed (33, TS-0007 6.1.2, 9);
+    # 36-39: RU state Enabled while RU disabled is 1, tilted (37, 6.1.3)
+    cycle(mb, t + 0.5, input_image(pci=8, ec=5), output_image(pco=8))
+    cycle(mb, t + 0.625, input_image(pci=9, disabled=1), output_image(pco=9))
     return cap
 
 

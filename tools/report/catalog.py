@@ -94,6 +94,8 @@ EXPERTS = {
     # EG-Link, the rules of TS-0006
     "eglink.link_status.passive": (WARNING, "finding", "link status Passive where it is not allowed"),
     "eglink.ru_state.disarmed": (NOTE, "finding", "RU state Disarmed (used inside the BU only) on the wire"),
+    "eglink.fields_disagree": (WARNING, "finding", "status fields contradict each other"),
+    "eglink.link_status.fault": (WARNING, "finding", "a link reports a fault"),
     "eglink.analysis.vrpo_number": (WARNING, "finding", "VRPO packet number out of the controller's numbering"),
     "eglink.analysis.vrpo_not_full": (WARNING, "finding", "VRPO packet not full though not the last of its burst"),
     "eglink.analysis.not_resent": (WARNING, "finding", "unacknowledged command not resent within 100 ms"),
@@ -146,6 +148,8 @@ EXPERTS = {
     "eclink.ru_state.range": (ERROR, "finding", "undefined RU state"),
     "eclink.link_status.passive": (WARNING, "finding", "link status Passive where it is not allowed"),
     "eclink.ru_state.disarmed": (NOTE, "finding", "RU state Disarmed (used inside the BU only) on the wire"),
+    "eclink.fields_disagree": (WARNING, "finding", "status fields contradict each other"),
+    "eclink.link_status.fault": (WARNING, "finding", "a link reports a fault"),
     "eclink.percent.range": (ERROR, "finding", "percentage over 100"),
     "eclink.bool.range": (ERROR, "finding", "flag not 0 or 1"),
     "eclink.ru_disabled.range": (ERROR, "finding", "undefined RU disabled reason"),
