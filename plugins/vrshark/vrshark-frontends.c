@@ -69,10 +69,11 @@
  * accepted connections (the Lua side keeps its per-frame decisions of the
  * first pass), so both passes agree.
  *
- * Known FrameIDs and accepted connections reach the decoder with
- * pinfo->match_string "frame_id" / "heuristic" / "always" when the tree is
- * visible, or the same with ".quiet" appended when nothing it would add can
- * be seen (it then keeps its state and adds nothing), or with ".sparse:..."
+ * Known FrameIDs, accepted connections and listed servers reach the decoder
+ * with pinfo->match_string "frame_id" / "heuristic" / "always" / "server"
+ * (the view grammar of vrshark-frontends.h, decoded by seam.luam's view())
+ * when the tree is visible, or the same with ".quiet" appended when nothing
+ * it would add can be seen (it then keeps its state and adds nothing), or with ".sparse:..."
  * naming what is looked at in an invisible tree: columns, expert info, the
  * referenced fields (lua_view below). Every item of an invisible tree that
  * nobody references is thrown away by Wireshark: the decoder need not build
