@@ -67,6 +67,12 @@ local periodic = require("vrshark.eclink_periodic")
 local handshake = require("vrshark.eclink_handshake")
 local wrap = require("vrshark.wrap")
 local fe = require("vrshark.frontends")
+-- (the names shared with the C front end, taken at load)
+local seam = require("vrshark.seam")
+local seam_view, server_key = seam.view, seam.server_key
+local NO_VIEW = seam_view(nil)   -- (without the C plugin: no match_string is read)
+local HOOK_HEURISTIC, HOOK_ALWAYS, HOOK_SERVER, HOOK_PORT_HINT = seam.MB_HOOK_HEURISTIC, seam.MB_HOOK_ALWAYS,
+    seam.MB_HOOK_SERVER, seam.MB_HOOK_PORT_HINT
 local append_info = fe.append_info
 local detect = require("vrshark.modbus_detect")
 local servers = require("vrshark.modbus_servers")
@@ -209,8 +215,8 @@ local IS_BITS = { coils = true, discrete_inputs = true }
 ------------------------------------------------------------------------
 local DETECT_HEURISTIC, DETECT_ALWAYS, DETECT_OFF = 0, 1, 2
 -- ADUs of a connection the heuristic looks at before it gives up (the C front
--- end's VRSHARK_MB_CANDIDATE_TRIES counts frames: the same bound)
-local CANDIDATE_TRIES = 1024
+-- end's bound, which counts frames: equal with one ADU a frame)
+local CANDIDATE_TRIES = seam.MB_CANDIDATE_TRIES
 proto.prefs.port = Pref.range("Modbus/TCP ports", "502", "TCP ports of BUs' Modbus/TCP servers, a list or "
     .. "ranges (502,5020); the port of Wireshark's Modbus/TCP dissector (mbtcp.tcp.port) is decoded too: "
     .. "a port added here or there never takes another away", 65535)
@@ -375,9 +381,9 @@ local function place_servers()
     end
     if C then
         for _, e in ipairs(opt.servers.list) do
-            server_keys[#server_keys + 1] = "server " .. e.addr .. (e.port and (":" .. e.port) or "")
+            server_keys[#server_keys + 1] = server_key(e.addr, e.port)
         end
-        if #server_keys > 0 then server_keys[#server_keys + 1] = "server" end
+        if #server_keys > 0 then server_keys[#server_keys + 1] = HOOK_SERVER end
         for _, key in ipairs(server_keys) do fe.mb_hook:add(key, proto) end
     end
 end
@@ -387,8 +393,8 @@ local function prefs_changed()
     place_on_port()
     place_servers()
     if C then
-        fe.hook(fe.mb_hook, "heuristic", proto, opt.detection == DETECT_HEURISTIC)
-        fe.hook(fe.mb_hook, "always", proto, opt.detection == DETECT_ALWAYS)
+        fe.hook(fe.mb_hook, HOOK_HEURISTIC, proto, opt.detection == DETECT_HEURISTIC)
+        fe.hook(fe.mb_hook, HOOK_ALWAYS, proto, opt.detection == DETECT_ALWAYS)
     end
 end
 proto.prefs_changed = prefs_changed
@@ -1519,9 +1525,9 @@ end
 -- has run already and the result tells it whether the connection is
 -- accepted (0: not yet); ".quiet": nobody looks at this frame's tree or
 -- columns, only the state is kept; ".sparse:..." an invisible tree
--- (vrshark/frontends.luam view(); sparse_plan()). Called by TCP (no C plugin, or Decode
+-- (vrshark/seam.luam view(); sparse_plan()). Called by TCP (no C plugin, or Decode
 -- As), this plugin calls mbtcp itself.
-local HOOKS = { heuristic = true, always = true, server = true }
+local HOOKS = { [HOOK_HEURISTIC] = true, [HOOK_ALWAYS] = true, [HOOK_SERVER] = true }
 
 ------------------------------------------------------------------------
 -- A BU's server on a TCP port nobody reads as Modbus/TCP
@@ -1689,24 +1695,12 @@ end
 -- one array used again by every call: the ADUs are worked out before any is
 -- shown, and nothing shown calls this dissector again.
 local found_scratch = {}
--- the hook a match_string names (HOOKS) or false, by match_string
-local front_of, front_of_n = {}, 0
-
 function proto.dissector(tvb, pinfo, tree)
     local consumed = 0
-    local how = C and p_match_string(pinfo)
-    if how == "port_hint" then return port_hint(tvb, pinfo, tree) end
-    local via_front = false
-    if how then
-        via_front = front_of[how]
-        if via_front == nil then
-            -- (a view string names its hook first; a few strings in all)
-            if front_of_n >= 256 then front_of, front_of_n = {}, 0 end
-            via_front = HOOKS[how:match("^[%w_]+")] or false
-            front_of[how], front_of_n = via_front, front_of_n + 1
-        end
-    end
-    local view = via_front and fe.view(how)
+    local how = C and seam_view(p_match_string(pinfo)) or NO_VIEW
+    if how.hook == HOOK_PORT_HINT then return port_hint(tvb, pinfo, tree) end
+    local via_front = HOOKS[how.hook] or false
+    local view = via_front and how.view
     local quiet = view and view.quiet
     local port = p_match_uint(pinfo)
     local src_port, dst_port = p_src_port(pinfo), p_dst_port(pinfo)
@@ -1844,7 +1838,7 @@ end
 
 tcp_port_table:add_for_decode_as(proto)
 if C then
-    fe.mb_hook:add("port_hint", proto)
+    fe.hook(fe.mb_hook, HOOK_PORT_HINT, proto, true)
 else
     proto:register_heuristic("tcp", function(tvb, pinfo, tree) return port_hint(tvb, pinfo, tree) > 0 end)
 end

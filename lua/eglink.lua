@@ -32,11 +32,12 @@ package.path = dir .. "/?.luam;" .. package.path
 -- are there. Then EG-Link is the C plugin's, silently.
 local fe = require("vrshark.frontends")
 local version = require("vrshark.version")
+local EGLINK_DATA_TABLE = require("vrshark.seam").EGLINK_DATA_TABLE
 local function have_table(name)
     local ok, t = pcall(DissectorTable.get, name)
     return ok and t ~= nil
 end
-if fe.pn_frame_id ~= nil or have_table("eglink.data") then
+if fe.pn_frame_id ~= nil or have_table(EGLINK_DATA_TABLE) then
     set_plugin_info(version.info("VisionRemote EG-Link (TS-0006) in Lua: idle, the C plugin decodes EG-Link"))
     return
 end
@@ -1304,7 +1305,7 @@ function proto.init()
     if analysis then analysis.init() end
 end
 
-handoff.table = DissectorTable.new("eglink.data", "EG-Link application data", ftypes.STRING, base.NONE, proto)
+handoff.table = DissectorTable.new(EGLINK_DATA_TABLE, "EG-Link application data", ftypes.STRING, base.NONE, proto)
 udp_port:add_for_decode_as(proto)
 proto:register_heuristic("udp", heuristic)
 prefs_changed()

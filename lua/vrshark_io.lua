@@ -33,7 +33,7 @@ local iodata = require("vrshark.iodata")
 -- the same number over in vrshark/eglink_data.luam's match; without either
 -- there is no table: the EG-Link hook is then left out.
 local eglink_data = require("vrshark.eglink_data")
-local have_eglink, eglink_table = pcall(DissectorTable.get, "eglink.data")
+local have_eglink, eglink_table = pcall(DissectorTable.get, require("vrshark.seam").EGLINK_DATA_TABLE)
 have_eglink = have_eglink and eglink_table ~= nil
 -- The controller's packets are matched to their BU's origin by the group
 -- (or address) and input port, as the EG-Link analysis does: learned from

@@ -69,6 +69,11 @@ local p_number, p_visited, p_abs_ts, p_dl_src, p_dl_dst, p_match_string, p_match
     api.pinfo.visited, api.pinfo.abs_ts, api.pinfo.dl_src, api.pinfo.dl_dst, api.pinfo.match_string,
     api.pinfo.match_uint
 local fe = require("vrshark.frontends")
+-- (the names shared with the C front ends, taken at load)
+local seam = require("vrshark.seam")
+local seam_view = seam.view
+local HOOK_CANDIDATE, HOOK_PENDING, HOOK_CONNECT, HOOK_RESPONSE = seam.PN_HOOK_CANDIDATE, seam.PN_HOOK_PENDING,
+    seam.PN_HOOK_CONNECT, seam.PN_HOOK_RESPONSE
 -- (frames and per_frame by frame number: vrshark/framemap.luam says why)
 local framemap = require("vrshark.framemap")
 local passes = require("vrshark.passes")
@@ -94,8 +99,9 @@ end
 local pn_rt = find_pn_rt()
 local ETH_PNRT, UDP_PNIO_CM = 0x8892, 34964
 
--- Failed polled-header checks per unknown FrameID before it is given up.
-local HEUR_TRIES = 64
+-- Failed polled-header checks per unknown FrameID before it is given up
+-- (the C front end's bound of candidate refusals too).
+local HEUR_TRIES = seam.PN_CANDIDATE_TRIES
 
 ------------------------------------------------------------------------
 -- Per-capture state
@@ -180,11 +186,11 @@ end
 -- The C front ends' hooks: which frames the C plugin hands to the carrier.
 local function set_hooks()
     if not C then return end
-    fe.hook(fe.pn_hook, "candidate", carrier, heuristic)
-    fe.hook(fe.pn_hook, "connect", carrier, learn)
-    fe.hook(fe.pn_hook, "pending", carrier, (pending_down ~= nil and #pending_down > 0)
+    fe.hook(fe.pn_hook, HOOK_CANDIDATE, carrier, heuristic)
+    fe.hook(fe.pn_hook, HOOK_CONNECT, carrier, learn)
+    fe.hook(fe.pn_hook, HOOK_PENDING, carrier, (pending_down ~= nil and #pending_down > 0)
         or (runs ~= nil and infer.alive(runs)))
-    fe.hook(fe.pn_hook, "response", carrier, ars ~= nil and next(ars) ~= nil)
+    fe.hook(fe.pn_hook, HOOK_RESPONSE, carrier, ars ~= nil and next(ars) ~= nil)
 end
 
 -- Connect responses are read only for an AR learned from its request: the
@@ -1179,7 +1185,7 @@ end
 
 -- EtherType 0x8892: Wireshark's PN-RT first, then our cyclic data. With
 -- the C front end PN-RT has run already; 0 tells it the frame is not ours;
--- view: what the front end says is looked at (vrshark/frontends.luam view():
+-- view: what the front end says is looked at (vrshark/seam.luam view():
 -- nil everything, quiet nothing, or sparse: the decoder's sparse() adds
 -- only that, or says it needs show()).
 -- thrown: PN-RT (or PNIO below it) raised an exception on this frame.
@@ -1346,9 +1352,9 @@ function carrier.dissector(tvb, pinfo, tree)
     -- The C front end calls the "connect" hook for PNIO-CM, the FrameID
     -- table and the "candidate" hook for cyclic frames.
     if C then
-        local how = p_match_string(pinfo)
-        if how == "connect" then return connect(tvb, pinfo, tree) end
-        return cyclic(tvb, pinfo, tree, fe.view(how), how == "frame_id.malformed")
+        local how = seam_view(p_match_string(pinfo))
+        if how.hook == HOOK_CONNECT then return connect(tvb, pinfo, tree) end
+        return cyclic(tvb, pinfo, tree, how.view, how.malformed)
     end
     -- No controller port is ever 0x8892 (see connect), so match_uint tells
     -- the two tables apart.

@@ -18,12 +18,13 @@ from tools.capgen.frames import pn_rt_frame, udp_frame
 from tools.capgen.pcap import Capture
 
 from conftest import CAPTURES
+from seam_testlib import CONTRACT
 
 # These tests are about the C plugin: a Lua-only run (VRSHARK_NO_C_PLUGIN=1) skips them.
 needs_c = pytest.mark.skipif(bool(os.environ.get("VRSHARK_NO_C_PLUGIN")), reason="runs without the C plugin")
 
-PN_TRIES = 64       # VRSHARK_PN_CANDIDATE_TRIES
-MB_TRIES = 1024     # VRSHARK_MB_CANDIDATE_TRIES
+PN_TRIES = CONTRACT["PN_CANDIDATE_TRIES"]
+MB_TRIES = CONTRACT["MB_CANDIDATE_TRIES"]
 
 PROBE = r"""
 local out = assert(io.open(os.getenv("VRSHARK_PROBE_OUT"), "w"))

@@ -39,6 +39,7 @@
 #include <epan/column-utils.h>
 
 #include "vrshark-columns.h"
+#include "vrshark-frontends.h"
 
 typedef struct lua_State lua_State;
 
@@ -136,5 +137,5 @@ vrshark_columns_register(void)
     if (!lua_gettop || !lua_tolstring || !lua_pushboolean)
         return;
     if (dladdr((void *)vrshark_lua_set_cols, &info) && info.dli_fname && info.dli_fname[0] == '/')
-        g_setenv("VRSHARK_FRONTENDS_LIB", info.dli_fname, TRUE);
+        g_setenv(VRSHARK_ENV_FRONTENDS_LIB, info.dli_fname, TRUE);
 }

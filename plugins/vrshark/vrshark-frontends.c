@@ -69,10 +69,11 @@
  * accepted connections (the Lua side keeps its per-frame decisions of the
  * first pass), so both passes agree.
  *
- * Known FrameIDs and accepted connections reach the decoder with
- * pinfo->match_string "frame_id" / "heuristic" / "always" when the tree is
- * visible, or the same with ".quiet" appended when nothing it would add can
- * be seen (it then keeps its state and adds nothing), or with ".sparse:..."
+ * Known FrameIDs, accepted connections and listed servers reach the decoder
+ * with pinfo->match_string "frame_id" / "heuristic" / "always" / "server"
+ * (the view grammar of vrshark-frontends.h, decoded by seam.luam's view())
+ * when the tree is visible, or the same with ".quiet" appended when nothing
+ * it would add can be seen (it then keeps its state and adds nothing), or with ".sparse:..."
  * naming what is looked at in an invisible tree: columns, expert info, the
  * referenced fields (lua_view below). Every item of an invisible tree that
  * nobody references is thrown away by Wireshark: the decoder need not build
@@ -143,7 +144,7 @@ static gboolean
 pn_pending_hook(void)
 {
     if (pn_pending < 0)
-        pn_pending = dissector_get_string_handle(pn_hook_table, "pending") != NULL;
+        pn_pending = dissector_get_string_handle(pn_hook_table, VRSHARK_PN_HOOK_PENDING) != NULL;
     return pn_pending != 0;
 }
 
@@ -187,12 +188,12 @@ typedef struct {
                                          * dropped when a file starts (view_fields) */
 } lua_view_t;
 
-static lua_view_t view_pn = { "frame_id", pn_lua_protos, { 0 }, NULL, NULL, FALSE, FALSE, FALSE, NULL, { NULL } };
-static lua_view_t view_mb_always = { "always", mb_lua_protos, { 0 }, NULL, NULL, FALSE, FALSE, FALSE, NULL,
+static lua_view_t view_pn = { VRSHARK_VIEW_FRAME_ID, pn_lua_protos, { 0 }, NULL, NULL, FALSE, FALSE, FALSE, NULL, { NULL } };
+static lua_view_t view_mb_always = { VRSHARK_MB_HOOK_ALWAYS, mb_lua_protos, { 0 }, NULL, NULL, FALSE, FALSE, FALSE, NULL,
                                      { NULL } };
-static lua_view_t view_mb_heuristic = { "heuristic", mb_lua_protos, { 0 }, NULL, NULL, FALSE, FALSE, FALSE, NULL,
+static lua_view_t view_mb_heuristic = { VRSHARK_MB_HOOK_HEURISTIC, mb_lua_protos, { 0 }, NULL, NULL, FALSE, FALSE, FALSE, NULL,
                                         { NULL } };
-static lua_view_t view_mb_server = { "server", mb_lua_protos, { 0 }, NULL, NULL, FALSE, FALSE, FALSE, NULL,
+static lua_view_t view_mb_server = { VRSHARK_MB_HOOK_SERVER, mb_lua_protos, { 0 }, NULL, NULL, FALSE, FALSE, FALSE, NULL,
                                      { NULL } };
 
 /* The Lua decoder's Modbus hooks ("always", "heuristic", "server"), looked up
@@ -424,7 +425,7 @@ lua_view(lua_view_t *v, packet_info *pinfo, proto_tree *tree)
     }
     if (!cols && !experts && !items && refs->len == 0) {
         if (!v->quiet)
-            v->quiet = g_strconcat(v->hook, ".quiet", NULL);
+            v->quiet = g_strconcat(v->hook, VRSHARK_VIEW_QUIET, NULL);
         return v->quiet;
     }
     /* (an empty GArray may have no data: memcmp() must not see it) */
@@ -434,9 +435,10 @@ lua_view(lua_view_t *v, packet_info *pinfo, proto_tree *tree)
     {
         GString *text = g_string_new(v->hook);
 
-        g_string_append_printf(text, ".sparse:%s%s%s:", cols ? "c" : "", experts ? "e" : "", items ? "p" : "");
+        g_string_append_printf(text, VRSHARK_VIEW_SPARSE "%s%s%s:", cols ? VRSHARK_VIEW_FLAG_COLS : "",
+                               experts ? VRSHARK_VIEW_FLAG_EXPERTS : "", items ? VRSHARK_VIEW_FLAG_PROTOS : "");
         for (i = 0; i < refs->len; i++)
-            g_string_append_printf(text, "%s%s", i ? "," : "",
+            g_string_append_printf(text, "%s%s", i ? VRSHARK_VIEW_LIST_SEP : "",
                                    g_array_index(refs, header_field_info *, i)->abbrev);
         g_free(v->sparse);
         v->sparse = g_string_free(text, FALSE);
@@ -540,7 +542,7 @@ dissect_pn_cyclic(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *dat
 
         fid = tvb_get_ntohs(tvb, 0);
         consumed = call_pn_rt_known(tvb, pinfo, tree, data, &thrown);
-        pinfo->match_string = thrown ? "frame_id.malformed" : lua_view(&view_pn, pinfo, tree);
+        pinfo->match_string = thrown ? VRSHARK_VIEW_MALFORMED : lua_view(&view_pn, pinfo, tree);
         pn_lua_calling();
         call_lua_frame_id(fid, tvb, pinfo, tree);
         pinfo->match_string = saved;
@@ -556,7 +558,7 @@ dissect_pn_cyclic(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *dat
     if (pn_tries[idx] >= VRSHARK_PN_CANDIDATE_TRIES && !pn_pending_hook())
         return consumed;
     pn_lua_calling();
-    if (!dissector_try_string_with_data(pn_hook_table, "candidate", tvb, pinfo, tree, FALSE, NULL) &&
+    if (!dissector_try_string_with_data(pn_hook_table, VRSHARK_PN_HOOK_CANDIDATE, tvb, pinfo, tree, FALSE, NULL) &&
         pn_tries[idx] < VRSHARK_PN_CANDIDATE_TRIES)
         pn_tries[idx]++;
     return consumed;
@@ -751,16 +753,16 @@ dissect_pn_cm(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
      * first (a cut Connect's layout cannot be read), as DCE/RPC may throw
      * on it; it is handed over once. */
     if (tvb_captured_length(tvb) < tvb_reported_length(tvb) && tvb_captured_length(tvb) >= 2 &&
-        tvb_get_uint8(tvb, 0) == DCERPC_DG_VERSION && dissector_get_string_handle(pn_hook_table, "connect")) {
+        tvb_get_uint8(tvb, 0) == DCERPC_DG_VERSION && dissector_get_string_handle(pn_hook_table, VRSHARK_PN_HOOK_CONNECT)) {
         pn_lua_calling();
-        dissector_try_string_with_data(pn_hook_table, "connect", tvb, pinfo, tree, FALSE, NULL);
+        dissector_try_string_with_data(pn_hook_table, VRSHARK_PN_HOOK_CONNECT, tvb, pinfo, tree, FALSE, NULL);
         cut = TRUE;
     }
     if (!is_dcerpc_dg(tvb))
         return 0;
     if (!dissector_try_heuristic(udp_heur_list, tvb, pinfo, tree, &hdtbl_entry, data))
         return 0;
-    if (!cut && is_connect(tvb) && dissector_get_string_handle(pn_hook_table, "connect")) {
+    if (!cut && is_connect(tvb) && dissector_get_string_handle(pn_hook_table, VRSHARK_PN_HOOK_CONNECT)) {
         if (!pinfo->fd->visited && tvb_get_uint8(tvb, 1) == DCERPC_DG_REQUEST)
             learn_controller_port(pinfo);
         if (pn_taken_by)
@@ -773,7 +775,7 @@ dissect_pn_cm(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
          * and no request it found foreign before (pn_foreign_subs). On a
          * later pass every response goes to it (what it learned on the
          * first is shown; an AR may have been dropped since). */
-        if (!dissector_get_string_handle(pn_hook_table, "response")) {
+        if (!dissector_get_string_handle(pn_hook_table, VRSHARK_PN_HOOK_RESPONSE)) {
             if (tvb_get_uint8(tvb, 1) == DCERPC_DG_RESPONSE && !pinfo->fd->visited)
                 return tvb_captured_length(tvb);
             keyed = !(tvb_get_uint8(tvb, 2) & DCERPC_DG_FLAGS1_FRAG) && pn_subs_of(tvb, pinfo, &subs);
@@ -781,7 +783,7 @@ dissect_pn_cm(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
                 return tvb_captured_length(tvb);
         }
         pn_lua_calling();
-        if (dissector_try_string_with_data(pn_hook_table, "connect", tvb, pinfo, tree, FALSE, NULL) == 0 && keyed &&
+        if (dissector_try_string_with_data(pn_hook_table, VRSHARK_PN_HOOK_CONNECT, tvb, pinfo, tree, FALSE, NULL) == 0 && keyed &&
             !pinfo->fd->visited) {
             pn_subs_key_t *kept = wmem_new(wmem_file_scope(), pn_subs_key_t);
 
@@ -971,10 +973,10 @@ mb_listed(packet_info *pinfo, guint32 server_port)
         port = pinfo->srcport;
     }
     addr = address_to_str(pinfo->pool, server);
-    key = wmem_strdup_printf(pinfo->pool, "server %s:%u", addr, port);
+    key = wmem_strdup_printf(pinfo->pool, VRSHARK_MB_SERVER_PREFIX "%s:%u", addr, port);
     found = dissector_get_string_handle(mb_hook_table, key) != NULL;
     if (!found) {
-        key = wmem_strdup_printf(pinfo->pool, "server %s", addr);
+        key = wmem_strdup_printf(pinfo->pool, VRSHARK_MB_SERVER_PREFIX "%s", addr);
         found = dissector_get_string_handle(mb_hook_table, key) != NULL;
     }
     return found;
@@ -1218,12 +1220,12 @@ dissect_mb_port_hint(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *
      * "try heuristic sub-dissectors first") */
     if (!mb_exact_adus(tvb) || !mb_evidence_request(tvb) ||
         dissector_get_uint_handle(tcp_port_table, pinfo->destport) ||
-        !dissector_get_string_handle(mb_hook_table, "port_hint"))
+        !dissector_get_string_handle(mb_hook_table, VRSHARK_MB_HOOK_PORT_HINT))
         return FALSE;
     /* the note's protocol in the layer list, not the front end's, as
      * without the C plugin */
     leave_layer_list(pinfo);
-    return dissector_try_string_with_data(mb_hook_table, "port_hint", tvb, pinfo, tree, TRUE, NULL) != 0;
+    return dissector_try_string_with_data(mb_hook_table, VRSHARK_MB_HOOK_PORT_HINT, tvb, pinfo, tree, TRUE, NULL) != 0;
 }
 
 /* ---- Registration ----------------------------------------------------------- */
@@ -1305,7 +1307,7 @@ proto_register_vrshark_frontends(void)
     expert_register_field_array(expert_register_protocol(proto_vrshark_pnio), ei, array_length(ei));
 
     pn_learned_ports = g_array_new(FALSE, FALSE, sizeof(guint32));
-    full_tree_always = g_getenv("VRSHARK_FULL_TREE") != NULL;
+    full_tree_always = g_getenv(VRSHARK_ENV_FULL_TREE) != NULL;
     vrshark_columns_register();
     register_init_routine(frontends_init);
     register_shutdown_routine(frontends_shutdown);

@@ -1,31 +1,85 @@
 /* vrshark-frontends.h
  * Transport front ends of the vrshark Lua dissectors (vrshark-frontends.c):
- * the names of the dissector tables and hooks the Lua side registers into.
+ * the names and limits shared with the Lua side.
  *
  * SPDX-License-Identifier: GPL-2.0-or-later
  */
 #ifndef VRSHARK_FRONTENDS_H
 #define VRSHARK_FRONTENDS_H
 
-/* PROFINET: FrameID (uint 16) -> the Lua decoder of a known cyclic frame. */
+/* The seam between this plugin and the Lua plugins: every name and limit
+ * both sides use, defined here for C and in lua/vrshark/seam.luam for Lua
+ * (the same names without "VRSHARK_"); tests/test_seam.py holds the two
+ * equal and fails on a literal either side uses in their place. What each
+ * one means, who writes and reads it and what is cached: docs/design.md,
+ * "The seam between C and Lua". */
+
+/* Dissector tables. FrameID (uint 16) -> the Lua decoder of a known cyclic
+ * frame; the hooks by name (string tables); the Modbus/TCP front end, which
+ * the Lua side puts on the listed servers' ports. (EG-Link's application
+ * data table is EGLINK_DATA_TABLE, packet-eglink.h.) */
 #define VRSHARK_PN_FRAME_ID_TABLE   "vrshark.pn.frame_id"
-/* PROFINET hooks (string table):
- *   "candidate": unknown FrameIDs of the RT class 1 range, a bounded number
- *                of tries per FrameID (return 0: not ours);
- *   "pending":   present while the Lua side waits for the downlink FrameID
- *                of a device found by its header: candidates are then tried
- *                beyond the bound;
- *   "connect":   PNIO-CM Connect requests and responses (after DCE/RPC). */
 #define VRSHARK_PN_HOOK_TABLE       "vrshark.pn.hook"
-/* Modbus/TCP (string table): "heuristic" -> the Lua decoder, given the
- * frames of a connection until it accepts one (returns non-zero; a bounded
- * number of tries per connection) and every frame after that; "always" ->
- * the Lua decoder, given every frame. */
 #define VRSHARK_MB_HOOK_TABLE       "vrshark.mbtcp.hook"
-/* The Modbus/TCP front end: the Lua side puts it on its TCP port. */
 #define VRSHARK_MB_FRONT_NAME       "vrshark.mbtcp"
 
-/* Heuristic tries: cyclic frames per FrameID, frames per TCP connection.
+/* PROFINET hooks (in VRSHARK_PN_HOOK_TABLE):
+ *   candidate  called: unknown FrameIDs of the RT class 1 range, first pass,
+ *              VRSHARK_PN_CANDIDATE_TRIES refusals (0 back) per FrameID;
+ *   pending    flag: the Lua side waits for a downlink FrameID or an
+ *              inference is alive: candidates are tried beyond the bound;
+ *   connect    called: PNIO-CM Connect requests and responses (after
+ *              DCE/RPC); 0 back for a request of no system of the Lua side;
+ *   response   flag: the Lua side holds an AR learned from a request, so
+ *              responses are handed over on the first pass too. */
+#define VRSHARK_PN_HOOK_CANDIDATE   "candidate"
+#define VRSHARK_PN_HOOK_PENDING     "pending"
+#define VRSHARK_PN_HOOK_CONNECT     "connect"
+#define VRSHARK_PN_HOOK_RESPONSE    "response"
+
+/* Modbus/TCP hooks (in VRSHARK_MB_HOOK_TABLE):
+ *   heuristic  called: the frames of a connection until it accepts one
+ *              (non-zero back; VRSHARK_MB_CANDIDATE_TRIES refusals per
+ *              connection) and every frame after that;
+ *   always     called: every frame;
+ *   server     called and flag: the listed servers' frames, present while
+ *              any server is listed; each is a key of its own,
+ *              VRSHARK_MB_SERVER_PREFIX "ADDR:PORT" or "ADDR" (every port);
+ *   port_hint  called: a request on a port nobody reads as Modbus/TCP that
+ *              asks for a BU's evidence. */
+#define VRSHARK_MB_HOOK_HEURISTIC   "heuristic"
+#define VRSHARK_MB_HOOK_ALWAYS      "always"
+#define VRSHARK_MB_HOOK_SERVER      "server"
+#define VRSHARK_MB_SERVER_PREFIX    "server "
+#define VRSHARK_MB_HOOK_PORT_HINT   "port_hint"
+
+/* The view, in pinfo->match_string (vrshark-frontends.c:lua_view encodes it,
+ * seam.luam's view() decodes it): HOOK alone (everything), HOOK
+ * VRSHARK_VIEW_QUIET (nothing to add), HOOK VRSHARK_VIEW_SPARSE FLAGS ":" LIST
+ * (FLAGS of VRSHARK_VIEW_FLAG_*, LIST the referenced fields joined by
+ * VRSHARK_VIEW_LIST_SEP), or VRSHARK_VIEW_MALFORMED (PN-RT threw). HOOK is
+ * VRSHARK_VIEW_FRAME_ID or a Modbus hook called with a view. */
+#define VRSHARK_VIEW_FRAME_ID       "frame_id"
+#define VRSHARK_VIEW_QUIET          ".quiet"
+#define VRSHARK_VIEW_SPARSE         ".sparse:"
+#define VRSHARK_VIEW_MALFORMED      "frame_id.malformed"
+#define VRSHARK_VIEW_FLAG_COLS      "c"
+#define VRSHARK_VIEW_FLAG_EXPERTS   "e"
+#define VRSHARK_VIEW_FLAG_PROTOS    "p"
+#define VRSHARK_VIEW_LIST_SEP       ","
+
+/* Environment: the plugin's own path, for the Lua side's package.loadlib of
+ * the column writers (set by vrshark-columns.c); every view the whole tree
+ * (read by both sides at load). */
+#define VRSHARK_ENV_FRONTENDS_LIB   "VRSHARK_FRONTENDS_LIB"
+#define VRSHARK_ENV_FULL_TREE       "VRSHARK_FULL_TREE"
+
+/* The column writers vrshark.so exports (vrshark-columns.c). */
+#define VRSHARK_FN_SET_COLS         "vrshark_lua_set_cols"
+#define VRSHARK_FN_APPEND_INFO      "vrshark_lua_append_info"
+
+/* Heuristic tries: cyclic frames per FrameID, frames per TCP connection
+ * (the Lua decoders bound their own tries by the same numbers).
  * A Modbus/TCP connection may need up to a second of BU traffic before the
  * Lua heuristic accepts it (PCI moving at the 125 ms cadence): 1024 frames
  * cover that second at a 2 ms poll (request and response). */

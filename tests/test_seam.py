@@ -1,0 +1,277 @@
+"""The seam between the C plugin and the Lua plugins as one contract: the
+names and limits of plugins/vrshark/vrshark-frontends.h (VRSHARK_NAME) and of
+lua/vrshark/seam.luam (NAME) are the same, no source spells one as a literal
+instead, a mistyped name or hook key is an error, and the view the C front
+ends put into pinfo.match_string reads back as it was written.
+
+seam.luam is plain Lua: it is run by each Lua interpreter installed
+(lua5.4, lua5.2: tools/setup) and by tshark's own (-X lua_script)."""
+import re
+import shutil
+import subprocess
+from itertools import combinations
+
+import pytest
+
+from conftest import CAPTURES, ROOT, _world_dir
+from seam_testlib import CONTRACT
+
+SEAM = ROOT / "lua" / "vrshark" / "seam.luam"
+C_SOURCES = sorted((ROOT / "plugins" / "vrshark").glob("*.c"))
+LUA_SOURCES = sorted(p for p in (ROOT / "lua").rglob("*") if p.suffix in (".lua", ".luam") and p != SEAM)
+SEAM_FUNCTIONS = {"view", "key", "server_key"}
+STRINGS = {name: value for name, value in CONTRACT.items() if isinstance(value, str)}
+
+
+def view_cases():
+    """(match_string or None, expected decoding) as the C front ends write
+    them (vrshark-frontends.c:lua_view): hook, hook .quiet, hook
+    .sparse:FLAGS:LIST with FLAGS in the order c, e, p; the malformed frame;
+    the keys of string-table calls; none."""
+    c = CONTRACT
+    flags = [("cols", c["VIEW_FLAG_COLS"]), ("experts", c["VIEW_FLAG_EXPERTS"]), ("protos", c["VIEW_FLAG_PROTOS"])]
+    lists = [[], ["mcmb2.uplink.terminal"], ["eclink.pci", "eclink_modbus.adu_kind", "vrshark_io.mcmb2.up.x-1"]]
+    cases = [(None, {"hook": False, "malformed": False, "view": None})]
+    for hook in (c["VIEW_FRAME_ID"], c["MB_HOOK_HEURISTIC"], c["MB_HOOK_ALWAYS"], c["MB_HOOK_SERVER"]):
+        cases.append((hook, {"hook": hook, "malformed": False, "view": None}))
+        cases.append((hook + c["VIEW_QUIET"], {"hook": hook, "malformed": False, "view": "quiet"}))
+        for n in range(4):
+            for on in combinations(flags, n):
+                for fields in lists:
+                    text = hook + c["VIEW_SPARSE"] + "".join(f for _, f in on) + ":" + c["VIEW_LIST_SEP"].join(fields)
+                    want = {k: any(k == name for name, _ in on) for k, _ in flags}
+                    want["fields"] = sorted(fields)
+                    cases.append((text, {"hook": hook, "malformed": False, "view": want}))
+    cases.append((c["VIEW_MALFORMED"], {"hook": c["VIEW_FRAME_ID"], "malformed": True, "view": None}))
+    for key in (c["PN_HOOK_CONNECT"], c["PN_HOOK_CANDIDATE"], c["MB_HOOK_PORT_HINT"]):
+        cases.append((key, {"hook": key, "malformed": False, "view": None}))
+    return cases
+
+
+CASES = view_cases()
+
+
+def lua_string(text):
+    return "nil" if text is None else '"%s"' % text.replace("\\", "\\\\").replace('"', '\\"')
+
+
+def probe_script():
+    """A Lua script that writes, one a line, the module's constants, each
+    case's decoding, and what a mistyped name or key does."""
+    views = ",\n".join("{ %s }" % lua_string(how) for how, _ in CASES)
+    return r"""
+package.path = "%(lua)s/?.luam;" .. package.path
+local seam = require("vrshark.seam")
+local out = assert(io.open("%(out)s", "w"))
+for k, v in pairs(seam) do
+    if type(v) ~= "function" then out:write("const\t", k, "\t", type(v), "\t", tostring(v), "\n") end
+end
+local cases = { """ + views + r""" }
+local function flag(b) return b and "1" or "0" end
+local function decode(i, how)
+    local d = seam.view(how)
+    local v, kind = d.view, "nil"
+    if v and v.quiet then kind = "quiet"
+    elseif v then
+        local names = {}
+        for name in pairs(v.fields) do names[#names + 1] = name end
+        table.sort(names)
+        kind = flag(v.cols) .. flag(v.experts) .. flag(v.protos) .. "\t" .. table.concat(names, " ")
+            .. "\t" .. type(v.plans)
+    end
+    out:write("view\t", i, "\t", tostring(d.hook), "\t", tostring(d.malformed), "\t", kind, "\n")
+end
+for i, c in ipairs(cases) do decode(i, c[1]) end
+-- (cached: the same string, the same table; still right once the cache was emptied)
+out:write("same\t", tostring(seam.view(cases[#cases][1]) == seam.view(cases[#cases][1])), "\n")
+for n = 1, 300 do seam.view("frame_id.sparse:c:f" .. n) end
+for i, c in ipairs(cases) do decode(i, c[1]) end
+local function try(what, f, ...)
+    local ok, err = pcall(f, ...)
+    out:write("try\t", what, "\t", tostring(ok), "\t", tostring(err):gsub("\n", " "), "\n")
+end
+try("mistyped_name", function() return seam.PN_HOOK_PENDNG end)
+try("set_name", function() seam.PN_HOOK_PENDING = "x" end)
+try("mistyped_key", seam.key, seam.PN_HOOK_TABLE, "pendng")
+try("other_tables_key", seam.key, seam.PN_HOOK_TABLE, seam.MB_HOOK_ALWAYS)
+try("server_key_pn", seam.key, seam.PN_HOOK_TABLE, seam.server_key("10.0.0.1", 502))
+try("no_table", seam.key, "vrshark.pn.hooks", seam.PN_HOOK_PENDING)
+try("pending", seam.key, seam.PN_HOOK_TABLE, seam.PN_HOOK_PENDING)
+try("port_hint", seam.key, seam.MB_HOOK_TABLE, seam.MB_HOOK_PORT_HINT)
+try("server_key", seam.key, seam.MB_HOOK_TABLE, seam.server_key("10.0.0.1", 502))
+try("server_key_any_port", seam.key, seam.MB_HOOK_TABLE, seam.server_key("10.0.0.1"))
+out:close()
+"""
+
+
+INTERPRETERS = ["tshark"] + [name for name in ("lua5.4", "lua5.2") if shutil.which(name)]
+
+
+@pytest.fixture(scope="module", params=INTERPRETERS)
+def probed(request, tshark):
+    """The probe's lines, by kind: {"const": {name: value}, "view": [...], "same": ..., "try": {...}}."""
+    # (a folder tshark can write in when tools/tshark drops root)
+    work = _world_dir("vrshark-seam-")
+    request.addfinalizer(lambda: shutil.rmtree(work, ignore_errors=True))
+    out = work / "probe.txt"
+    out.touch()
+    out.chmod(0o666)
+    script = work / "probe.lua"
+    script.write_text(probe_script() % {"lua": ROOT / "lua", "out": out})
+    script.chmod(0o644)
+    if request.param == "tshark":
+        cmd = [tshark.cmd, "-n", "-q", "-r", str(CAPTURES / "eclink_pnio_connect.pcap"), "-c", "1",
+               "-X", "lua_script:%s" % script]
+        env = tshark.env
+    else:
+        cmd, env = [request.param, str(script)], None
+    proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert "Lua Error" not in proc.stdout + proc.stderr
+    got = {"const": {}, "view": [], "try": {}}
+    for line in out.read_text().splitlines():
+        kind, *rest = line.split("\t")
+        if kind == "const":
+            name, typ, value = rest
+            got["const"][name] = int(value) if typ == "number" else value
+        elif kind == "view":
+            got["view"].append(rest)
+        elif kind == "same":
+            got["same"] = rest[0]
+        else:
+            got["try"][rest[0]] = (rest[1] == "true", rest[2])
+    return got
+
+
+def expected_row(i, want):
+    v = want["view"]
+    if v is None:
+        kind = ["nil"]
+    elif v == "quiet":
+        kind = ["quiet"]
+    else:
+        kind = ["".join("1" if v[k] else "0" for k in ("cols", "experts", "protos")), " ".join(v["fields"]), "table"]
+    return [str(i), str(want["hook"]).lower() if want["hook"] is False else want["hook"],
+            str(want["malformed"]).lower()] + kind
+
+
+def test_both_sides_name_the_same(probed):
+    # (Lua's numbers may print as 64 or 64.0: compared as numbers)
+    got = {k: (int(float(v)) if k.endswith("_TRIES") else v) for k, v in probed["const"].items()}
+    assert got == CONTRACT
+    assert {"PN_HOOK_TABLE", "MB_HOOK_TABLE", "PN_HOOK_PENDING", "MB_HOOK_PORT_HINT", "VIEW_MALFORMED",
+            "ENV_FULL_TREE", "PN_CANDIDATE_TRIES", "MB_CANDIDATE_TRIES"} <= set(CONTRACT)
+
+
+def test_the_view_reads_back_as_written(probed):
+    want = [expected_row(i, w) for i, (_, w) in enumerate(CASES, 1)]
+    assert probed["view"] == want + want
+    assert probed["same"] == "true"
+
+
+def test_a_mistyped_name_or_key_is_an_error(probed):
+    t = probed["try"]
+    for what, needle in (("mistyped_name", "no PN_HOOK_PENDNG"), ("set_name", "PN_HOOK_PENDING is not to be set"),
+                         ("mistyped_key", "no hook pendng in vrshark.pn.hook"),
+                         ("other_tables_key", "no hook always in vrshark.pn.hook"),
+                         ("server_key_pn", "no hook server 10.0.0.1:502 in vrshark.pn.hook"),
+                         ("no_table", "no hook table vrshark.pn.hooks")):
+        ok, err = t[what]
+        assert not ok and needle in err, (what, err)
+    assert t["pending"] == (True, "pending")
+    assert t["port_hint"] == (True, "port_hint")
+    assert t["server_key"] == (True, "server 10.0.0.1:502")
+    assert t["server_key_any_port"] == (True, "server 10.0.0.1")
+
+
+def code_of_c(text):
+    """C text without its comments (string literals kept)."""
+    return re.sub(r'/\*.*?\*/|//[^\n]*', " ", text, flags=re.S)
+
+
+def code_of_lua(text):
+    """Lua text without its comments (string literals kept; long strings are
+    not used in these sources)."""
+    out, i, n = [], 0, len(text)
+    while i < n:
+        ch = text[i]
+        if ch in "\"'":
+            j = i + 1
+            while j < n and text[j] != ch:
+                j += 2 if text[j] == "\\" else 1
+            out.append(text[i:j + 1])
+            i = j + 1
+        elif text.startswith("--", i):
+            if text.startswith("--[[", i):
+                i = text.find("]]", i) + 2
+            else:
+                i = text.find("\n", i)
+                i = n if i < 0 else i
+        else:
+            out.append(ch)
+            i += 1
+    return "".join(out)
+
+
+# Contract strings that name nothing else in these sources: a literal of one
+# anywhere is the contract spelt out by hand. The hook names (words such as
+# "candidate", also a record kind, or "frame_id", a column of an IO list) and
+# the one-letter flags are caught where they are used as hook keys or views
+# (HOOK_USES).
+WORDS = {v for k, v in STRINGS.items() if "_HOOK_" in k or k == "VIEW_FRAME_ID" or len(v) == 1}
+DISTINCT = set(STRINGS.values()) - WORDS
+LITERAL = re.compile(r'"((?:[^"\\\n]|\\.)*)"')
+HOOK_USES = [
+    # C: a string table looked up or called with a literal key
+    re.compile(r'dissector_(?:get|try)_string\w*\(\s*\w+\s*,\s*"'),
+    # Lua: a hook table's entry added or removed, fe.hook, a view compared
+    re.compile(r'(?:_hook|hook_table)\s*:\s*(?:add|remove)\s*\(\s*"'),
+    re.compile(r'\bhook\s*\(\s*[\w.]+\s*,\s*"'),
+    re.compile(r'\b(?:how|match_string|hook)\s*[=~]=\s*"'),
+    re.compile(r'\bDissector(?:Table)?\.(?:get|new)\s*\(\s*"vrshark\.'),
+]
+
+
+def literal_uses(path):
+    text = path.read_text()
+    code = code_of_c(text) if path.suffix == ".c" else code_of_lua(text)
+    found = []
+    for n, line in enumerate(code.splitlines(), 1):
+        if any(m.group(1) in DISTINCT for m in LITERAL.finditer(line)) or any(p.search(line) for p in HOOK_USES):
+            found.append((path.name, n, line.strip()))
+    return found
+
+
+def test_no_source_spells_the_contract_out():
+    found = [use for path in C_SOURCES + LUA_SOURCES for use in literal_uses(path)]
+    assert found == []
+
+
+def test_the_check_catches_a_mistyped_key(tmp_path):
+    """The static check fails on the mistakes it is there for."""
+    lua = tmp_path / "bad.lua"
+    lua.write_text('local x = 1 -- fe.hook(fe.pn_hook, "pending", p, true) in a comment is fine\n'
+                   'fe.hook(fe.pn_hook, "pendng", carrier, true)\n'
+                   'fe.mb_hook:add("port_hint", proto)\n'
+                   'if how == "connect" then end\n'
+                   'local t = DissectorTable.get("vrshark.pn.hook")\n')
+    c = tmp_path / "bad.c"
+    c.write_text('/* "port_hint" */ x = dissector_get_string_handle(pn_hook_table, "pendng");\n')
+    assert [n for _, n, _ in literal_uses(lua)] == [2, 3, 4, 5]
+    assert [n for _, n, _ in literal_uses(c)] == [1]
+
+
+def test_every_seam_name_used_is_defined():
+    used = set()
+    for path in LUA_SOURCES:
+        code = code_of_lua(path.read_text())
+        used |= set(re.findall(r'\bseam\.([A-Za-z_]\w*)', code))
+        used |= set(re.findall(r'require\("vrshark\.seam"\)\.([A-Za-z_]\w*)', code))
+    assert used, "no Lua source reads vrshark.seam"
+    assert used - set(CONTRACT) - SEAM_FUNCTIONS == set()
+
+
+def test_the_column_writers_named_are_exported():
+    text = (ROOT / "plugins" / "vrshark" / "vrshark-columns.c").read_text()
+    for name in ("FN_SET_COLS", "FN_APPEND_INFO"):
+        assert re.search(r"VRSHARK_EXPORT int %s\(lua_State \*L\);" % CONTRACT[name], text), name
