@@ -245,9 +245,10 @@ def test_device_column_on_a_second_controller_of_a_shared_group(profile_conf, ts
 # eclink_modbus_faults.pcap frame 28, 82 characters, spans 636 px); a cell's
 # text sits 4-5 px from its left edge and 4 px from its right one. The No.
 # column takes another 24 px for the related-frame marks, and the vertical
-# scroll bar 16 px. (test_long_capture_columns_not_cut checks No., Time and
-# Source in the GUI.)
-ADVANCE, MARGIN, MARKS, SCROLL_BAR = 7.8, 8, 24, 16
+# scroll bar with the packet list's minimap beside it 50 px (the Info column
+# ends at x 1630 on those screenshots). (test_long_capture_columns_not_cut
+# checks No., Time and Source in the GUI.)
+ADVANCE, MARGIN, MARKS, SCROLL_BAR = 7.8, 8, 24, 50
 
 
 def needs(text, title=None):
