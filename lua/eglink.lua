@@ -711,6 +711,7 @@ local RU_STATE_INITIAL, RU_STATE_ARMED, RU_STATE_ENABLED = 0, 2, 3
 -- BU goes on (TS-0007 9: an EC-Link error locks the BU in Initial). f: the
 -- values and items, nil where the capture does not hold the field. The same
 -- rules and texts as the C plugin and the EC-Link images.
+local vrpi_fields = {}   -- check_disagree()'s argument, filled by each VRPI
 local function check_disagree(p, f)
     local bu = BU_STATE[f.bu_state] or "Unknown"
     local ru = f.ru_state and (RU_STATE[f.ru_state] or "Unknown")
@@ -867,8 +868,9 @@ local function dissect_vrpi(p, info)
     check_passive(p, ec_ti, 2, ec, armed_ru)
     check_passive(p, cl_ti, 3, cl, armed_ru)
     local ru_state, ru_ti = add_uint(p, pf.ru_state, 8, 1)
-    local fields = { bu_state = bu_state, bu_ti = bu_ti, ec_link = ec, ec_ti = ec_ti, armed_ru = armed_ru,
-                     ru_state = ru_state, ru_ti = ru_ti }
+    local fields = vrpi_fields   -- (every key set anew for each VRPI: no table a packet)
+    fields.bu_state, fields.bu_ti, fields.ec_link, fields.ec_ti = bu_state, bu_ti, ec, ec_ti
+    fields.armed_ru, fields.ru_state, fields.ru_ti = armed_ru, ru_state, ru_ti
     if ru_state then
         if ru_state == RU_STATE_STOPPED then
             value_finding(p, ru_ti, ei.ru_state_stopped,
