@@ -7,7 +7,8 @@ not make:
   `tshark -Y` as a field engineer cuts a capture;
 - a pymodbus BU and PLC on 127.0.0.1 captured on lo (the plant of
   test_eclink_modbus_realstack.py): the PLC stops polling the BU while it
-  polls the three ordinary servers on, or closes or resets its connection;
+  polls the three ordinary servers on, or closes or resets its connection,
+  or the BU's server stops;
 - real UDP sockets: an EG-Link BU that stops sending VRPI while its
   controller goes on, with a command it sends that is never acknowledged.
 
@@ -20,6 +21,7 @@ import os
 import shutil
 import statistics
 import subprocess
+import sys
 import time
 
 import pytest
@@ -262,9 +264,69 @@ def _plant_plc(how):
     return plc
 
 
-@pytest.fixture(scope="module", params=["silent", "close", "reset"])
+def _servers(rs, folder, which):
+    """The plant's pymodbus servers in a process of their own: "bu" the BU
+    alone, "others" all but the BU."""
+    script = folder / ("servers_%s.py" % which)
+    script.write_text(rs.SERVERS.replace(
+        '(plant[:1] if MODE == "commands" else plant)',
+        '(plant[:1] if MODE == "bu" else plant[1:] if MODE == "others" else plant)'))
+    return subprocess.Popen([sys.executable, str(script), str(rs.PORT), which], stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+
+
+def _bu_server_stops(folder):
+    """The BU's server process ends after BU_S: the BU's side closes the
+    connection, as a BU whose Modbus/TCP server stops does; the PLC polls
+    the ordinary servers on."""
+    import test_eclink_modbus_realstack as rs
+    cap = folder / "plant-bu-stops.pcapng"
+    others, bu_server = _servers(rs, folder, "others"), _servers(rs, folder, "bu")
+    try:
+        dumpcap = rs._start_capture(cap)
+        try:
+            bu = rs._client(rs.BU)
+            clients = [rs._client(ip) for ip in rs.ORDINARY]
+            start, pco = time.monotonic(), 1
+            while time.monotonic() < start + PLANT_S:
+                if bu is not None and time.monotonic() < start + BU_S:
+                    rr = bu.read_input_registers(0, count=32, device_id=1)
+                    assert not rr.isError(), rr
+                    assert not bu.write_registers(0, rs._output_registers(pco, rr.registers[0] >> 8),
+                                                  device_id=1).isError()
+                    pco = (pco + 1) & 0xFF
+                elif bu is not None:
+                    bu_server.terminate()
+                    bu_server.wait(timeout=10)
+                    time.sleep(0.05)
+                    bu.close()
+                    bu = None
+                for client in clients:
+                    assert not client.read_input_registers(0, count=32, device_id=1).isError()
+                time.sleep(0.05)
+            for client in clients:
+                client.close()
+            time.sleep(0.2)
+        finally:
+            rs._stop(dumpcap)
+    finally:
+        for proc in (others, bu_server):
+            proc.terminate()
+            proc.wait(timeout=10)
+    cap.chmod(0o644)
+    return cap
+
+
+@pytest.fixture(scope="module", params=["silent", "close", "reset", "server_stopped"])
 def plant(request):
     import test_eclink_modbus_realstack as rs
+    if request.param == "server_stopped":
+        folder = _world_dir("vrshark-plant-", 0o777)
+        try:
+            yield request.param, _bu_server_stops(folder), rs.PORT
+        finally:
+            shutil.rmtree(folder, ignore_errors=True)
+        return
     for got in rs.captured("plant", _plant_plc(request.param)):
         yield request.param, got[0], rs.PORT
 
@@ -290,14 +352,17 @@ def test_plc_leaves_the_bu(tshark, plant):
     want = [(reads[-1][0], "error", stop_line("input image read (unit 1)", reads[-1], end, 500)),
             (writes[-1][0], "error", stop_line("output image written (unit 1)", writes[-1], end, 2000))]
     if how != "silent":
+        # the first FIN or RST of the BU's connection after its last image, by
+        # the PLC (to the BU's port) or, its server stopped, by the BU
         flag = "tcp.flags.reset" if how == "reset" else "tcp.flags.fin"
-        close = [f for f in got if f[2][flag] in ("1", "True") and f[2]["ip.src"] == "127.0.0.1"
-                 and f[2]["tcp.dstport"] == str(port)][0]
-        client = "127.0.0.1:%s" % close[2]["tcp.srcport"]
+        by_bu = how == "server_stopped"
+        close = [f for f in got if f[0] > writes[-1][0] and f[2][flag] == "1"
+                 and f[2]["tcp.srcport" if by_bu else "tcp.dstport"] == str(port)][0]
+        client = "127.0.0.1:%s" % close[2]["tcp.dstport" if by_bu else "tcp.srcport"]
         words = "reset (RST)" if how == "reset" else "closed (FIN)"
-        want.append((close[0], "error", "connection %s to 127.0.0.1:%d %s by the PLC in frame %d at %.3f s; "
-                     "the capture goes on %.3f s without it" % (client, port, words, close[0], close[1],
-                                                                end - close[1])))
+        want.append((close[0], "error", "connection %s to 127.0.0.1:%d %s by the %s in frame %d at %.3f s; "
+                     "the capture goes on %.3f s without it" % (client, port, words, "BU" if by_bu else "PLC",
+                                                                close[0], close[1], end - close[1])))
     assert sorted(e for e in stopped(rep) if e[2].startswith(("input", "output", "connection"))) == sorted(want)
     rows = {r["stream"]: r for r in dev["streams"]}
     assert rows["input image read (unit 1)"]["frames"] == len(reads)
