@@ -566,8 +566,11 @@ class Capture:
         self._experts(dev, c, frame, t)
         if alone is not None:
             alone["entries"] += self.entries[entries:]
-        if good and (typ == "VRPI" or typ == "VRPO"):
-            dev.last_seen[typ] = (frame, t)
+        if typ == "VRPI" or typ == "VRPO":
+            if good:
+                dev.last_seen[typ] = (frame, t)
+            # (a packet with a bad CRC is a frame of its stream all the same:
+            # its sender is not silent, the CRC is a finding of its own)
             self._stream = health.stream(dev, typ, self.limits)
             self._stream.add(frame, t)
         if "bu" not in dev.address and typ.endswith("I"):  # the BU's own packets
