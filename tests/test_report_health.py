@@ -99,3 +99,19 @@ def test_public_captures_have_no_rows_and_no_stop(name):
     rep = json.loads(proc.stdout)["captures"][0]
     assert rep["devices"] == [] and [e for e in rep["timeline"] if e["kind"] == "stopped"] == []
     assert "health" not in run(path).stdout
+
+
+def test_cycle_median_and_silence_from_the_intervals():
+    """The median of an even count is the mean of the two middle intervals;
+    the longest silence names the frame that ended it (the first of equals)."""
+    import sys
+    sys.path.insert(0, str(ROOT / "tools"))
+    from report import health
+    s = health.Stream("input", "input", 0.5)
+    for frame, t in ((1, 0.0), (2, 0.010), (3, 0.050), (4, 0.070), (5, 0.100), (6, 0.140)):
+        s.add(frame, t)
+    # intervals 10, 40, 20, 30, 40 ms
+    assert (s.frames, s.low, s.high, s.median()) == (6, 0.01, 0.04, 0.03)
+    assert (s.silence, s.silence_frame) == (0.04, 3)
+    s.add(7, 0.160)
+    assert s.median() == 0.025
