@@ -21,7 +21,8 @@ Input port 5825 (configurable), output port = input port + 2, multicast
 239.255.42.20. The per-BU conversation analysis, command links and VRPO
 reassembly live in vrshark/eglink_analysis.luam (as eglink-analysis.c), the
 "eglink.data" hand-off in vrshark/eglink_data.luam. The statistics tree of
-the C plugin (-z eglink,tree) has no Lua counterpart (docs/eglink.md).
+the C plugin (-z eglink,tree) has no Lua counterpart; its table, -z eglink,stat,
+has (docs/eglink.md).
 ]]
 
 local dir = debug.getinfo(1, "S").source:match("^@(.*)[/\\]")
@@ -49,6 +50,7 @@ local handoff = require("vrshark.eglink_data")
 local analysis
 if package.searchpath and package.searchpath("vrshark.eglink_analysis", package.path) then
     analysis = require("vrshark.eglink_analysis")
+    analysis.stat_cmd_register() -- tshark -z eglink,stat
 end
 
 local band, bor, bxor, lshift, rshift = bit.band, bit.bor, bit.bxor, bit.lshift, bit.rshift
