@@ -986,135 +986,146 @@ end
 -- output image written, over any of the PLC's connections to it. Every
 -- read or write arms its deadline on the shared clock (vrshark/deadlines);
 -- the first frame any plugin dissects after it carries the finding.
-local STREAM = {
-    input = { expert = "input_missing", what = "input image not read", last = "read", tag = "no input image",
-              rule = "PCI timeout", spec = "TS-0007 8.3" },
-    output = { expert = "output_missing", what = "output image not written", last = "written",
-               tag = "no output image", rule = "PCO timeout", spec = "TS-0007 8.4" },
-}
+-- (in a block: the main chunk is near Lua's limit of 200 locals)
+local stream_frame, streams_dropped, tap_tcp
+do
+    local STREAM = {
+        input = { expert = "input_missing", what = "input image not read", last = "read", tag = "no input image",
+                  rule = "PCI timeout", spec = "TS-0007 8.3" },
+        output = { expert = "output_missing", what = "output image not written", last = "written",
+                   tag = "no output image", rule = "PCO timeout", spec = "TS-0007 8.4" },
+    }
 
--- what a finding of the clock adds to the frame that carries it: a
--- generated item of this protocol with the links and the expert, the tag in
--- Info (pinfo.cols: the frame may be any plugin's, and this is rare)
-local function clock_show(expert_field, text, tag, links)
-    return function(tvb, pinfo, tree)
-        local item = add(tree, proto, tvb:range(0, 0))
-        set_generated(item)
-        append_text(item, ": " .. text)
-        for i = 1, #links, 2 do set_generated(add(item, links[i], links[i + 1])) end
-        item:add_proto_expert_info(expert_field, text)
-        pinfo.cols.info:append(tag)
-    end
-end
-
-local function stream_of(kind, bu, unit)
-    local key = "eclink_modbus " .. kind .. " " .. bu .. " unit " .. unit
-    local s = streams[key]
-    if s then return s end
-    local k = STREAM[kind]
-    s = { key = key, kind = kind, bu = bu, unit = unit, frame = false, t = false, limit = false }
-    s.fire = function(_, now)
-        local gap = now - s.t
-        local text = string.format("BU %s unit %d: %s for %.3f s (%s %.3f s, %s): last %s in frame %d",
-            bu, unit, k.what, gap, k.rule, s.limit, k.spec, k.last, s.frame)
-        return clock_show(ef[k.expert], text, string.format(" [%s %.3f s]", k.tag, gap),
-            { pf.missing_since, s.frame, pf.missing_time, nstime(gap) })
-    end
-    streams[key] = s
-    return s
-end
-
--- a frame of the stream (a request to the BU): its deadline moves on. The
--- connection keeps its own last frame of each image (c.f_in, c.f_out, by
--- unit): what its close names, also when the close is worked out on a
--- later pass and the stream went on over another connection.
-local function stream_frame(c, kind, unit, number, abs, limit, pinfo)
-    local input = kind == "input"
-    local by_unit = c[input and "s_in" or "s_out"]
-    if not by_unit then
-        by_unit = {}
-        c[input and "s_in" or "s_out"], c[input and "f_in" or "f_out"] = by_unit, {}
-    end
-    local s = by_unit[unit]
-    if not s then
-        s = stream_of(kind, tostring(pinfo.dst) .. ":" .. pinfo.dst_port, unit)
-        by_unit[unit] = s
-    end
-    c[input and "f_in" or "f_out"][unit] = number
-    s.frame, s.t, s.limit = number, abs, limit
-    deadlines.arm(s.key, abs + limit, s.fire)
-end
-
--- a connection no longer taken for a BU's: its streams are none
-local function streams_dropped(c)
-    for _, list in ipairs({ c.s_in or NONE, c.s_out or NONE }) do
-        for _, s in pairs(list) do deadlines.disarm(s.key) end
-    end
-end
-
--- the last frames of a connection's image streams, for the close finding
-local function last_frames(c)
-    local parts = {}
-    for _, kind in ipairs({ "input", "output" }) do
-        local list = c[kind == "input" and "f_in" or "f_out"]
-        local any = false
-        for unit, frame in pairs(list or NONE) do
-            any = true
-            parts[#parts + 1] = string.format("%s image (unit %d) last %s in frame %d", kind, unit,
-                STREAM[kind].last, frame)
+    -- what a finding of the clock adds to the frame that carries it: a
+    -- generated item of this protocol with the links and the expert, the tag in
+    -- Info (pinfo.cols: the frame may be any plugin's, and this is rare)
+    local function clock_show(expert_field, text, tag, links)
+        return function(tvb, pinfo, tree)
+            local item = add(tree, proto, tvb:range(0, 0))
+            set_generated(item)
+            append_text(item, ": " .. text)
+            for i = 1, #links, 2 do set_generated(add(item, links[i], links[i + 1])) end
+            item:add_proto_expert_info(expert_field, text)
+            pinfo.cols.info:append(tag)
         end
-        if not any then parts[#parts + 1] = string.format("%s image not %s on it", kind, STREAM[kind].last) end
     end
-    return table.concat(parts, ", ")
-end
 
--- The TCP segments that end a connection carry no payload, and TCP hands
--- none of those to a subdissector: a listener of the tcp tap sees them (no
--- filter: no tree forced; one Lua call a TCP frame, which returns at once
--- unless FIN or RST is set). A FIN or RST on a BU's connection is said on
--- the next frame a plugin dissects (the tap runs after the frame's own
--- dissection), naming the frame that ended it.
-local FIN, RST = 1, 4
--- tshark -2 runs the taps in its second pass only (Wireshark in the first)
-local taps_late = passes.tshark() and not passes.once()
-local function find_conn(pinfo, sport, dport)
-    local src, dst = p_src(pinfo), p_dst(pinfo)
-    local list = keys_by_ports[sport * 65536 + dport]
-    for i = 1, list and #list or 0 do
-        local e = list[i]
-        if e[1] == src and e[2] == dst then return conns[e[3]], true, e[3] end
+    local function stream_of(kind, bu, unit)
+        local key = "eclink_modbus " .. kind .. " " .. bu .. " unit " .. unit
+        local s = streams[key]
+        if s then return s end
+        local k = STREAM[kind]
+        s = { key = key, kind = kind, bu = bu, unit = unit, frame = false, t = false, limit = false }
+        s.fire = function(_, now)
+            local gap = now - s.t
+            local text = string.format("BU %s unit %d: %s for %.3f s (%s %.3f s, %s): last %s in frame %d",
+                bu, unit, k.what, gap, k.rule, s.limit, k.spec, k.last, s.frame)
+            return clock_show(ef[k.expert], text, string.format(" [%s %.3f s]", k.tag, gap),
+                { pf.missing_since, s.frame, pf.missing_time, nstime(gap) })
+        end
+        streams[key] = s
+        return s
     end
-    list = keys_by_ports[dport * 65536 + sport]
-    for i = 1, list and #list or 0 do
-        local e = list[i]
-        if e[1] == dst and e[2] == src then return conns[e[3]], false, e[3] end
-    end
-    return nil
-end
 
-local function tcp_tap(pinfo, _, th)
-    local flags = th.th_flags
-    if not flags or bit.band(flags, FIN + RST) == 0 then return end
-    local c, from_client, key = find_conn(pinfo, th.th_sport, th.th_dport)
-    -- (a tap runs on every pass: the first frame that ends the connection counts)
-    if not c or c.ended or not (c.accepted or c.armed) then return end
-    local number = p_number(pinfo)
-    c.ended = number
-    local reset = bit.band(flags, RST) ~= 0
-    local client, bu = key:match("^(.*)>(.*)$")
-    local text = string.format("TCP connection of the PLC (%s) to BU %s %s in frame %d (from the %s): %s",
-        client, bu, reset and "reset by RST" or "closed by FIN", number, from_client and "PLC" or "BU",
-        last_frames(c))
-    local show = clock_show(reset and ef.connection_reset or ef.connection_closed, text,
-        reset and " [connection to BU reset]" or " [connection to BU closed]", { pf.closed_in, number })
-    if taps_late then
-        deadlines.later(show)
-    else
-        -- (due just before this frame's time: the next frame dissected fires it)
-        deadlines.arm("eclink_modbus end " .. key, p_abs_ts(pinfo) - 1e-6, function() return show end)
+    -- a frame of the stream (a request to the BU): its deadline moves on. The
+    -- connection keeps its own last frame of each image (c.f_in, c.f_out, by
+    -- unit): what its close names, also when the close is worked out on a
+    -- later pass and the stream went on over another connection.
+    function stream_frame(c, kind, unit, number, abs, limit, pinfo)
+        local input = kind == "input"
+        local by_unit = c[input and "s_in" or "s_out"]
+        if not by_unit then
+            by_unit = {}
+            c[input and "s_in" or "s_out"], c[input and "f_in" or "f_out"] = by_unit, {}
+        end
+        local s = by_unit[unit]
+        if not s then
+            s = stream_of(kind, tostring(pinfo.dst) .. ":" .. pinfo.dst_port, unit)
+            by_unit[unit] = s
+        end
+        c[input and "f_in" or "f_out"][unit] = number
+        s.frame, s.t, s.limit = number, abs, limit
+        deadlines.arm(s.key, abs + limit, s.fire)
+    end
+
+    -- a connection no longer taken for a BU's: its streams are none
+    function streams_dropped(c)
+        for _, list in ipairs({ c.s_in or NONE, c.s_out or NONE }) do
+            for _, s in pairs(list) do deadlines.disarm(s.key) end
+        end
+    end
+
+    -- the last frames of a connection's image streams, for the close finding
+    local function last_frames(c)
+        local parts = {}
+        for _, kind in ipairs({ "input", "output" }) do
+            local list = c[kind == "input" and "f_in" or "f_out"]
+            local any = false
+            for unit, frame in pairs(list or NONE) do
+                any = true
+                parts[#parts + 1] = string.format("%s image (unit %d) last %s in frame %d", kind, unit,
+                    STREAM[kind].last, frame)
+            end
+            if not any then parts[#parts + 1] = string.format("%s image not %s on it", kind, STREAM[kind].last) end
+        end
+        return table.concat(parts, ", ")
+    end
+
+    -- The TCP segments that end a connection carry no payload, and TCP hands
+    -- none of those to a subdissector: a listener of the tcp tap sees them (no
+    -- filter: no tree forced). It costs a Lua call and a table of the TCP
+    -- header on every TCP frame (a fifth more CPU time on a BU's Modbus/TCP,
+    -- docs/quality.md), so it is made when the first connection is taken for a
+    -- BU's, and stays for the process. A FIN or RST on a BU's connection is
+    -- said on the next frame a plugin dissects (the tap runs after the frame's
+    -- own dissection), naming the frame that ended it.
+    local FIN, RST = 1, 4
+    -- tshark -2 runs the taps in its second pass only (Wireshark in the first)
+    local taps_late = passes.tshark() and not passes.once()
+    local function find_conn(pinfo, sport, dport)
+        local src, dst = p_src(pinfo), p_dst(pinfo)
+        local list = keys_by_ports[sport * 65536 + dport]
+        for i = 1, list and #list or 0 do
+            local e = list[i]
+            if e[1] == src and e[2] == dst then return conns[e[3]], true, e[3] end
+        end
+        list = keys_by_ports[dport * 65536 + sport]
+        for i = 1, list and #list or 0 do
+            local e = list[i]
+            if e[1] == dst and e[2] == src then return conns[e[3]], false, e[3] end
+        end
+        return nil
+    end
+
+    local function tcp_tap(pinfo, _, th)
+        local flags = th.th_flags
+        if not flags or bit.band(flags, FIN + RST) == 0 then return end
+        local c, from_client, key = find_conn(pinfo, th.th_sport, th.th_dport)
+        -- (a tap runs on every pass: the first frame that ends the connection counts)
+        if not c or c.ended or not (c.accepted or c.armed) then return end
+        local number = p_number(pinfo)
+        c.ended = number
+        local reset = bit.band(flags, RST) ~= 0
+        local client, bu = key:match("^(.*)>(.*)$")
+        local text = string.format("TCP connection of the PLC (%s) to BU %s %s in frame %d (from the %s): %s",
+            client, bu, reset and "reset by RST" or "closed by FIN", number, from_client and "PLC" or "BU",
+            last_frames(c))
+        local show = clock_show(reset and ef.connection_reset or ef.connection_closed, text,
+            reset and " [connection to BU reset]" or " [connection to BU closed]", { pf.closed_in, number })
+        if taps_late then
+            deadlines.later(show)
+        else
+            -- (due just before this frame's time: the next frame dissected fires it)
+            deadlines.arm("eclink_modbus end " .. key, p_abs_ts(pinfo) - 1e-6, function() return show end)
+        end
+    end
+    local tapping = false
+    function tap_tcp()
+        if tapping then return end
+        tapping = true
+        Listener.new("tcp", nil, false).packet = tcp_tap
     end
 end
-Listener.new("tcp", nil, false).packet = tcp_tap
 
 ------------------------------------------------------------------------
 -- One ADU
@@ -1342,7 +1353,10 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb, 
     -- output (Standard, given or guessed from writes past the 20 bytes of
     -- Input + Commands mode: TS-0007 2.1, 8.4)
     if c.accepted or det == DETECT_ALWAYS then
-        c.armed = true
+        if not c.armed then
+            c.armed = true
+            tap_tcp()
+        end
         if is_request and r and reads_pci(fc, r) then
             stream_frame(c, "input", unit, number, p_abs_ts(pinfo), opt.pci_timeout, pinfo)
         end
