@@ -1113,7 +1113,7 @@ do
         local show = clock_show(reset and ef.connection_reset or ef.connection_closed, text,
             reset and " [connection to BU reset]" or " [connection to BU closed]", { pf.closed_in, number })
         if taps_late then
-            deadlines.later(show)
+            deadlines.later(number, show)
         else
             -- (due just before this frame's time: the next frame dissected fires it)
             deadlines.arm("eclink_modbus end " .. key, p_abs_ts(pinfo) - 1e-6, function() return show end)
