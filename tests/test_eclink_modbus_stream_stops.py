@@ -211,3 +211,39 @@ def test_streams_that_stop_and_connections_that_end(tshark, stops_capture, expec
             assert tag in v["_ws.col.Info"], (n, tag)
     # the ordinary servers' polls go on past the last finding, with nothing of ours
     assert max(tcp) > max(experts)
+
+
+@pytest.mark.parametrize("two_pass", [False, True])
+def test_the_stops_capture(tshark, capture_file, two_pass):
+    """eclink_modbus_stops.pcap (tools/capgen/eclink_modbus.py:stops): each
+    end followed first by a frame of a BU's connection, the ordinary server
+    polled throughout (tests/findings_faults.py has the schedule)."""
+    cap = capture_file("eclink_modbus_stops.pcap")
+    names = ["eclink_modbus.missing_since", "eclink_modbus.missing_time", "eclink_modbus.closed_in",
+             "_ws.col.Info"]
+    got = tshark.frames(cap, names, two_pass=two_pass, display_filter=FILTER)
+    assert sorted(got) == [94, 127, 211, 275]
+    exp = tshark.experts(cap, two_pass=two_pass)
+    assert exp[94] == ["BU 192.168.2.41:502 unit 1: input image not read for 0.510 s (PCI timeout 0.500 s, "
+                       "TS-0007 8.3): last read in frame 60"]
+    tshark.expect(cap, 94, {"eclink_modbus.missing_since": 60, "eclink_modbus.missing_time": "0.510000000",
+                            "eclink_modbus.closed_in": None}, two_pass=two_pass)
+    # (the tag before the frame's own image summary)
+    assert got[94]["_ws.col.Info"].endswith("Write Multiple Registers [no input image 0.510 s] [EC-Link output PCO=9 "
+                                            "CCO=0 CAO=0 size=0 block=0]")
+    assert exp[127] == ["TCP connection of the PLC (192.168.2.10:50100) to BU 192.168.2.41:502 closed by FIN in "
+                        "frame 124 (from the PLC): input image (unit 1) last read in frame 60, output image (unit 1) "
+                        "last written in frame 110"]
+    tshark.expect(cap, 127, {"eclink_modbus.closed_in": 124, "eclink_modbus.missing_since": None}, two_pass=two_pass)
+    assert got[127]["_ws.col.Info"].endswith("Read Input Registers [connection to BU closed]")
+    assert exp[211] == ["BU 192.168.2.41:502 unit 1: output image not written for 2.020 s (PCO timeout 2.000 s, "
+                        "TS-0007 8.4): last written in frame 110"]
+    tshark.expect(cap, 211, {"eclink_modbus.missing_since": 110, "eclink_modbus.missing_time": "2.020000000"},
+                  two_pass=two_pass)
+    # BU 2's old connection's images go on over the new one (recognised before
+    # their deadlines): no stream of BU 2 stops
+    assert exp[275] == ["TCP connection of the PLC (192.168.2.10:50101) to BU 192.168.2.42:502 reset by RST in "
+                        "frame 271 (from the BU): input image (unit 1) last read in frame 265, output image (unit 1) "
+                        "last written in frame 267"]
+    tshark.expect(cap, 275, {"eclink_modbus.closed_in": 271}, two_pass=two_pass)
+    assert "[connection to BU reset]" in got[275]["_ws.col.Info"]
