@@ -79,6 +79,9 @@ local servers = require("vrshark.modbus_servers")
 local ports = require("vrshark.modbus_ports")
 local record = require("vrshark.pnio_record") -- add_time(): times to the ms, as over PROFINET
 local iodata = require("vrshark.iodata") -- vrshark_io hook
+-- the shared clock of streams that stop (TS-0007 8.3, 8.4: the images themselves)
+local deadlines = require("vrshark.deadlines")
+local tick = deadlines.tick
 -- (methods called as functions on the per-frame paths: vrshark/api.luam says why)
 local api = require("vrshark.api")
 local add, set_generated, append_text, tvb_len, tvb_raw = api.add, api.set_generated, api.append_text, api.len, api.raw
@@ -141,6 +144,9 @@ local pf = {
     poll_gap_time = ProtoField.relative_time("eclink_modbus.poll_gap_time", "Time since the previous input image read"),
     poll_gap_from = ProtoField.framenum("eclink_modbus.poll_gap_from", "Previous input image read in"),
     candidate_setting = ProtoField.string("eclink_modbus.candidate_setting", "Setting that decodes this server"),
+    missing_since = ProtoField.framenum("eclink_modbus.missing_since", "Image's last frame"),
+    missing_time = ProtoField.relative_time("eclink_modbus.missing_time", "Time since the image's last frame"),
+    closed_in = ProtoField.framenum("eclink_modbus.closed_in", "TCP connection ended in"),
 }
 -- frame links of the handshake findings (PCI/PCO unchanged since, command in)
 local hs_fields, hs_new_fields = handshake.fields("eclink_modbus", pf)
@@ -185,6 +191,20 @@ local MID_ADU_TEXT = "TCP data from inside an ADU, not decoded (%d bytes from th
     .. "or out of order (TCP Previous segment not captured, Retransmission), which "
     .. "tcp.reassemble_out_of_order:TRUE reassembles"
 hs_experts[#hs_experts + 1] = ef.poll_gap
+-- a BU's image stream that stopped: no read of the input image within the
+-- PCI timeout (TS-0007 8.3), no write of the output image within 2000 ms
+-- (8.4), said on the first frame after the deadline whatever carries it; and
+-- the PLC's TCP connection to a BU that ended (the images' stall, if any,
+-- is said by the first two)
+for _, e in ipairs({
+    { "input_missing", "BU's input image not read within the PCI timeout", "ERROR" },
+    { "output_missing", "BU's output image not written within 2000 ms", "ERROR" },
+    { "connection_closed", "TCP connection to a BU closed (FIN)", "WARN" },
+    { "connection_reset", "TCP connection to a BU reset (RST)", "WARN" },
+}) do
+    ef[e[1]] = ProtoExpert.new("eclink_modbus." .. e[1], e[2], expert.group.SEQUENCE, expert.severity[e[3]])
+    hs_experts[#hs_experts + 1] = ef[e[1]]
+end
 proto.experts = hs_experts
 -- Statistics > EC-Link, tshark -z eclink,stat: EC-Link over Modbus/TCP and PROFINET (vrshark/health.luam)
 require("vrshark.health").register("eclink", "EC-Link", "eclink,stat")
@@ -407,6 +427,7 @@ proto.prefs_changed = prefs_changed
 ------------------------------------------------------------------------
 local conns      -- connection key -> connection state
 local keys_by_ports -- client port * 65536 + server port -> { { client Address, server Address, key }, ... }
+local streams    -- deadline key -> a BU image's stream (stream_of())
 local adus       -- ADU key -> what the first pass worked out for it (but plain records: below)
 -- requests on a port no setting names (port_hint): per connection what they
 -- could prove (detect.requests), per frame the setting the note named
@@ -500,6 +521,9 @@ local function init_state()
     once = passes.once()
     top_n, top_keys = 0, {}
     conns, keys_by_ports = {}, {}
+    streams = {}
+    -- (every decoder resets the shared clock at a file start; all run before the first frame)
+    deadlines.reset()
     adus = {}
     hint_conns, hint_of, hint_short = {}, {}, {}
     mid_adu_of = {}
@@ -960,6 +984,155 @@ local function analyse(c, rec, t, frame, touched_in, touched_out)
 end
 
 ------------------------------------------------------------------------
+-- Streams that stop (first pass only)
+------------------------------------------------------------------------
+-- TS-0007 8.3 and 8.4 are rules on the images, not on the TCP connection:
+-- a stream is a BU's (server address:port, unit) input image read, or its
+-- output image written, over any of the PLC's connections to it. Every
+-- read or write arms its deadline on the shared clock (vrshark/deadlines);
+-- the first frame any plugin dissects after it carries the finding.
+-- (in a block: the main chunk is near Lua's limit of 200 locals)
+local stream_frame, streams_dropped, tap_tcp
+do
+    local STREAM = {
+        input = { expert = "input_missing", what = "input image not read", last = "read", tag = "no input image",
+                  rule = "PCI timeout", spec = "TS-0007 8.3" },
+        output = { expert = "output_missing", what = "output image not written", last = "written",
+                   tag = "no output image", rule = "PCO timeout", spec = "TS-0007 8.4" },
+    }
+
+    -- what a finding of the clock adds to the frame that carries it: a
+    -- generated item of this protocol with the links and the expert, the tag in
+    -- Info (pinfo.cols: the frame may be any plugin's, and this is rare)
+    local function clock_show(expert_field, text, tag, links)
+        return function(tvb, pinfo, tree)
+            local item = add(tree, proto, tvb:range(0, 0))
+            set_generated(item)
+            append_text(item, ": " .. text)
+            for i = 1, #links, 2 do set_generated(add(item, links[i], links[i + 1])) end
+            item:add_proto_expert_info(expert_field, text)
+            pinfo.cols.info:append(tag)
+        end
+    end
+
+    local function stream_of(kind, bu, unit)
+        local key = "eclink_modbus " .. kind .. " " .. bu .. " unit " .. unit
+        local s = streams[key]
+        if s then return s end
+        local k = STREAM[kind]
+        s = { key = key, kind = kind, bu = bu, unit = unit, frame = false, t = false, limit = false }
+        s.fire = function(_, now)
+            local gap = now - s.t
+            local text = string.format("BU %s unit %d: %s for %.3f s (%s %.3f s, %s): last %s in frame %d",
+                bu, unit, k.what, gap, k.rule, s.limit, k.spec, k.last, s.frame)
+            return clock_show(ef[k.expert], text, string.format(" [%s %.3f s]", k.tag, gap),
+                { pf.missing_since, s.frame, pf.missing_time, nstime(gap) })
+        end
+        streams[key] = s
+        return s
+    end
+
+    -- a frame of the stream (a request to the BU): its deadline moves on. The
+    -- connection keeps its own last frame of each image (c.f_in, c.f_out, by
+    -- unit): what its close names, also when the close is worked out on a
+    -- later pass and the stream went on over another connection.
+    function stream_frame(c, kind, unit, number, abs, limit, pinfo)
+        local input = kind == "input"
+        local by_unit = c[input and "s_in" or "s_out"]
+        if not by_unit then
+            by_unit = {}
+            c[input and "s_in" or "s_out"], c[input and "f_in" or "f_out"] = by_unit, {}
+        end
+        local s = by_unit[unit]
+        if not s then
+            s = stream_of(kind, tostring(pinfo.dst) .. ":" .. pinfo.dst_port, unit)
+            by_unit[unit] = s
+        end
+        c[input and "f_in" or "f_out"][unit] = number
+        s.frame, s.t, s.limit = number, abs, limit
+        deadlines.arm(s.key, abs + limit, s.fire)
+    end
+
+    -- a connection no longer taken for a BU's: its streams are none
+    function streams_dropped(c)
+        for _, list in ipairs({ c.s_in or NONE, c.s_out or NONE }) do
+            for _, s in pairs(list) do deadlines.disarm(s.key) end
+        end
+    end
+
+    -- the last frames of a connection's image streams, for the close finding
+    local function last_frames(c)
+        local parts = {}
+        for _, kind in ipairs({ "input", "output" }) do
+            local list = c[kind == "input" and "f_in" or "f_out"]
+            local any = false
+            for unit, frame in pairs(list or NONE) do
+                any = true
+                parts[#parts + 1] = string.format("%s image (unit %d) last %s in frame %d", kind, unit,
+                    STREAM[kind].last, frame)
+            end
+            if not any then parts[#parts + 1] = string.format("%s image not %s on it", kind, STREAM[kind].last) end
+        end
+        return table.concat(parts, ", ")
+    end
+
+    -- The TCP segments that end a connection carry no payload, and TCP hands
+    -- none of those to a subdissector: a listener of the tcp tap sees them (no
+    -- filter: no tree forced). It costs a Lua call and a table of the TCP
+    -- header on every TCP frame (a fifth more CPU time on a BU's Modbus/TCP,
+    -- docs/quality.md), so it is made when the first connection is taken for a
+    -- BU's, and stays for the process. A FIN or RST on a BU's connection is
+    -- said on the next frame a plugin dissects (the tap runs after the frame's
+    -- own dissection), naming the frame that ended it.
+    local FIN, RST = 1, 4
+    -- tshark -2 runs the taps in its second pass only (Wireshark in the first)
+    local taps_late = passes.tshark() and not passes.once()
+    local function find_conn(pinfo, sport, dport)
+        local src, dst = p_src(pinfo), p_dst(pinfo)
+        local list = keys_by_ports[sport * 65536 + dport]
+        for i = 1, list and #list or 0 do
+            local e = list[i]
+            if e[1] == src and e[2] == dst then return conns[e[3]], true, e[3] end
+        end
+        list = keys_by_ports[dport * 65536 + sport]
+        for i = 1, list and #list or 0 do
+            local e = list[i]
+            if e[1] == dst and e[2] == src then return conns[e[3]], false, e[3] end
+        end
+        return nil
+    end
+
+    local function tcp_tap(pinfo, _, th)
+        local flags = th.th_flags
+        if not flags or bit.band(flags, FIN + RST) == 0 then return end
+        local c, from_client, key = find_conn(pinfo, th.th_sport, th.th_dport)
+        -- (a tap runs on every pass: the first frame that ends the connection counts)
+        if not c or c.ended or not (c.accepted or c.armed) then return end
+        local number = p_number(pinfo)
+        c.ended = number
+        local reset = bit.band(flags, RST) ~= 0
+        local client, bu = key:match("^(.*)>(.*)$")
+        local text = string.format("TCP connection of the PLC (%s) to BU %s %s in frame %d (from the %s): %s",
+            client, bu, reset and "reset by RST" or "closed by FIN", number, from_client and "PLC" or "BU",
+            last_frames(c))
+        local show = clock_show(reset and ef.connection_reset or ef.connection_closed, text,
+            reset and " [connection to BU reset]" or " [connection to BU closed]", { pf.closed_in, number })
+        if taps_late then
+            deadlines.later(number, show)
+        else
+            -- (due just before this frame's time: the next frame dissected fires it)
+            deadlines.arm("eclink_modbus end " .. key, p_abs_ts(pinfo) - 1e-6, function() return show end)
+        end
+    end
+    local tapping = false
+    function tap_tcp()
+        if tapping then return end
+        tapping = true
+        Listener.new("tcp", nil, false).packet = tcp_tap
+    end
+end
+
+------------------------------------------------------------------------
 -- One ADU
 ------------------------------------------------------------------------
 -- into: an emptied table to fill (first_pass(): the spare one), or nil
@@ -1151,6 +1324,7 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb, 
             "%d input images in a row not valid: connection (recognized in frame %d) no longer taken for a BU's; "
             .. "left to Modbus/TCP until it is recognized again", detect.DROP_IMAGES, c.accepted) })
         rec[R_ACCEPTED] = c.accepted
+        streams_dropped(c)
         conns[conn_key(pinfo, is_request, src_port, dst_port)] = nil
         return rec
     end
@@ -1165,13 +1339,34 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb, 
         end
         c.last_read, c.last_read_frame = t, number
     end
-    local touched_in, touched_out = false, false
+    local touched_in, touched_out, wrote_pco = false, false, false
     for i = 1, #accesses do
         local pieces = mapped(accesses[i], tvb, off)
         for j = 1, #pieces do
             local p = pieces[j]
             store_piece(c, p)
-            if p.kind == "input" then touched_in = true else touched_out = true end
+            if p.kind == "input" then
+                touched_in = true
+            else
+                touched_out = true
+                if is_request and p.first == 0 then wrote_pco = true end
+            end
+        end
+    end
+    -- the BU's streams (a connection taken for a BU's only): the input image
+    -- read (its PCI), the output image written where the mode has periodic
+    -- output (Standard, given or guessed from writes past the 20 bytes of
+    -- Input + Commands mode: TS-0007 2.1, 8.4)
+    if c.accepted or det == DETECT_ALWAYS then
+        if not c.armed then
+            c.armed = true
+            tap_tcp()
+        end
+        if is_request and r and reads_pci(fc, r) then
+            stream_frame(c, "input", unit, number, p_abs_ts(pinfo), opt.pci_timeout, pinfo)
+        end
+        if wrote_pco and (c.mode == "standard" or c.mode == "auto" and known(c.output, 20, 2)) then
+            stream_frame(c, "output", unit, number, p_abs_ts(pinfo), handshake.LIMITS.pco, pinfo)
         end
     end
     analyse(c, rec, t, number, touched_in, touched_out)
@@ -1703,7 +1898,7 @@ end
 -- one array used again by every call: the ADUs are worked out before any is
 -- shown, and nothing shown calls this dissector again.
 local found_scratch = {}
-function proto.dissector(tvb, pinfo, tree)
+local function dissect(tvb, pinfo, tree)
     local consumed = 0
     local how = C and seam_view(p_match_string(pinfo)) or NO_VIEW
     if how.hook == HOOK_PORT_HINT then return port_hint(tvb, pinfo, tree) end
@@ -1774,6 +1969,8 @@ function proto.dissector(tvb, pinfo, tree)
         nf = nf + 5
         off = off + adu_len
     end
+    -- (the streams of this frame are armed: the shared clock's findings go before the ADUs' Info)
+    tick(tvb, pinfo, tree)
     -- shown after all ADUs of the buffer are worked out: one that recognizes the
     -- connection shows the earlier ones of its frame too, in one pass as in two
     for i = 1, nf, 5 do
@@ -1842,6 +2039,16 @@ function proto.dissector(tvb, pinfo, tree)
     end
     if via_front and decoded then return n end
     return consumed
+end
+
+-- every Modbus/TCP frame this plugin sees is a tick of the shared clock,
+-- after its own analysis armed its streams (dissect() ticks before it writes
+-- Info, so that a finding's tag comes before the image summaries; this one
+-- is for the frames it returns early on, and does nothing after that one)
+function proto.dissector(tvb, pinfo, tree)
+    local r = dissect(tvb, pinfo, tree)
+    tick(tvb, pinfo, tree)
+    return r
 end
 
 tcp_port_table:add_for_decode_as(proto)

@@ -73,6 +73,20 @@ FAULTS = {
     # --- poll gap: the input image not read from frame 16 (t 0.475) to 20
     # (t 1.175: 700 ms), and from 24 (t 1.3) to 28 (t 3.35: 2.05 s)
     "eclink_modbus.poll_gap": ("eclink_modbus_faults.pcap", [20, 28]),
+    # --- images that stop, connections that end (eclink_modbus_stops, a tick
+    # every 125 ms: BU 1 at t, BU 2 at t + 30 ms, an ordinary server at t + 90
+    # ms): BU 1's input image last read at 0.725 s (60), its deadline 1.225 s,
+    # the first frame after it BU 1's write at 1.235 s (94); its output image
+    # last written at 1.485 s (110), the first frame after 3.485 s BU 2's read
+    # at 3.505 s (211)
+    "eclink_modbus.input_missing": ("eclink_modbus_stops.pcap", [94]),
+    "eclink_modbus.output_missing": ("eclink_modbus_stops.pcap", [211]),
+    # ... BU 1's connection closed by the controller's FIN at 1.695 s (124),
+    # the next frame with a payload BU 2's read at 1.755 s (127); BU 2 resets
+    # its connection at 4.695 s (271), the controller's new connection reads at
+    # 4.755 s (275)
+    "eclink_modbus.connection_closed": ("eclink_modbus_stops.pcap", [127]),
+    "eclink_modbus.connection_reset": ("eclink_modbus_stops.pcap", [275]),
     # --- undefined states and statuses (eglink_range: one VRPI per breach)
     # BU state 0x05 (8: also below 0x10) and 0x20 (9)
     "eglink.bu_state.unknown": ("eglink_range.pcap", [8, 9]),

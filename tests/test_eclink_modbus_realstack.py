@@ -202,15 +202,16 @@ def real_capture():
     yield from captured()
 
 
-def _capture(folder, mode="plant", plc=None):
-    """Runs the servers (mode: "plant" or "commands") and the PLC (default
-    _plc) under dumpcap: (capture path, what the PLC read and wrote)."""
+def _capture(folder, mode="plant", plc=None, script_text=SERVERS):
+    """Runs the servers (mode: "plant" or "commands"; script_text: another
+    servers script) and the PLC (default _plc) under dumpcap: (capture path,
+    what the PLC read and wrote; "servers": the servers' process)."""
     cap = folder / ("realstack-%s.pcapng" % mode)
     script = folder / "servers.py"
-    script.write_text(SERVERS)
+    script.write_text(script_text)
     servers = subprocess.Popen([sys.executable, str(script), str(PORT), mode], stdout=subprocess.DEVNULL,
                                stderr=subprocess.PIPE, text=True)
-    log = {"read": [], "written": []}
+    log = {"read": [], "written": [], "servers": servers}
     try:
         dumpcap = _start_capture(cap)
         try:

@@ -154,6 +154,7 @@ TIMELINES = {
     "eclink_modbus_faults.pcap": [
         (21, 'warning', 1, 'no input image for 0.700 s (after frame 17, limit 500 ms)'),
         (21, 'error', 1, 'PCI stalled at 2 for 0.825 s (unchanged since frame 17, limit 500 ms), moving again in frame 25'),
+        (28, 'error', 1, "BU's output image no longer written (2000 ms passed)"),
         failed(28, 'eclink_modbus.cmd_from_ru.late',
                'command from RU of frame 17 not echoed by CAO in time: the command failed, the BU shows "EC: Bad data"',
                'deadline of the command from RU of frame 17 passed'),
@@ -360,7 +361,7 @@ def test_faults_gate_warn(report, one_pass_failure):
     assert proc.stderr.splitlines() == [
         "vrshark-report: FAIL (--fail-on warn): %d finding(s) at warning or above; first: "
         "captures/eclink_modbus_faults.pcap frame 21: no input image for 0.700 s (after frame 17, "
-        "limit 500 ms)" % (16 + sum(one_pass_failure("eclink_modbus_faults.pcap", field, 28) for field in
+        "limit 500 ms)" % (17 + sum(one_pass_failure("eclink_modbus_faults.pcap", field, 28) for field in
                                     ("eclink_modbus.cmd_from_ru.late", "eclink_modbus.cmd_to_ru.late")))]
 
 

@@ -449,3 +449,52 @@ def input_only_mode():
     cap = Capture()
     _mode_cycles(ModbusClient(cap), False)
     return cap
+
+
+def _tcp_end(conn, t, flags, from_client):
+    """A FIN ("FA": and the other side's FIN, then the last ACK) or RST ("RA")
+    segment ending conn at t, from the controller or the BU."""
+    a, b = (conn.c, conn.s) if from_client else (conn.s, conn.c)
+    seq, ack = (conn.cseq, conn.sseq) if from_client else (conn.sseq, conn.cseq)
+    conn.cap.add(t, conn._frame(a, b, seq, ack, flags))
+    if flags == "FA":
+        conn.cap.add(t + 0.0001, conn._frame(b, a, ack, seq + 1, "FA"))
+        conn.cap.add(t + 0.0002, conn._frame(a, b, seq + 1, ack + 1, "A"))
+
+
+@capture("eclink_modbus_stops.pcap",
+         "EC-Link over Modbus/TCP: a BU's input image no longer read, then its output image no longer "
+         "written and its connection closed (FIN); a second BU's connection reset (RST) and opened again; "
+         "an ordinary server polled throughout")
+def stops():
+    """Every 125 ms (tick k at t = 0.1 + 0.125 k): BU 1's cycle at t, BU 2's
+    at t + 0.03, the ordinary server's read (4 holding registers at 100) at
+    t + 0.09. Each end is followed first by a frame of a BU's connection."""
+    cap = Capture()
+    # 1-3, 4-6, 7-9: the TCP handshakes of BU 1, BU 2 and the ordinary server
+    bu1 = ModbusClient(cap)
+    bu2 = ModbusClient(cap, client_port=50101, server_ip="192.168.2.42", t=0.01)
+    other = ModbusClient(cap, client_port=50102, server_ip="192.168.2.50", t=0.02)
+    pci = pco = 0
+    for k in range(43):
+        t = 0.1 + 0.125 * k
+        if k < 6:
+            # ticks 0-5: healthy (BU 1's last read of the input image at 0.725 s)
+            cycle(bu1, t, input_image(pci=pci), output_image(pco=pco))
+        elif k < 12:
+            # ticks 6-11: BU 1's input image no longer read, its output image
+            # written (the last time at 1.485 s)
+            bu1.write_regs(t + 0.010, 0, regs(output_image(pco=pco)))
+        if k == 37:
+            # the controller connects to BU 2 again, 5 ms after the reset
+            bu2 = ModbusClient(cap, client_port=50103, server_ip="192.168.2.42", t=t - 0.025)
+        cycle(bu2, t + 0.03, input_image(pci=pci), output_image(pco=pco))
+        other.read_regs(t + 0.090, 3, 100, bytes(range(k, k + 8)))
+        if k == 12:
+            # the controller closes BU 1's connection at 1.695 s (3 frames)
+            _tcp_end(bu1.conn, t + 0.095, "FA", True)
+        if k == 36:
+            # BU 2 resets its connection at 4.695 s
+            _tcp_end(bu2.conn, t + 0.095, "RA", False)
+        pci, pco = (pci + 1) & 0xFF, (pco + 1) & 0xFF
+    return cap

@@ -164,6 +164,10 @@ EXPERTS = {
     "eclink_modbus.mid_adu": (NOTE, "finding",
                               "TCP data from inside an ADU not decoded: segments out of order or not captured"),
     "eclink_modbus.poll_gap": (WARNING, "poll_gap", "input image not read"),
+    "eclink_modbus.input_missing": (ERROR, "finding", "BU's input image no longer read (PCI timeout passed)"),
+    "eclink_modbus.output_missing": (ERROR, "finding", "BU's output image no longer written (2000 ms passed)"),
+    "eclink_modbus.connection_closed": (WARNING, "finding", "TCP connection to the BU closed (FIN)"),
+    "eclink_modbus.connection_reset": (WARNING, "finding", "TCP connection to the BU reset (RST)"),
     "eclink_modbus.dropped": (NOTE, "finding", "images no longer valid: not taken for a BU any more"),
     "eclink_modbus.candidate": (WARNING, "candidate", "looks like an EC-Link BU but was not recognised"),
     # EC-Link over PROFINET
