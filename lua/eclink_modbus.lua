@@ -1025,6 +1025,7 @@ do
             local gap = now - s.t
             local text = string.format("BU %s unit %d: %s for %.3f s (%s %.3f s, %s): last %s in frame %d",
                 bu, unit, k.what, gap, k.rule, s.limit, k.spec, k.last, s.frame)
+            health.modbus_finding(s.c, unit, ef[k.expert])  -- a stall of the stream's row
             return clock_show(ef[k.expert], text, string.format(" [%s %.3f s]", k.tag, gap),
                 { pf.missing_since, s.frame, pf.missing_time, nstime(gap) })
         end
@@ -1049,7 +1050,7 @@ do
             by_unit[unit] = s
         end
         c[input and "f_in" or "f_out"][unit] = number
-        s.frame, s.t, s.limit = number, abs, limit
+        s.frame, s.t, s.limit, s.c = number, abs, limit, c
         deadlines.arm(s.key, abs + limit, s.fire)
     end
 
@@ -1115,13 +1116,22 @@ do
         local text = string.format("TCP connection of the PLC (%s) to BU %s %s in frame %d (from the %s): %s",
             client, bu, reset and "reset by RST" or "closed by FIN", number, from_client and "PLC" or "BU",
             last_frames(c))
+        -- (counted in the health rows once a frame carries it)
+        local function counted()
+            for unit in pairs(c.health or NONE) do
+                health.modbus_finding(c, unit, reset and ef.connection_reset or ef.connection_closed)
+            end
+        end
         local show = clock_show(reset and ef.connection_reset or ef.connection_closed, text,
             reset and " [connection to BU reset]" or " [connection to BU closed]", { pf.closed_in, number })
         if taps_late then
-            deadlines.later(number, show)
+            deadlines.later(number, show, counted)
         else
             -- (due just before this frame's time: the next frame dissected fires it)
-            deadlines.arm("eclink_modbus end " .. key, p_abs_ts(pinfo) - 1e-6, function() return show end)
+            deadlines.arm("eclink_modbus end " .. key, p_abs_ts(pinfo) - 1e-6, function()
+                counted()
+                return show
+            end)
         end
     end
     local tapping = false

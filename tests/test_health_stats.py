@@ -72,7 +72,8 @@ def test_watchdog_stalls(tshark, capture_file):
 
 def test_modbus_poll_gaps_stalls_and_failed_commands(tshark, capture_file):
     """eclink_modbus_faults.pcap: two poll gaps and a PCI stall on the input
-    image (TS-0007 8.3), the PCO stall on the output image (8.4); the command
+    image (TS-0007 8.3), the PCO stall and the writes stopping
+    (eclink_modbus.output_missing, frame 28) on the output image (8.4); the command
     from the RU and the one to it both unacknowledged (8.1, 8.2), the first
     echoed late; the BU state change a note. The reads stop for 2.050 s
     (ended by frame 28), the writes too (frame 30)."""
@@ -81,8 +82,8 @@ def test_modbus_poll_gaps_stalls_and_failed_commands(tshark, capture_file):
     assert rows == {
         (dev, "input image read"): row(9, ("50.000", "125.000", "2050.000"), "2050.000", 28, stalls=3, failed=1,
                                        errors=1, warnings=4, notes=2),
-        (dev, "output image written"): row(9, ("125.000", "125.000", "2050.000"), "2050.000", 30, stalls=1,
-                                           failed=1, errors=1, warnings=1, notes=1),
+        (dev, "output image written"): row(9, ("125.000", "125.000", "2050.000"), "2050.000", 30, stalls=2,
+                                           failed=1, errors=2, warnings=1, notes=1),
     }
 
 
@@ -202,3 +203,20 @@ def test_eglink_stat(tshark, capture_file):
         assert counts["VRCI commands (BU to controller)"] == 1
         assert counts["Failed (not acknowledged in time)"] == 1
         assert out.count("EG-Link:") == 1
+
+
+def test_modbus_streams_that_stop(tshark, capture_file):
+    """eclink_modbus_stops.pcap: BU .41's input image stops being read
+    (eclink_modbus.input_missing, TS-0007 8.3) and its output image being
+    written (output_missing, 8.4): a stall and an error on each row. The
+    PLC's connection to .41 closed by FIN, the one to .42 reset by RST
+    (connection_closed, connection_reset): a warning on each BU's input row."""
+    rows = both_passes(tshark, capture_file("eclink_modbus_stops.pcap"), "eclink")
+    bu1, bu2 = "Modbus/TCP 192.168.2.41:502 unit 1", "Modbus/TCP 192.168.2.42:502 unit 1"
+    assert rows[(bu1, "input image read")]["Stalls"] == "1"
+    assert rows[(bu1, "input image read")]["Errors"] == "1"
+    assert rows[(bu1, "output image written")]["Stalls"] == "1"
+    assert rows[(bu1, "output image written")]["Errors"] == "1"
+    assert rows[(bu1, "input image read")]["Warnings"] == "1"
+    assert rows[(bu2, "input image read")]["Stalls"] == "0"
+    assert rows[(bu2, "input image read")]["Warnings"] == "1"
