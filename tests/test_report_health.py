@@ -43,7 +43,8 @@ def test_modbus_poll_gaps_stalls_and_failed_commands():
     assert inp["longest_silence"] == {"s": 2.05, "frame": 29}
     # two poll gaps and the PCI stall; the failed command from the RU
     assert (inp["stalls"], inp["commands_failed"]) == (3, 1)
-    assert (out["frames"], out["limit_ms"], out["stalls"], out["commands_failed"]) == (7, 2000, 1, 1)
+    # the PCO stall and the writes stopping (eclink_modbus.output_missing, frame 28); the failed command to the RU
+    assert (out["frames"], out["limit_ms"], out["stalls"], out["commands_failed"]) == (7, 2000, 2, 1)
     assert out["longest_silence"] == {"s": 2.05, "frame": 30}
     # every finding of the timeline but the state changes is in one row
     rep = json.loads(run("--json", CAPTURES / "eclink_modbus_faults.pcap").stdout)["captures"][0]

@@ -425,3 +425,17 @@ def test_vrpi_that_never_comes_back(tshark, vrpi_stops):
     command = [f for f in got if f[2]["eglink.type"] == "VRCI"][0][0]
     assert [e["text"] for e in rep["timeline"] if e["field"] == "eglink.analysis.vrci_unacked"] == [
         "VRCI of frame %d not acknowledged in time: the command failed" % command]
+
+
+def test_clock_findings_filed_under_the_bu_they_name(capture_file):
+    """eclink_modbus_stops.pcap: the shared clock puts a BU's missing image
+    and its ended connection on the first frame after the deadline, here
+    frames of the other BU's connection (127, 211); the report files each
+    under the BU its message names (192.168.2.41, device 1), not under the
+    frame's (device 2), and the other BU's rows count none of them."""
+    _, rep = run_report(capture_file("eclink_modbus_stops.pcap"))
+    got = {(e["frame"], e["field"]): e["device"] for e in rep["timeline"] if e["kind"] == "finding"}
+    assert got == {(94, "eclink_modbus.input_missing"): 1, (127, "eclink_modbus.connection_closed"): 1,
+                   (211, "eclink_modbus.output_missing"): 1, (275, "eclink_modbus.connection_reset"): 2}
+    other = [d for d in rep["devices"] if d["id"] == 2][0]
+    assert all(s["stalls"] == 0 for s in other["streams"]), other["streams"]

@@ -57,6 +57,14 @@ MODBUS_CANDIDATE, PNIO_CANDIDATE = C["eclink_modbus_candidate_setting"], C["mcmb
 CONNECT_CUT = C["mcmb2_connect_cut"]  # (an expert field: a Connect the capture cut)
 FRAME_LEN, CAP_LEN, PN_FRAME_ID = C["frame_len"], C["frame_cap_len"], C["pn_rt_frame_id"]
 MCMB2_ITEM, MESSAGES, SEVERITIES = C["mcmb2"], C["_ws_expert_message"], C["_ws_expert_severity"]
+# Findings the shared clock (lua/vrshark/deadlines.luam) puts on the first
+# frame after a deadline, whosever frame it is: a BU's image stream that
+# stopped, its TCP connection that ended. Their message names the BU; the
+# finding is filed under that device, not under the frame's.
+ABOUT_BU = [EXPERT_START + EXPERT_FIELDS.index(name) for name in (
+    "eclink_modbus.input_missing", "eclink_modbus.output_missing",
+    "eclink_modbus.connection_closed", "eclink_modbus.connection_reset") if name in EXPERT_FIELDS]
+BU_NAMED = re.compile(r"\bBU (\d+\.\d+\.\d+\.\d+|[0-9a-fA-F:]+):(\d+)\b")
 # tshark's expert severities (_ws.expert.severity), note and above
 SEVERITY_CODES = {0x00400000: NOTE, 0x00600000: WARNING, 0x00800000: ERROR}
 # PROFINET RT FrameIDs of cyclic data (classes 3, 2 and 1); above: alarms, DCP
@@ -408,6 +416,7 @@ class Capture:
         self._cut_ports = set()
         self._notes = {}            # (severity, message without its numbers): latest Entry
         self._stream = None         # the stream of the current frame (health.py)
+        self._about = ()            # this frame's columns of findings filed under another BU
 
     # --- rows ---------------------------------------------------------------
 
@@ -429,6 +438,7 @@ class Capture:
             self.tcp_frames += 1
         self._cut = bool(c[FRAME_LEN] and c[CAP_LEN]) and int(c[CAP_LEN]) < int(c[FRAME_LEN])
         held = self._held(c)
+        self._about = self._about_bu(c, frame, t) if any(len(c) > i and c[i] for i in ABOUT_BU) else ()
         formed = True
         self._stream, entries = None, len(self.entries)
         if c[C["eglink_type"]]:
@@ -954,12 +964,34 @@ class Capture:
 
     # --- expert fields -----------------------------------------------------------
 
+    def _about_bu(self, c, frame, t):
+        """The findings of this frame that name a BU's stream or connection,
+        filed under that BU (the first BU the messages name that the report
+        knows); the columns it filed (the frame's own device skips them)."""
+        for m in BU_NAMED.finditer(c[MESSAGES] if len(c) > MESSAGES else ""):
+            dev = self.devices.get(("eclink_modbus", m.group(1), int(m.group(2))))
+            if dev is None:
+                continue
+            done = []
+            for i in ABOUT_BU:
+                if len(c) > i and c[i]:
+                    field = EXPERT_FIELDS[i - EXPERT_START]
+                    severity, _, what = catalog.EXPERTS[field]
+                    before = len(self.entries)
+                    self._finding(dev, c, frame, t, field, severity, what)
+                    for entry in self.entries[before:]:
+                        entry.stream = health.stream_of(dev, entry)
+                    done.append(i)
+            return frozenset(done)
+        return ()
+
     def _experts(self, dev, c, frame, t):
         tail = c[EXPERT_START:]
         if not any(tail):
             return
+        about = self._about
         for i, flag in enumerate(tail):
-            if flag:
+            if flag and EXPERT_START + i not in about:
                 field = EXPERT_FIELDS[i]
                 severity, role, what = catalog.EXPERTS[field]
                 if role == "finding":
