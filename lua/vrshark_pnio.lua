@@ -74,6 +74,10 @@ local seam = require("vrshark.seam")
 local seam_view = seam.view
 local HOOK_CANDIDATE, HOOK_PENDING, HOOK_CONNECT, HOOK_RESPONSE = seam.PN_HOOK_CANDIDATE, seam.PN_HOOK_PENDING,
     seam.PN_HOOK_CONNECT, seam.PN_HOOK_RESPONSE
+local HOOK_CLOCK = seam.PN_HOOK_CLOCK
+-- (the clock of streams that stop, ticked on every frame the carrier sees)
+local deadlines = require("vrshark.deadlines")
+local tick = deadlines.tick
 -- (frames and per_frame by frame number: vrshark/framemap.luam says why)
 local framemap = require("vrshark.framemap")
 local passes = require("vrshark.passes")
@@ -191,6 +195,7 @@ local function set_hooks()
     fe.hook(fe.pn_hook, HOOK_PENDING, carrier, (pending_down ~= nil and #pending_down > 0)
         or (runs ~= nil and infer.alive(runs)))
     fe.hook(fe.pn_hook, HOOK_RESPONSE, carrier, ars ~= nil and next(ars) ~= nil)
+    fe.hook(fe.pn_hook, HOOK_CLOCK, carrier, true)
 end
 
 -- Connect responses are read only for an AR learned from its request: the
@@ -232,6 +237,7 @@ end
 
 local function init()
     if not C then own_ethertype() end
+    deadlines.reset()
     for port in pairs(cm_ports or {}) do udp_table:remove(port, carrier) end
     by_fid, pending_down, tries, ars, cm_ports, not_ours, frags = {}, {}, {}, {}, {}, {}, {}
     noted_fid = {}
@@ -1348,18 +1354,33 @@ local function connect(tvb, pinfo, tree)
     return tvb:len()
 end
 
+-- Every frame the carrier sees ticks the clock after its decoder has armed
+-- the frame's stream and written its columns (a finding's Info tag comes
+-- after the decoder's text); with the C front ends, the frames Lua would
+-- not see otherwise come through hook "clock" (vrshark/deadlines.luam).
 function carrier.dissector(tvb, pinfo, tree)
     -- The C front end calls the "connect" hook for PNIO-CM, the FrameID
-    -- table and the "candidate" hook for cyclic frames.
+    -- table and the "candidate" hook for cyclic frames, "clock" for the rest.
+    local ret
     if C then
+        -- (mcmb2's Proto is the carrier's: a finding shown through it)
+        if systems.calling() then return systems.dissector(tvb, pinfo, tree) end
         local how = seam_view(p_match_string(pinfo))
-        if how.hook == HOOK_CONNECT then return connect(tvb, pinfo, tree) end
-        return cyclic(tvb, pinfo, tree, how.view, how.malformed)
-    end
+        if how.hook == HOOK_CLOCK then
+            tick(tvb, pinfo, tree)
+            return 0
+        end
+        if how.hook == HOOK_CONNECT then ret = connect(tvb, pinfo, tree)
+        else ret = cyclic(tvb, pinfo, tree, how.view, how.malformed) end
     -- No controller port is ever 0x8892 (see connect), so match_uint tells
     -- the two tables apart.
-    if p_match_uint(pinfo) == ETH_PNRT then return cyclic(tvb, pinfo, tree) end
-    return connect(tvb, pinfo, tree)
+    elseif p_match_uint(pinfo) == ETH_PNRT then
+        ret = cyclic(tvb, pinfo, tree)
+    else
+        ret = connect(tvb, pinfo, tree)
+    end
+    tick(tvb, pinfo, tree)
+    return ret
 end
 
 if C then

@@ -273,5 +273,5 @@ def test_every_seam_name_used_is_defined():
 
 def test_the_column_writers_named_are_exported():
     text = (ROOT / "plugins" / "vrshark" / "vrshark-columns.c").read_text()
-    for name in ("FN_SET_COLS", "FN_APPEND_INFO"):
+    for name in ("FN_SET_COLS", "FN_APPEND_INFO", "FN_CLOCK_DUE", "FN_CLOCK_MARK"):
         assert re.search(r"VRSHARK_EXPORT int %s\(lua_State \*L\);" % CONTRACT[name], text), name

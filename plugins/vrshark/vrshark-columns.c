@@ -23,6 +23,19 @@
  *                                              Info := the parts joined
  *   vrshark_lua_append_info(part, ...)         Info .. the parts joined
  *
+ * and the two through which the Lua side's clock (lua/vrshark/deadlines.luam)
+ * tells the front ends when to call it for a frame that otherwise does not
+ * reach Lua (vrshark_clock_wanted(), hook VRSHARK_PN_HOOK_CLOCK):
+ *
+ *   vrshark_lua_clock_due(t)        the earliest deadline, absolute seconds
+ *                                   as text ("%.17g": the same double as
+ *                                   Lua's; "inf": none)
+ *   vrshark_lua_clock_mark(number)  frame `number` carries a finding: later
+ *                                   passes call the clock on it
+ *
+ * These write outside a decoder call too (a file's first deadline is armed
+ * by a decoder; a mark is kept for the passes after).
+ *
  * Only three functions of the Lua C API are used, the same in Lua 5.1 to
  * 5.4. They are weak references resolved in the process that loaded
  * Wireshark's Lua, so the plugin neither links nor needs the Lua headers.
@@ -50,6 +63,9 @@ extern void lua_pushboolean(lua_State *L, int b) __attribute__((weak));
 #define VRSHARK_EXPORT __attribute__((visibility("default")))
 
 static packet_info *cols_pinfo;
+
+double vrshark_clock_due = 1.0 / 0.0;
+GHashTable *vrshark_clock_marks;
 
 packet_info *
 vrshark_columns_enter(packet_info *pinfo)
@@ -126,6 +142,53 @@ vrshark_lua_append_info(lua_State *L)
         col_append_str(cols_pinfo->cinfo, COL_INFO, buf);
     lua_pushboolean(L, 1);
     return 1;
+}
+
+VRSHARK_EXPORT int vrshark_lua_clock_due(lua_State *L);
+VRSHARK_EXPORT int vrshark_lua_clock_mark(lua_State *L);
+
+int
+vrshark_lua_clock_due(lua_State *L)
+{
+    const char *text = lua_gettop(L) >= 1 ? lua_tolstring(L, 1, NULL) : NULL;
+    char *end;
+    double t;
+
+    if (!text) {
+        lua_pushboolean(L, 0);
+        return 1;
+    }
+    t = g_ascii_strtod(text, &end);
+    /* (nothing read: no deadline, rather than one at 0 that calls Lua on
+     * every frame) */
+    vrshark_clock_due = end == text ? 1.0 / 0.0 : t;
+    lua_pushboolean(L, 1);
+    return 1;
+}
+
+int
+vrshark_lua_clock_mark(lua_State *L)
+{
+    const char *text = lua_gettop(L) >= 1 ? lua_tolstring(L, 1, NULL) : NULL;
+    guint64 number;
+
+    if (!text || (number = g_ascii_strtoull(text, NULL, 10)) == 0 || number > G_MAXUINT32) {
+        lua_pushboolean(L, 0);
+        return 1;
+    }
+    if (!vrshark_clock_marks)
+        vrshark_clock_marks = g_hash_table_new(g_direct_hash, g_direct_equal);
+    g_hash_table_add(vrshark_clock_marks, GUINT_TO_POINTER((guint)number));
+    lua_pushboolean(L, 1);
+    return 1;
+}
+
+void
+vrshark_clock_reset(void)
+{
+    vrshark_clock_due = 1.0 / 0.0;
+    if (vrshark_clock_marks)
+        g_hash_table_remove_all(vrshark_clock_marks);
 }
 
 void

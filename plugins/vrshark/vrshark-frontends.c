@@ -529,8 +529,31 @@ call_pn_rt_known(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data
     return consumed;
 }
 
+/* ---- The clock ------------------------------------------------------------ */
+
+/* Lua's clock (hook VRSHARK_PN_HOOK_CLOCK) on this frame, when it wants it
+ * (vrshark_clock_wanted: a deadline passed, or a frame marked): a stream
+ * that stopped is said on the first frame after its deadline, whichever
+ * device or transport sent it. Every front end calls it after its own
+ * work, also for a frame it gave to a Lua decoder (which has ticked the
+ * clock itself: Lua does nothing the second time), so no path is missed. */
+static void
+clock_tick(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree)
+{
+    dissector_handle_t h;
+    const char *saved;
+
+    if (!vrshark_clock_wanted(pinfo) || !(h = dissector_get_string_handle(pn_hook_table, VRSHARK_PN_HOOK_CLOCK)))
+        return;
+    saved = pinfo->match_string;
+    pinfo->match_string = VRSHARK_PN_HOOK_CLOCK;
+    pn_lua_calling();
+    call_lua_decoder(h, tvb, pinfo, tree);
+    pinfo->match_string = saved;
+}
+
 static int
-dissect_pn_cyclic(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
+pn_cyclic(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
 {
     int consumed;
     guint16 fid;
@@ -561,6 +584,15 @@ dissect_pn_cyclic(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *dat
     if (!dissector_try_string_with_data(pn_hook_table, VRSHARK_PN_HOOK_CANDIDATE, tvb, pinfo, tree, FALSE, NULL) &&
         pn_tries[idx] < VRSHARK_PN_CANDIDATE_TRIES)
         pn_tries[idx]++;
+    return consumed;
+}
+
+static int
+dissect_pn_cyclic(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
+{
+    int consumed = pn_cyclic(tvb, pinfo, tree, data);
+
+    clock_tick(tvb, pinfo, tree);
     return consumed;
 }
 
@@ -742,7 +774,7 @@ learn_controller_port(packet_info *pinfo)
 }
 
 static int
-dissect_pn_cm(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
+pn_cm(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
 {
     heur_dtbl_entry_t *hdtbl_entry;
     pn_subs_key_t subs;
@@ -793,6 +825,15 @@ dissect_pn_cm(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
         }
     }
     return tvb_captured_length(tvb);
+}
+
+static int
+dissect_pn_cm(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
+{
+    int consumed = pn_cm(tvb, pinfo, tree, data);
+
+    clock_tick(tvb, pinfo, tree);
+    return consumed;
 }
 
 /* ---- Modbus/TCP ----------------------------------------------------------- */
@@ -1127,7 +1168,7 @@ mb_refused(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, guint32 server_p
 }
 
 static int
-dissect_mbtcp_front(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
+mbtcp_front(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
 {
     mb_conn_key_t conn;
     guint32 state;
@@ -1181,6 +1222,15 @@ dissect_mbtcp_front(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *d
         p_add_proto_data(wmem_file_scope(), pinfo, proto_vrshark_mbtcp, MB_TRIED, GUINT_TO_POINTER(1));
     }
     mb_conn_store(&conn, state);
+    return consumed;
+}
+
+static int
+dissect_mbtcp_front(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
+{
+    int consumed = mbtcp_front(tvb, pinfo, tree, data);
+
+    clock_tick(tvb, pinfo, tree);
     return consumed;
 }
 
@@ -1260,6 +1310,7 @@ frontends_init(void)
     guint i;
 
     memset(pn_tries, 0, sizeof pn_tries);
+    vrshark_clock_reset();
     forget_lua_side();
     mb_state = wmem_map_new(wmem_file_scope(), mb_conn_hash, mb_conn_equal);
     pn_foreign_subs = wmem_map_new(wmem_file_scope(), pn_subs_hash, pn_subs_equal);

@@ -37,6 +37,14 @@
 #define VRSHARK_PN_HOOK_CONNECT     "connect"
 #define VRSHARK_PN_HOOK_RESPONSE    "response"
 
+/* The clock (in VRSHARK_PN_HOOK_TABLE, called by every front end): a frame
+ * that otherwise does not reach Lua, on a first pass once its time is past
+ * the earliest deadline Lua armed (VRSHARK_FN_CLOCK_DUE), on a later pass
+ * when Lua marked it as carrying a finding (VRSHARK_FN_CLOCK_MARK). A
+ * stream that stops is said on the first frame after its deadline, any
+ * frame (lua/vrshark/deadlines.luam). */
+#define VRSHARK_PN_HOOK_CLOCK       "clock"
+
 /* Modbus/TCP hooks (in VRSHARK_MB_HOOK_TABLE):
  *   heuristic  called: the frames of a connection until it accepts one
  *              (non-zero back; VRSHARK_MB_CANDIDATE_TRIES refusals per
@@ -74,9 +82,13 @@
 #define VRSHARK_ENV_FRONTENDS_LIB   "VRSHARK_FRONTENDS_LIB"
 #define VRSHARK_ENV_FULL_TREE       "VRSHARK_FULL_TREE"
 
-/* The column writers vrshark.so exports (vrshark-columns.c). */
+/* The column writers vrshark.so exports (vrshark-columns.c), and the
+ * clock's two: the earliest deadline (absolute seconds, as text) and a
+ * frame number that carries a finding. */
 #define VRSHARK_FN_SET_COLS         "vrshark_lua_set_cols"
 #define VRSHARK_FN_APPEND_INFO      "vrshark_lua_append_info"
+#define VRSHARK_FN_CLOCK_DUE        "vrshark_lua_clock_due"
+#define VRSHARK_FN_CLOCK_MARK       "vrshark_lua_clock_mark"
 
 /* Heuristic tries: cyclic frames per FrameID, frames per TCP connection
  * (the Lua decoders bound their own tries by the same numbers).
