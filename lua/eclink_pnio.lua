@@ -64,6 +64,10 @@ local epf = {
     periodic_block_in = ProtoField.framenum("eclink_pnio.periodic.block_in", "Periodic data block in"),
     periodic_length = ProtoField.uint32("eclink_pnio.periodic.length", "Reassembled periodic data length"),
     periodic_data = ProtoField.bytes("eclink_pnio.periodic.data", "Reassembled periodic data"),
+    -- a stream that stops, and the PROFINET cycle (vrshark/pnio_stops.luam)
+    missing_since = ProtoField.framenum("eclink_pnio.missing_since", "Last frame of the stream"),
+    missing_time = ProtoField.relative_time("eclink_pnio.missing_time", "No frame of the stream for"),
+    lost_frames = ProtoField.uint32("eclink_pnio.lost_frames", "Frames lost (cycle counter)", base.DEC),
 }
 -- frame links of the handshake findings and acknowledgements
 local hs_fields, hs_field_list = eclink_handshake.fields("eclink_pnio")
@@ -89,8 +93,20 @@ eef.pn_malformed = ProtoExpert.new("eclink_pnio.pn_malformed",
     expert.group.PROTOCOL, expert.severity.NOTE)
 eef.periodic_reassembled = ProtoExpert.new("eclink_pnio.periodic.reassembled", "Periodic data reassembled",
     expert.group.REASSEMBLE, expert.severity.CHAT)
+-- a stream that stops, and the PROFINET cycle (vrshark/pnio_stops.luam)
+for _, e in ipairs({
+    { "input_missing", "No input frame for over 500 ms: PCI cannot move, bring the system to a safe state "
+        .. "(TS-0007 8.3)", "ERROR" },
+    { "output_missing", "No output frame for over 2000 ms: PCO cannot move, the BU indicates an error (TS-0007 8.4)",
+        "ERROR" },
+    { "data_hold_exceeded", "No frame of the stream within the data hold time of the Connect's IOCR: the AR is "
+        .. "aborted", "ERROR" },
+    { "frames_lost", "Cyclic frames lost (gap in the PN-RT cycle counter)", "WARN" } }) do
+    eef[e[1]] = ProtoExpert.new("eclink_pnio." .. e[1], e[2], expert.group.SEQUENCE, expert.severity[e[3]])
+end
 for _, k in ipairs({ "iops_bad", "short", "learned", "inferred", "reopened", "pn_malformed", "cut",
-                    "periodic_reassembled" }) do
+                    "periodic_reassembled", "input_missing", "output_missing", "data_hold_exceeded",
+                    "frames_lost" }) do
     eclp_experts[#eclp_experts + 1] = eef[k]
 end
 eclp.experts = eclp_experts
@@ -382,11 +398,22 @@ end
 
 -- (its frames are shown through its own dissector: pnio_systems.through())
 eclp.dissector = systems.dissector
-systems.register({ "eclink" }, { proto = eclp, short = eef.short, cut = eef.cut, inferred = eef.inferred,
+local dec = { proto = eclp, short = eef.short, cut = eef.cut, inferred = eef.inferred,
                                  reopened = eef.reopened,
                                  pn_malformed = eef.pn_malformed,
                                  per_frame = { up = "pci_age", down = "pco_age" }, analyse = analyse,
                                  show = show, sparse = sparse,
                                  -- (the Protos of its fields: frontends.lua_view())
                                  lua_protos = { eclp, image.proto() },
-                                 show_connect = show_connect })
+                                 show_connect = show_connect }
+-- The deadlines of its streams (TS-0007 8.3: PCI stops for 500 ms; 8.4: PCO
+-- not incremented for 2000 ms), a frame that stops coming being a counter
+-- that cannot move.
+dec.stops = require("vrshark.pnio_stops").watcher({ proto = eclp, dec = dec,
+    ef = { up = eef.input_missing, down = eef.output_missing, hold = eef.data_hold_exceeded, lost = eef.frames_lost },
+    pf = { since = epf.missing_since, time = epf.missing_time, lost = epf.lost_frames },
+    names = { up = "input", down = "output" }, limits = { up = 0.5, down = 2 },
+    texts = { up = "PCI cannot move, bring the system to a safe state (TS-0007 8.3)",
+              down = "PCO cannot move, the BU indicates an error and opens the ES-Link relays if an RU is armed "
+                  .. "(TS-0007 8.4)" } })
+systems.register({ "eclink" }, dec)

@@ -112,6 +112,10 @@ local pf = {
     frame_id = ProtoField.uint16("mcmb2.frame_id", "FrameID", base.HEX),
     -- what the base indicates (SP-14-023 1.5, 2.4): E010, beside the findings
     display = ProtoField.string("mcmb2.display", "Base display (SP-14-023 2.4)"),
+    -- a stream that stops, and the PROFINET cycle (vrshark/pnio_stops.luam)
+    missing_since = ProtoField.framenum("mcmb2.missing_since", "Last frame of the stream"),
+    missing_time = ProtoField.relative_time("mcmb2.missing_time", "No frame of the stream for"),
+    lost_frames = ProtoField.uint32("mcmb2.lost_frames", "Frames lost (cycle counter)", base.DEC),
 }
 mcmb2.fields = pf
 -- Statistics > MC-MB2-PN, tshark -z mcmb2,stat (vrshark/health.luam)
@@ -200,6 +204,17 @@ local ef = {
     time_backwards = expert_new("mcmb2.time_backwards",
         "Time went backwards (clock step): the watchdog rules restart here", expert.group.SEQUENCE,
         expert.severity.WARN),
+    uplink_missing = expert_new("mcmb2.uplink_missing",
+        "No uplink frame for over 1 s: the uplink watchdog is not updated, bring the system to a safe state "
+        .. "(SP-14-023 3.1.2)", expert.group.SEQUENCE, expert.severity.ERROR),
+    downlink_missing = expert_new("mcmb2.downlink_missing",
+        "No downlink frame for over 2000 ms: the downlink watchdog is not updated, the base shows E010 "
+        .. "(SP-14-023 2.4)", expert.group.SEQUENCE, expert.severity.ERROR),
+    data_hold_exceeded = expert_new("mcmb2.data_hold_exceeded",
+        "No frame of the stream within the data hold time of the Connect's IOCR: the AR is aborted",
+        expert.group.SEQUENCE, expert.severity.ERROR),
+    frames_lost = expert_new("mcmb2.frames_lost", "Cyclic frames lost (gap in the PN-RT cycle counter)",
+        expert.group.SEQUENCE, expert.severity.WARN),
     candidate = expert_new("mcmb2.candidate",
         "Looks like an MC-MB2-PN base or EC-Link BU whose layout was not inferred: a layout-table entry decodes it",
         expert.group.UNDECODED, expert.severity.NOTE),
@@ -210,7 +225,8 @@ mcmb2.experts = { ef.status_undefined, ef.slot_status_undefined, ef.terminal_not
                   ef.layout_mismatch, ef.iops_bad, ef.iocs_bad, ef.reserved_not_zero, ef.short, ef.learned,
                   ef.inferred, ef.ambiguous, ef.pn_malformed, ef.candidate, ef.time_backwards, ef.cut,
                   ef.connect_cut, ef.uplink_slow, ef.downlink_slow, ef.uplink_back, ef.downlink_back,
-                  ef.uplink_jump, ef.downlink_jump, ef.reopened }
+                  ef.uplink_jump, ef.downlink_jump, ef.reopened, ef.uplink_missing, ef.downlink_missing,
+                  ef.data_hold_exceeded, ef.frames_lost }
 -- the base's display beside the findings it follows from (SP-14-023 2.4): E010
 record.beside[ef.e010] = { pf.display, "E010" }
 record.beside[ef.downlink_stalled] = { pf.display, "E010" }
@@ -252,9 +268,14 @@ local up_limit, down_limit -- watchdog timeouts (s), read from the preferences i
 local simplex_mode, simplex_by_fid -- the preference, and the layout table's per base (downlink FrameID)
 local SIMPLEX_OPTION = { monitored = SIMPLEX_MONITORED, unmonitored = SIMPLEX_UNMONITORED }
 
+-- The deadlines of its streams: the watchdog timeouts (SP-14-023 3.1.2,
+-- 2.4), a frame that stops coming being a watchdog that is not updated.
+local stop_limits = { up = 1, down = 2 }
+
 systems.on_init(function()
     devs = {}
     up_limit, down_limit = mcmb2.prefs.uplink_timeout / 1000, mcmb2.prefs.downlink_timeout / 1000
+    stop_limits.up, stop_limits.down = up_limit, down_limit
     simplex_mode, simplex_by_fid = mcmb2.prefs.simplex_downlink, {}
     for _, e in ipairs(layout.parse_table(mcmb2.prefs.layouts)) do
         if e.downlink_watchdog and e.out_fid then simplex_by_fid[e.out_fid] = SIMPLEX_OPTION[e.downlink_watchdog] end
@@ -1082,10 +1103,17 @@ local function show_cut_connect(rec, tvb, tree)
     item:add_proto_expert_info(ef.connect_cut, rec.text)
 end
 
-systems.register({ "duplex", "polled" }, { proto = mcmb2, short = ef.short, cut = ef.cut, inferred = ef.inferred,
+local dec = { proto = mcmb2, short = ef.short, cut = ef.cut, inferred = ef.inferred,
                                           reopened = ef.reopened,
                                           pn_malformed = ef.pn_malformed,
                                           per_frame = { up = "wd_age", down = "wd_age" },
                                           analyse = analyse, show = show, sparse = sparse,
                                           show_connect = show_connect, show_candidate = show_candidate,
-                                          show_cut_connect = show_cut_connect })
+                                          show_cut_connect = show_cut_connect }
+dec.stops = require("vrshark.pnio_stops").watcher({ proto = mcmb2, dec = dec,
+    ef = { up = ef.uplink_missing, down = ef.downlink_missing, hold = ef.data_hold_exceeded, lost = ef.frames_lost },
+    pf = { since = pf.missing_since, time = pf.missing_time, lost = pf.lost_frames },
+    names = { up = "uplink", down = "downlink" }, limits = stop_limits,
+    texts = { up = "the uplink watchdog is not updated, bring the system to a safe state (SP-14-023 3.1.2)",
+              down = "the downlink watchdog is not updated, the base shows E010 (SP-14-023 2.4)" } })
+systems.register({ "duplex", "polled" }, dec)

@@ -78,6 +78,7 @@ local HOOK_CLOCK = seam.PN_HOOK_CLOCK
 -- (the clock of streams that stop, ticked on every frame the carrier sees)
 local deadlines = require("vrshark.deadlines")
 local tick = deadlines.tick
+local stops = require("vrshark.pnio_stops")
 -- (frames and per_frame by frame number: vrshark/framemap.luam says why)
 local framemap = require("vrshark.framemap")
 local passes = require("vrshark.passes")
@@ -239,6 +240,7 @@ end
 local function init()
     if not C then own_ethertype() end
     deadlines.reset()
+    stops.reset()
     for port in pairs(cm_ports or {}) do udp_table:remove(port, carrier) end
     by_fid, pending_down, tries, ars, cm_ports, not_ours, frags = {}, {}, {}, {}, {}, {}, {}
     noted_fid = {}
@@ -734,6 +736,13 @@ local function analysed(plan, s, t, frame, cut)
     return rec
 end
 
+-- A frame of the stream of `plan` (vrshark/pnio_stops.luam), first pass:
+-- cc its cycle counter, nil when not known.
+local function watch(plan, t, n, cc)
+    local dec = systems.decoder(plan.system)
+    if dec and dec.stops then dec.stops:seen(plan, t, n, cc) end
+end
+
 local inferred -- (below)
 
 -- A finding at the top of the record, before the decoder's (the order the
@@ -788,6 +797,7 @@ local function settle(res)
     end)
     for _, f in ipairs(list) do
         local rec = analysed(f[4], f[2], f[3], f[1])
+        if rec then watch(f[4], f[3], f[1], nil) end
         local dec = systems.decoder(f[4].system)
         if rec and again and f[1] == again.frame then first_finding(rec, dec.reopened, again.text) end
         if rec and f[1] == res.last then
@@ -822,6 +832,8 @@ local function contradiction(rec, s)
 end
 
 local function unregister(plan)
+    -- (its frames are no longer decoded: its stream is not watched either)
+    stops.forget(plan)
     local t = by_fid[plan.fid] or {}
     for i = #t, 1, -1 do
         if t[i] == plan then table.remove(t, i) end
@@ -1093,7 +1105,17 @@ local function first_pass(fid, tvb, pinfo, len, n, thrown)
     if not plan then return missed and down_note(missed, fid) end
     if plan.refused then return refused_note(plan) end
     local s = tvb_raw(tvb, base, cut and math.min(len - base, size) or size)
-    local rec = analysed(plan, s, p_abs_ts(pinfo), n, cut)
+    local t = p_abs_ts(pinfo)
+    local rec = analysed(plan, s, t, n, cut)
+    -- (the stream's deadlines and cycle; the cycle counter after the C-SDU)
+    if rec then
+        local cc
+        if not cut then
+            local hi, lo = string.byte(tvb_raw(tvb, len - 4, 2), 1, 2)
+            cc = hi * 256 + lo
+        end
+        watch(plan, t, n, cc)
+    end
     -- (a layout inferred from the cyclic frames: evidence against it re-opens it)
     if rec and plan.inferred and (rec.contradicts or rec.ioxs_bad) and not cut then
         local why = contradiction(rec, s)

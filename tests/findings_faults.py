@@ -36,6 +36,19 @@ FAULTS = {
     # --- stalls: first frame past the limit that carries the counter
     # ... the uplink watchdog keeps 5 from frame 11 (t 0.2 s): past 1 s at 1.2 s
     "mcmb2.uplink_watchdog.stalled": ("mcmb2_duplex_watchdog.pcap", [23]),
+    # --- streams that stop, the PROFINET cycle: mcmb2_duplex_stops, its
+    # Connect (frames 1, 2; cycle 4 ms, data hold 40 ms), then a pair a 4 ms
+    # tick i (uplink at 0.1 + 0.004 i, downlink 1 ms later) from frame 3;
+    # uplink frames of ticks 10-12 lost: its tick 13 is frame 26; the
+    # uplink ends after tick 29 (frame 58, t 0.216): past 40 ms is the
+    # downlink of tick 39 (frame 69), past 1 s that of tick 279 (frame 309);
+    # the downlink ends after tick 299 (frame 329, t 1.297), another
+    # device's frames every 0.1 s from 1.35 s (frame 330) on: past 40 ms is
+    # frame 330, past 2 s frame 350 (3.35 s)
+    "mcmb2.frames_lost": ("mcmb2_duplex_stops.pcap", [26]),
+    "mcmb2.data_hold_exceeded": ("mcmb2_duplex_stops.pcap", [69, 330]),
+    "mcmb2.uplink_missing": ("mcmb2_duplex_stops.pcap", [309]),
+    "mcmb2.downlink_missing": ("mcmb2_duplex_stops.pcap", [350]),
     # --- watchdog pace (SP-14-023 2.4, 3.1.2): mcmb2_duplex_watchdog, both
     # watchdogs keep 5 from t 1.0 s (frames 11, 12); 600 ms later, at t 1.6 s,
     # are frames 17 and 18

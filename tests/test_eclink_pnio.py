@@ -215,13 +215,16 @@ def test_late_echo_first_past_the_deadline(tshark, work_dir):
     assert "Command from RU (CCI 4) not acknowledged by CAO within 2.000 s (deadline at frame %d): the BU shows \"EC: Bad data\"" % echo \
         in two[command]["_ws.expert.message"]
     assert int(two[command]["eclink_pnio.deadline_in"]) == echo
-    assert two[echo]["_ws.col.Info"].endswith("[late ack]") and "[unacked]" not in two[echo]["_ws.col.Info"]
+    # (2.5 s without a frame of either stream: the echo also says both stopped)
+    assert two[echo]["_ws.col.Info"].endswith("[late ack] [no output 2.620 s] [no input 2.500 s]") \
+        and "[unacked]" not in two[echo]["_ws.col.Info"]
     one = tshark.frames(path, names, display_filter=late)
     assert sorted(one) == [echo]
-    assert one[echo]["_ws.col.Info"].endswith("[unacked] [late ack]")
-    assert one[echo]["_ws.expert.message"].split(",")[-2:] == [
-        "CAO echoed CCI 4 after 2.500 s (limit 2.000 s): the BU shows \"EC: Bad data\"",
-        "Command from RU (CCI 4 in frame %d) not acknowledged by CAO within 2.000 s: the BU shows \"EC: Bad data\"" % command]
+    assert one[echo]["_ws.col.Info"].endswith("[unacked] [late ack] [no output 2.620 s] [no input 2.500 s]")
+    assert ("CAO echoed CCI 4 after 2.500 s (limit 2.000 s): the BU shows \"EC: Bad data\","
+            "Command from RU (CCI 4 in frame %d) not acknowledged by CAO within 2.000 s: the BU shows \"EC: Bad data\","
+            "No output frame (FrameID 0x8033) for 2.620 s since frame %d" % (command, echo - 2)) \
+        in one[echo]["_ws.expert.message"]
     assert int(one[echo]["eclink_pnio.cmd_from_ru_in"]) == command
     tshark.expect(path, echo, {"eclink_pnio.cmd_from_ru.late_ack": True, "eclink_pnio.cmd_from_ru.late": True})
     tshark.expect(path, echo, {"eclink_pnio.cmd_from_ru.late_ack": True, "eclink_pnio.cmd_from_ru.late": None},

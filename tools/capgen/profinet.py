@@ -192,9 +192,10 @@ class Device:
             buf[o] = iocs.get((s.slot, s.subslot), GOOD)
         return bytes(buf)
 
-    def frame(self, cap, t, direction, data, iops=None, iocs=None, fid=None):
-        """Add one cyclic frame; data: {(slot, subslot): bytes}."""
-        self.cycle = (self.cycle + 32) & 0xFFFF
+    def frame(self, cap, t, direction, data, iops=None, iocs=None, fid=None, cycle=None):
+        """Add one cyclic frame; data: {(slot, subslot): bytes}; cycle: its
+        cycle counter (default: one counter for both directions, +32 a frame)."""
+        self.cycle = (self.cycle + 32) & 0xFFFF if cycle is None else cycle & 0xFFFF
         c_sdu = self._csdu(direction, data, iops or {}, iocs or {})
         if direction == "in":
             src, dst, f = self.dev_mac, self.ctl_mac, self.in_fid
@@ -329,6 +330,28 @@ def duplex_watchdog(connect=True):
             down_wd += 1
         d.uplink(cap, t, [0x11, up_wd & 0xFF], [bytes([1, 2, 3, i])])
         d.downlink(cap, t + 0.001, [0, down_wd & 0xFF], [])
+    return cap
+
+
+@capture("mcmb2_duplex_stops.pcap",
+         "MC-MB2-PN duplex with its Connect (cycle 4 ms, data hold 40 ms): 3 uplink frames lost, the uplink "
+         "ends at 0.216 s while the downlink runs on to 1.297 s, then another device's frames to 3.45 s")
+def duplex_stops():
+    base = Mcmb2("duplex", 4, 2, in_fid=0x8005, out_fid=0x8006)
+    other = ("00:30:11:00:00:99", "00:1b:1b:00:00:98", 0x0400)
+    cap = Capture()
+    base.connect(cap, 0.0)                                               # frames 1, 2
+    # a 4 ms tick i: the uplink (ticks 0-29 but 10-12), then the downlink
+    # (ticks 0-299) 1 ms later, each stream its own cycle counter stepping
+    # by the Connect's 32 x 4; then the other device every 0.1 s
+    uplinks = set(range(30)) - {10, 11, 12}
+    for tick in range(300):
+        at = 0.1 + tick * 0.004
+        if tick in uplinks:
+            base.uplink(cap, at, [0x11, tick // 6], [bytes([1, 2, 3, tick])], cycle=tick * 128)
+        base.downlink(cap, at + 0.001, [0, tick // 25], [bytes([0, tick & 0xFF])], cycle=tick * 128)
+    for k in range(22):
+        cap.add(1.35 + k * 0.1, pn_rt_frame(*other, bytes(40), cycle=k * 3200))
     return cap
 
 
