@@ -10,7 +10,11 @@ dissection after the frame's first pass: the command's row is drawn long
 before its deadline. So the failed command is marked where it becomes
 known: the row of frame 61 shows `[unacked]` and turns the colour of a
 command not acknowledged as it arrives, and no other row has that colour,
-before the deadline or after (docs/eglink.md "Live").
+before the deadline or after (docs/eglink.md "Live"). Re-filtered while
+the capture runs (xdotool types the Commands button's filter), the list
+shows that one row of that colour among the command's; the command's row
+now reads `[unacked]` too (its forward link, as `-2` shows it), in the
+colour it was drawn in.
 
 A Lua postdissector beside the plugins logs what the GUI dissected (frame,
 first pass or not, the Info column); screenshots give the rows' colours.
@@ -24,8 +28,9 @@ import time
 
 import pytest
 
-from conftest import BUILD, CAPTURES, PROFILE_DIR
-from gui_testlib import PROBE_X, Gui, Session, add_probe, column, have_gui, near, read_ppm, rule_colours, runs
+from conftest import BUILD, CAPTURES, PROFILE_DIR, profile_buttons
+from gui_testlib import (PROBE_X, WIDTH, Gui, Session, add_probe, column, have_gui, have_keys, near, read_ppm, rule_colours,
+                         runs)
 from installed_testlib import IS_ROOT, RUN_UID, Installed
 
 pytestmark = pytest.mark.skipif(not have_gui(), reason="wireshark, Xvfb or imagemagick missing (tools/setup)")
@@ -35,6 +40,7 @@ CAPTURE = CAPTURES / "eglink_analysis_vrci_unacked.pcap"
 GROUP = "239.255.42.20"
 DEADLINE_FRAME, COMMAND_FRAME = 61, 5
 UNACKED = "vrshark: command not acknowledged"
+FIRST_ROW_Y = 123   # the first row of the packet list, below its header (pixels)
 BEFORE_S = 1.8      # the deadline passes at 2.2 s (VRCI 8 at 0.2 s, 2000 ms), frame 61 at 2.24 s
 
 PROBE = """-- vrshark live test probe: what the GUI dissects
@@ -71,11 +77,12 @@ def udp_packets(path):
 
 
 def probe_lines(path):
-    """[(frame, "first" or "visited", Info)] the probe logged."""
+    """[(frame, "first" or "visited", Info)] the probe logged, of the
+    dissections with columns (a filter's have none: Info "(info)")."""
     out = []
     for line in path.read_text(errors="replace").splitlines():
         parts = line.split("\t")
-        if len(parts) == 3 and parts[0].isdigit():
+        if len(parts) == 3 and parts[0].isdigit() and parts[2] != "(info)":
             out.append((int(parts[0]), parts[1], parts[2]))
     return out
 
@@ -101,8 +108,10 @@ def test_live_capture_marks_the_failed_command(live):
     socks = {src: mcast_socket() for src in sorted({p[1] for p in packets})}
     ports = " or ".join("src port %d" % s.getsockname()[1] for s in socks.values())
     warm = next(iter(socks.values()))
-    # (the packet list alone in the window: the rows from the one of the command on)
+    # (the packet list alone in the window: the rows from the one of the command on;
+    # no completion list under the filter bar while xdotool types)
     session = Session(gui, ["-C", "vrshark", "-o", "gui.layout_content_2:NONE", "-o", "gui.layout_content_3:NONE",
+                            "-o", "gui.autocomplete_filter:FALSE",
                             "-i", "lo", "-k", "-f", "udp and dst host %s and (%s)" % (GROUP, ports)])
     colours = rule_colours(PROFILE_DIR / "colorfilters")
     try:
@@ -130,6 +139,22 @@ def test_live_capture_marks_the_failed_command(live):
         before.join()
         time.sleep(1.5)
         shots["after"] = gui.screenshot()
+        # a re-filter (the capture still running): the Commands button's filter; the
+        # first row selected (a click), then the last (End), to see each one's colour
+        if have_keys():
+            session.press("ctrl+slash")
+            session.xdotool("key", "ctrl+a", "BackSpace")
+            session.xdotool("type", "--delay", "10", dict(profile_buttons())["Commands"])
+            session.xdotool("key", "Return")
+            time.sleep(2.0)
+            session.xdotool("mousemove", str(WIDTH // 3), str(FIRST_ROW_Y), "click", "1")
+            session.focus()
+            time.sleep(0.5)
+            shots["commands-first"] = gui.screenshot()
+            session.xdotool("mousemove", str(WIDTH // 3), str(FIRST_ROW_Y), "click", "1", "key", "End")
+            session.focus()
+            time.sleep(0.5)
+            shots["commands-last"] = gui.screenshot()
     finally:
         out = session.close()
         for s in socks.values():
@@ -143,16 +168,25 @@ def test_live_capture_marks_the_failed_command(live):
     frames = {n - base for n, _, _ in seen if n > base}
     assert frames == set(range(1, len(packets) + 1)), "the GUI did not dissect every frame sent"
     # the row of the deadline frame, drawn as it arrived: [unacked] whenever the
-    # list dissects it (the first pass may have no columns)
+    # list dissects it
     drawn = [info for n, how, info in seen if n - base == DEADLINE_FRAME and how == "visited"]
     assert drawn and set(drawn) == {"VRPO Pkt=0 64 bytes [unacked]"}, drawn
     # the command as the live list drew it (before its deadline): not marked
     drawn = [info for n, how, info in seen if n - base == COMMAND_FRAME and how == "visited"]
     assert drawn and drawn[0] == "VRCI Cmd=8", drawn
-    # the colours: no row of a failed command before the deadline, one (61) after
-    for name, want in (("before", 0), ("after", 1)):
+    # the colours: no row of a failed command before the deadline, one (61) after; the
+    # Commands button shows it among the command's rows (20), in that colour but when
+    # it is the selected row
+    for name, want, rows in (("before", 0, 5), ("after", 1, 5), ("commands-first", 1, 19), ("commands-last", 0, 20)):
+        if name not in shots:
+            continue
         col = runs(column(read_ppm(shots[name]), PROBE_X))
         unacked = [n for c, n in col if near(c, colours[UNACKED])]
         healthy = sum(n for c, n in col if near(c, colours["vrshark: EG-Link"]))
         assert len(unacked) == want and all(n >= 12 for n in unacked), (name, unacked, ARTEFACTS)
-        assert healthy > 5 * 12, (name, "no EG-Link rows in the picture", ARTEFACTS)
+        assert healthy >= rows * 12, (name, "EG-Link rows", healthy, ARTEFACTS)
+    if "commands-last" in shots:
+        # re-dissected after the deadline, the command's row reads [unacked] too (its
+        # forward link, as -2 shows it), in the colour it was drawn in
+        drawn = [info for n, how, info in seen if n - base == COMMAND_FRAME and how == "visited"]
+        assert drawn[-1] == "VRCI Cmd=8 [unacked]", drawn
