@@ -91,6 +91,7 @@ local tvb_reported_len = api.reported_len
 -- (the flat records by frame number: vrshark/framemap.luam says why)
 local framemap = require("vrshark.framemap")
 local passes = require("vrshark.passes")
+local health = require("vrshark.health") -- Statistics > EC-Link
 local fget, fset = framemap.get, framemap.set
 
 image.proto()  -- the single Proto("eclink"), shared with the other EC-Link plugins
@@ -185,6 +186,8 @@ local MID_ADU_TEXT = "TCP data from inside an ADU, not decoded (%d bytes from th
     .. "tcp.reassemble_out_of_order:TRUE reassembles"
 hs_experts[#hs_experts + 1] = ef.poll_gap
 proto.experts = hs_experts
+-- Statistics > EC-Link, tshark -z eclink,stat: EC-Link over Modbus/TCP and PROFINET (vrshark/health.luam)
+require("vrshark.health").register("eclink", "EC-Link", "eclink,stat")
 -- the BU display text beside the findings that cause it (TS-0007 9): eclink.lcd
 local LCD = handshake.lcd_by_expert(ef)
 
@@ -602,6 +605,7 @@ end
 -- preferences after load)
 proto.init = function()
     init_state()
+    health.reset()
     place_on_port(true)
     place_servers()
 end
@@ -930,6 +934,7 @@ local function analyse(c, rec, t, frame, touched_in, touched_out)
         local b = back[i]
         set_link(b[1], b[2], b[3])
         if b[4] then add_finding(b[1], { ef[b[4][1]], b[4][2] }) end
+        if b[4] then health.modbus_later(ef[b[4][1]]) end
     end
     rec[R_PCI_AGE], rec[R_PCO_AGE] = r.pci_age and to_us(r.pci_age) or false, r.pco_age and to_us(r.pco_age) or false
     -- (a nil stored under a new key would make the record a hash part)
@@ -1170,6 +1175,9 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb, 
         end
     end
     analyse(c, rec, t, number, touched_in, touched_out)
+    health.modbus(c, rec, is_request and pinfo.dst or pinfo.src, is_request and dst_port or src_port, unit, is_request,
+        is_request and r and reads_pci(fc, r), is_request and touched_out, touched_in,
+        det ~= DETECT_HEURISTIC or c.accepted, t, number)
     if opt.assembled then
         rec.snap_in = snapshot(c, "input")
         rec.snap_out = snapshot(c, "output")

@@ -24,6 +24,7 @@ local eclink_handshake = require("vrshark.eclink_handshake")
 local image = require("vrshark.eclink_image")
 local periodic = require("vrshark.eclink_periodic")
 local record = require("vrshark.pnio_record")
+local health = require("vrshark.health") -- Statistics > EC-Link
 local systems = require("vrshark.pnio_systems")
 local iodata = require("vrshark.iodata") -- vrshark_io hook
 local fe = require("vrshark.frontends")
@@ -198,6 +199,7 @@ local function analyse(rec, ba, t, frame)
         local cmd = b[1]
         if cmd and b[4] then
             add_finding(cmd, "image", eef[b[4][1]], b[4][2])
+            health.pnio_finding(cmd.plan, eef[b[4][1]])
             cmd.unacked = true
             cmd.links = cmd.links or {}
             cmd.links[#cmd.links + 1] = { b[2], b[3] }

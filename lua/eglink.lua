@@ -21,7 +21,8 @@ Input port 5825 (configurable), output port = input port + 2, multicast
 239.255.42.20. The per-BU conversation analysis, command links and VRPO
 reassembly live in vrshark/eglink_analysis.luam (as eglink-analysis.c), the
 "eglink.data" hand-off in vrshark/eglink_data.luam. The statistics tree of
-the C plugin (-z eglink,tree) has no Lua counterpart (docs/eglink.md).
+the C plugin (-z eglink,tree) has no Lua counterpart; its table, -z eglink,stat,
+has (docs/eglink.md).
 ]]
 
 local dir = debug.getinfo(1, "S").source:match("^@(.*)[/\\]")
@@ -49,6 +50,7 @@ local handoff = require("vrshark.eglink_data")
 local analysis
 if package.searchpath and package.searchpath("vrshark.eglink_analysis", package.path) then
     analysis = require("vrshark.eglink_analysis")
+    analysis.stat_cmd_register() -- tshark -z eglink,stat
 end
 
 local band, bor, bxor, lshift, rshift = bit.band, bit.bor, bit.bxor, bit.lshift, bit.rshift
@@ -108,10 +110,8 @@ local IS_INPUT = { VRPI = true, VRCI = true, VRAI = true }
 local TYPE_LABEL = {}
 for k, v in pairs(TYPE_DESCR) do TYPE_LABEL[k] = " (" .. v .. ")" end
 
-local BU_STATE = {
-    [0x00] = "Initial", [0x01] = "Stopped", [0x02] = "External link error", [0x03] = "Blocked",
-    [0x04] = "Failed", [0x10] = "Disarmed", [0x11] = "Armed",
-}
+local status_names = require("vrshark.status_names")
+local BU_STATE = status_names.BU_STATE
 -- Why the ES-Link relays are open, per BU state below Disarmed.
 local BU_STATE_ADVICE = {
     [0x00] = "the BU is not fully operative yet",
@@ -120,17 +120,14 @@ local BU_STATE_ADVICE = {
     [0x03] = "contact with the armed RU is lost: switch the RU on and arm it again",
     [0x04] = "the BU self-test found a fatal internal error",
 }
-local LINK_STATUS = {
-    [0] = "Unused", [1] = "Operational", [2] = "No link", [3] = "Link error", [4] = "Interface error",
-    [5] = "Data error", [6] = "Passive",
-}
-local RU_STATE = { [0] = "Initial", [1] = "Disarmed", [2] = "Armed", [3] = "Enabled", [4] = "Stopped" }
-local RU_CABLE = { [0] = "Wireless", [1] = "Cable" }
-local RU_DOCKED = { [0] = "Not docked", [1] = "Docked" }
+local LINK_STATUS = status_names.LINK_STATUS
+local RU_STATE = status_names.RU_STATE
+local RU_CABLE = status_names.RU_CABLE
+local RU_DOCKED = status_names.RU_DOCKED
 local RU_DISABLED = {
     [0] = "Enabled", [1] = "Disabled (tilted)", [2] = "Disabled (inactivity)", [3] = "Disabled (other cause)",
 }
-local ENCODER_SWITCH = { [0] = "Released", [1] = "Pushed" }
+local ENCODER_SWITCH = status_names.ENCODER_SWITCH
 local RELAYS = { "Open", "Closed" }
 -- Wireshark's proto_checksum_vals
 local CHECKSUM_STATUS = { [0] = "Bad", [1] = "Good", [2] = "Unverified", [3] = "Not present", [4] = "Illegal" }
@@ -688,12 +685,7 @@ end
 
 -- TS-0006 4.1.2: what a link status 2..5 says of a link in use (0 Unused
 -- and 6 Passive say it is not in use).
-local LINK_FAULT = {
-    [2] = "the link is not operating: no valid data has been received",
-    [3] = "a configuration error keeps the link from operating",
-    [4] = "the link's interface module reports an error",
-    [5] = "the link is up, but the data exchanged is in error",
-}
+local LINK_FAULT = status_names.LINK_FAULT
 local function check_link_fault(p, ti, name, value)
     local why = LINK_FAULT[value]
     if why then

@@ -114,6 +114,8 @@ local pf = {
     display = ProtoField.string("mcmb2.display", "Base display (SP-14-023 2.4)"),
 }
 mcmb2.fields = pf
+-- Statistics > MC-MB2-PN, tshark -z mcmb2,stat (vrshark/health.luam)
+require("vrshark.health").register("mcmb2", "MC-MB2-PN", "mcmb2,stat")
 
 -- ProtoExpert.new that remembers the filter names (sparse display)
 local expert_names = {}

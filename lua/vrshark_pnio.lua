@@ -77,6 +77,7 @@ local HOOK_CANDIDATE, HOOK_PENDING, HOOK_CONNECT, HOOK_RESPONSE = seam.PN_HOOK_C
 -- (frames and per_frame by frame number: vrshark/framemap.luam says why)
 local framemap = require("vrshark.framemap")
 local passes = require("vrshark.passes")
+local health = require("vrshark.health") -- Statistics > MC-MB2-PN, EC-Link
 local fget, fset = framemap.get, framemap.set
 
 -- With the C front ends the C plugin is "vrshark_pnio"; the carrier is then
@@ -241,6 +242,7 @@ local function init()
     frames, per_frame = framemap.packed_refs(), framemap.packed_ms()
     last_rec, per_frame.n, spare = {}, 0, nil
     once = passes.once()
+    health.reset()
     local prefs = systems.prefs()
     heuristic, learn = prefs.heuristic, prefs.connect
     if C then fe.pn_frame_id:remove_all(carrier) end
@@ -718,9 +720,11 @@ local function analysed(plan, s, t, frame, cut)
     if size < plan.need then
         record.add_finding(rec, "top", dec.short, string.format(
             "C-SDU has %d bytes, the layout needs %d", size, plan.need))
+        health.pnio(rec, t, frame)
         return rec
     end
     dec.analyse(rec, s, t, frame)
+    health.pnio(rec, t, frame)
     return rec
 end
 

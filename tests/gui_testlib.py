@@ -125,6 +125,23 @@ def rows_of(ppm, colours):
     return counts, row
 
 
+# The Statistics menu: a pixel column inside it (the menu bar's "Statistics"
+# is at the same place at WIDTH in every install) and its highlight colour.
+MENU_X = 305
+MENU_HIGHLIGHT = (48, 140, 198)
+
+
+def menu_highlight(ppm):
+    """The top of the highlighted item of an open menu (a run of the
+    highlight colour as tall as an item, below the menu bar's own), or None."""
+    y = 0
+    for c, n in runs(column(ppm, MENU_X)):
+        if near(c, MENU_HIGHLIGHT) and n >= 15 and y > 10:
+            return y
+        y += n
+    return None
+
+
 class Gui:
     """An X server and Wireshark runs on it for one installed layout."""
 
@@ -231,6 +248,52 @@ class Session:
 
     def output(self):
         return self.log.read_text(errors="replace")
+
+    def statistics_item(self, offset, name="statistics"):
+        """Opens the Statistics menu and picks the item `offset` places below
+        the first item of its unsorted group (Wireshark's own "DHCP (BOOTP)
+        Statistics" on 4.0, then the other items of the group in
+        alphabetical order, Lua plugins' among them). The group is found on
+        the screen, not by a count of the items above it: Down moves the
+        highlight one item at a time, and the first step longer than one
+        item (with a file open no item is disabled) crosses the separator
+        above the group. Screenshots of the open menu: NAME-menu.png."""
+        self.press("alt+s")
+        time.sleep(1)
+        tops = [menu_highlight(read_ppm(self.gui.screenshot()))]
+        for _ in range(40):
+            self.xdotool("key", "Down")
+            time.sleep(0.3)
+            tops.append(menu_highlight(read_ppm(self.gui.screenshot())))
+            assert None not in tops, "no highlighted item in the Statistics menu: %s" % tops
+            row = tops[1] - tops[0]
+            if len(tops) > 2 and row < tops[-1] - tops[-2] < 2 * row:
+                break
+        else:
+            raise AssertionError("no separator in the Statistics menu: highlight at %s" % tops)
+        if offset:
+            self.xdotool("key", *(["Down"] * offset))
+            time.sleep(0.3)
+        subprocess.run(["convert", "ppm:-", str(self.gui.artefacts / (name + "-menu.png"))],
+                       input=self.gui.screenshot(), check=True)
+        self.xdotool("key", "Return")
+
+    def open_statistics_item(self, found, tries=12, name="statistics"):
+        """Picks the items of the Statistics menu's unsorted group in turn
+        until found() (polled for 4 s) is true: the group's order changes
+        (Analyze > Reload Lua Plugins puts the Lua items after Wireshark's
+        own), the item is found by what it opens. Escape closes what another
+        item opened. Returns the item's place in the group, or None."""
+        for offset in range(tries):
+            self.statistics_item(offset, "%s-%d" % (name, offset))
+            deadline = time.time() + 4
+            while time.time() < deadline:
+                if found():
+                    return offset
+                time.sleep(0.5)
+            self.xdotool("key", "Escape", "Escape")
+            time.sleep(0.5)
+        return None
 
     def close(self):
         self.proc.kill()

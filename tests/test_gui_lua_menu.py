@@ -2,26 +2,26 @@
 lines, no C plugin): Wireshark 4.0 never shows a Lua menu item of
 MENU_STAT_GENERIC, so the item is registered in the unsorted group, which
 4.0 and 4.6 both show. The test opens the Statistics menu with the
-keyboard, as a user without a mouse would, picks the item and finds the
-text window it opens by its title: no window "EG-Link" opens unless the
-item is there."""
+keyboard, as a user without a mouse would, picks the items of that group in
+turn (gui_testlib.Session.open_statistics_item: the group is found on the
+screen, not by counting the items above it) and finds the text window the
+item opens by its title: no window "EG-Link" opens unless the item is
+there."""
 import subprocess
 import time
 
 import pytest
 
-from conftest import BUILD
+from conftest import BUILD, ROOT
 from gui_testlib import Gui, Session, have_gui, have_keys
 from installed_testlib import Installed
 
 pytestmark = pytest.mark.skipif(not (have_gui() and have_keys()),
                                 reason="wireshark, Xvfb, imagemagick or xdotool missing (tools/setup)")
 
-# Wireshark 4.0 with no file open: the Statistics menu opens on Resolved
-# Addresses; Down steps over the enabled items (Conversations, Endpoints,
-# Packet Lengths, Service Response Time), then the unsorted group in
-# alphabetical order: DHCP (BOOTP) Statistics, EG-Link (Lua).
-DOWNS = 6
+# Wireshark 4.0: the unsorted group in alphabetical order, DHCP (BOOTP)
+# Statistics, EC-Link, EG-Link (Lua).
+PLACE = 2
 
 
 def windows_named(gui, pattern):
@@ -37,21 +37,17 @@ def test_lua_only_statistics_item_opens_its_window():
     gui = Gui(inst, BUILD / "gui-artefacts")
     session = None
     try:
-        session = Session(gui, ["-C", "vrshark"])
+        # (a file open: no item of the menu is disabled)
+        session = Session(gui, ["-C", "vrshark", "-r", str(ROOT / "captures" / "eglink_analysis_session.pcap")])
         deadline = time.time() + 30
         while time.time() < deadline and not windows_named(gui, "Wireshark"):
             time.sleep(0.5)
         time.sleep(2)
         assert not windows_named(gui, "EG-Link")
-        session.press("alt+s")
-        time.sleep(1)
-        session.xdotool("key", *(["Down"] * DOWNS), "Return")
-        deadline = time.time() + 10
-        while time.time() < deadline and not windows_named(gui, "EG-Link"):
-            time.sleep(0.5)
+        place = session.open_statistics_item(lambda: windows_named(gui, "EG-Link"), name="lua_only_eglink")
         subprocess.run(["convert", "ppm:-", str(gui.artefacts / "lua_only_statistics.png")],
                        input=gui.screenshot(), check=True)
-        assert windows_named(gui, "EG-Link"), session.output()
+        assert place == PLACE and windows_named(gui, "EG-Link"), (place, session.output())
     finally:
         if session is not None:
             session.close()

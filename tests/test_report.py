@@ -330,6 +330,10 @@ VRPO_GAP_TEXT = """\
   [1] EG-Link BU 0x1001 (192.168.32.10 to 239.255.42.20:5825)
       frames 1-56 (56), 0.000 s to 4.440 s; layout: TS-0006 on UDP ports 5825, 5827: by port
       first: BU state Armed, RU state Enabled (RU 0xbeef)
+health (per stream; cycle: the intervals between its frames):
+  device  stream           frames  cycle ms min / median / max  longest silence      stalls  failed  findings E/W/N
+  [1]     BU VRPI              36        125.0 / 125.0 / 125.0  0.125 s to frame 3        0       0           0/1/0
+  [1]     controller VRPO      20       100.0 / 100.0 / 2600.0  2.600 s to frame 40       1       0           1/0/0
 timeline (4 entries: 1 error, 1 warning, 2 note; seconds from the first frame):
       time   frame  severity  device
      3.000      35  note      [1]  BU state Armed -> External link error (after 3.000 s or more)
@@ -494,7 +498,12 @@ def test_json_schema(report):
     assert cap["counts"] == {"note": 0, "warning": 2, "error": 2}
     assert set(cap["devices"][0]) == {"id", "kind", "name", "address", "layout", "frames",
                                       "first_frame", "last_frame", "start", "end", "initial",
-                                      "final", "not_captured", "terminals"}
+                                      "final", "not_captured", "streams", "terminals"}
+    assert cap["devices"][0]["streams"][0] == {
+        "stream": "uplink 0x8003", "frames": 25, "first_frame": 3, "last_frame": 51, "limit_ms": 1000,
+        "cycle_ms": {"min": 200.0, "median": 200.0, "max": 200.0},
+        "longest_silence": {"s": 0.2, "frame": 5}, "stalls": 1, "commands_failed": 0,
+        "findings": {"error": 1, "warning": 1, "note": 0}}
     stall = cap["timeline"][3]
     assert stall == {"time": 3.201, "frame": 34, "device": 1, "severity": "error", "kind": "stall",
                      "field": "mcmb2.downlink_watchdog.stalled", "text": stall["text"], "count": 1,
@@ -534,6 +543,9 @@ def test_junit(report, tmp_path, bad_files):
         (23, "error", 1, "uplink watchdog stalled at 5 for 1.400 s or more (unchanged since frame 11, "
          "limit 1000 ms), until the end of the capture")]),
     ("eglink_analysis_vrpo_gap.pcap", "1-38", [
+        # (the VRPO stopped at frame 18, 2.435 s before the cut capture ends: past its 2000 ms)
+        (18, "error", 1, "controller VRPO: last frame 18 at 0.940 s; the capture goes on 2.435 s without it "
+         "(limit 2000 ms)"),
         (35, "note", 1, "BU state Armed -> External link error (after 3.000 s or more)"),
         (35, "warning", 1, "ES-Link relays open (BU state External link error) for 0.375 s or more, "
          "until the end of the capture"),

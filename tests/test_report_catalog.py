@@ -157,9 +157,11 @@ def kinds_table():
 def test_docs_kinds_have_the_catalog_severities():
     """Each kind's severity in the docs is that of the catalog entries of its role."""
     kinds = kinds_table()
-    assert set(kinds) == {"state", "relays", "stall", "gap", "poll_gap", "finding"}
+    assert set(kinds) == {"state", "relays", "stall", "gap", "poll_gap", "stopped", "finding"}
     for kind in ("relays", "stall", "gap", "poll_gap"):
         severities = {s for s, role, _ in catalog.EXPERTS.values() if role == kind}
         assert set(re.findall(r"\b(note|warning|error)\b", kinds[kind])) == severities, kind
     assert kinds["state"] == "note"
+    # (the report's own: a stream that never came back, the severity of a stall)
+    assert kinds["stopped"] == "error"
 

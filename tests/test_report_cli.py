@@ -588,7 +588,11 @@ def test_junit_time_and_span(cmd, work):
     assert case.get("time") is None
     props = {p.get("name"): p.get("value") for p in case.findall("properties/property")}
     assert props == {"kind": "eglink", "frames": "56", "first_frame": "1", "last_frame": "56",
-                     "traffic_start_s": "0.000", "traffic_end_s": "4.440", "traffic_span_s": "4.440"}
+                     "traffic_start_s": "0.000", "traffic_end_s": "4.440", "traffic_span_s": "4.440",
+                     "health BU VRPI": "frames 36; cycle 125.0 / 125.0 / 125.0 ms; longest silence 0.125 s to "
+                     "frame 3; stalls 0; commands failed 0; findings 0 error, 1 warning, 0 note",
+                     "health controller VRPO": "frames 20; cycle 100.0 / 100.0 / 2600.0 ms; longest silence "
+                     "2.600 s to frame 40; stalls 1; commands failed 0; findings 1 error, 0 warning, 0 note"}
 
 
 

@@ -14,7 +14,7 @@ import plotly.graph_objects as go
 from plotly.offline import get_plotlyjs, get_plotlyjs_version
 from plotly.subplots import make_subplots
 
-from . import held
+from . import health, held
 from .expect import listed, title
 from .text import device
 
@@ -25,7 +25,7 @@ from .text import device
 BASIC_BUNDLE = Path(__file__).resolve().with_name("plotly-basic.min.js.gz")
 
 COLOURS = {"note": "#3b78b0", "warning": "#e08a00", "error": "#c62828"}
-SHADED = ("relays", "stall", "gap", "poll_gap")  # shaded over their span in the plots
+SHADED = ("relays", "stall", "gap", "poll_gap", "stopped")  # shaded over their span in the plots
 SEVERITY_Y = {"note": 1, "warning": 2, "error": 3}
 TIMELINE_ROWS = 3000  # timeline lines per capture in the page (all are in --json)
 PALETTE = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#8c564b", "#e377c2", "#17becf", "#bcbd22"]
@@ -168,6 +168,7 @@ def capture_section(index, rep, plotted=lambda: None):
             return "\n".join(out)
     else:
         out.append(devices_table(rep))
+        out.append(health_table(rep))
     for d in rep["devices"]:
         timeline = [e for e in rep["timeline"] if e["device"] == d["id"]]
         fig = figure(d, timeline, rep["duration"])
@@ -203,6 +204,23 @@ def devices_table(rep):
                        d["id"], H.escape(d["name"]), d["frames"], d["first_frame"], d["last_frame"],
                        d["start"], d["end"], H.escape(d["layout"] or ""),
                        H.escape(states(d["initial"])), H.escape(last_states(d)), H.escape(terms)))
+    out.append("</table>")
+    return "\n".join(out)
+
+
+def health_table(rep):
+    """The health rows (health.py): a row per stream of each device."""
+    rows = [(d["id"], row) for d in rep["devices"] for row in d.get("streams", [])]
+    if not rows:
+        return ""
+    out = ["<h3>Health</h3>", "<table><tr><th>#</th>%s</tr>" % "".join(
+        "<th>%s</th>" % H.escape(h) for h in health.HEADER)]
+    for ident, row in rows:
+        cells = health.cells(row)
+        out.append("<tr><td>%d</td><td>%s</td>%s</tr>" % (
+            ident, H.escape(cells[0]), "".join(
+                "<td%s>%s</td>" % ("" if i == 3 else " class=num", H.escape(c))
+                for i, c in enumerate(cells[1:], 1))))
     out.append("</table>")
     return "\n".join(out)
 

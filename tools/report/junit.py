@@ -10,7 +10,7 @@ JUnit readers take it for); a device's traffic span is in its properties.
 import sys
 import xml.etree.ElementTree as ET
 
-from . import held
+from . import health, held
 from .catalog import severity_at_least
 from .expect import summary, title
 
@@ -30,7 +30,8 @@ def device_case(suite, rep, dev, threshold):
                       ("traffic_end_s", "%.3f" % dev["end"]),
                       ("traffic_span_s", "%.3f" % max(0.0, dev["end"] - dev["start"]))]
                + [("not_captured", "%s from frame %d" % (name, r["first_frame"]))
-                  for name, r in dev.get("not_captured", {}).items()])
+                  for name, r in dev.get("not_captured", {}).items()]
+               + [("health " + row["stream"], health.summary(row)) for row in dev.get("streams", [])])
     return failures(case, rep, dev["id"], threshold)
 
 

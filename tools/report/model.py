@@ -8,7 +8,7 @@ devices, timeline entries and plot buckets, never with the number of frames.
 import datetime
 import re
 
-from . import catalog
+from . import catalog, health
 from .catalog import ERROR, NOTE, WARNING
 from .details import DETAILS
 from .rows import COL, EXPERT_FIELDS
@@ -52,6 +52,7 @@ EG_INTERVALS = [("VRPI", C["eglink_analysis_time_since_prev_vrpi"], "eglink.vrpi
                 ("VRPO", C["eglink_analysis_time_since_prev_vrpo"], "eglink.vrpo_gap_ms")]
 EG_DPORT = C["udp_dstport"]
 TCP_SPORT = C["tcp_srcport"]
+TCP_FIN, TCP_RST = C["tcp_flags_fin"], C["tcp_flags_reset"]
 MODBUS_CANDIDATE, PNIO_CANDIDATE = C["eclink_modbus_candidate_setting"], C["mcmb2_candidate_setting"]
 CONNECT_CUT = C["mcmb2_connect_cut"]  # (an expert field: a Connect the capture cut)
 FRAME_LEN, CAP_LEN, PN_FRAME_ID = C["frame_len"], C["frame_cap_len"], C["pn_rt_frame_id"]
@@ -242,7 +243,7 @@ class Entry:
     finding (a burst of the same finding counts its occurrences)."""
     __slots__ = ("time", "frame", "device", "severity", "kind", "field", "what", "detail",
                  "count", "last_frame", "last_time", "duration", "end_frame", "end_time", "at_least",
-                 "lost", "since", "values")
+                 "lost", "since", "values", "stream")
 
     def __init__(self, device, frame, t, severity, kind, what, field=None, detail=""):
         self.device, self.frame, self.time = device, frame, t
@@ -254,6 +255,7 @@ class Entry:
         self.lost = 0
         self.since = t   # when the condition began (a stall or gap: before it was flagged)
         self.values = []  # a finding: the distinct values it named (details.py)
+        self.stream = None  # the stream of the frame that carries it (health.py)
 
     def close(self, frame, t, duration=None):
         self.end_frame, self.end_time = frame, t
@@ -267,7 +269,7 @@ class Entry:
             what += self.values[0]
             if len(self.values) > 1:
                 what += " and %d other value%s" % (len(self.values) - 1, "" if len(self.values) == 2 else "s")
-        if self.duration is not None:
+        if self.duration is not None and self.kind != "stopped":   # (its text names the time itself)
             length = fmt_s(self.duration) + (" or more" if self.at_least else "")
             what += (" (after %s)" if self.kind == "state" else " for %s") % length
         if self.detail:
@@ -321,6 +323,8 @@ class Device:
         self.ports = set()      # EG-Link: the UDP destination ports of its packets
         self.uncaptured = {}    # state name: [first, last, count] of the frames without it since
                                 # its last captured value (a cut frame)
+        self.streams = {}       # name: health.Stream, in the order first seen
+        self.closed = None      # Modbus/TCP: (frame, time, text) of a FIN or RST of its connection
 
     def not_captured(self, name, frame):
         """A frame that should carry the state but was cut before it."""
@@ -346,7 +350,7 @@ class Device:
             s = self.series[name] = Series(group, limit, labels)
         s.add(t, v)
 
-    def to_dict(self, series=True):
+    def to_dict(self, series=True, streams=()):
         out = {"id": self.id, "kind": self.kind, "name": self.name, "address": self.address,
                "layout": self.layout, "frames": self.frames,
                "first_frame": self.first_frame, "last_frame": self.last_frame,
@@ -354,7 +358,8 @@ class Device:
                "initial": self.initial,
                "final": {k: self.final(k) for k in self.initial},
                "not_captured": {k: {"first_frame": r[0], "last_frame": r[1], "frames": r[2]}
-                                for k, r in self.uncaptured.items()}}
+                                for k, r in self.uncaptured.items()},
+               "streams": list(streams)}
         if self.kind == "mcmb2":
             out["terminals"] = [
                 {"terminal": n, "first_frame": v[0], "last_frame": v[1], "start": round(v[2], 6),
@@ -402,6 +407,7 @@ class Capture:
         self.snaplen = None         # the longest cut frame's captured length
         self._cut_ports = set()
         self._notes = {}            # (severity, message without its numbers): latest Entry
+        self._stream = None         # the stream of the current frame (health.py)
 
     # --- rows ---------------------------------------------------------------
 
@@ -424,6 +430,7 @@ class Capture:
         self._cut = bool(c[FRAME_LEN] and c[CAP_LEN]) and int(c[CAP_LEN]) < int(c[FRAME_LEN])
         held = self._held(c)
         formed = True
+        self._stream, entries = None, len(self.entries)
         if c[C["eglink_type"]]:
             self._eglink(c, frame, t)
         elif c[C["mcmb2_direction"]]:
@@ -447,6 +454,27 @@ class Capture:
                 self._capture_notes(c, frame, t)
         if len(c) > CONNECT_CUT and c[CONNECT_CUT] and self._connect_cut is None:
             self._connect_cut = frame
+        if self._stream is not None:
+            for entry in self.entries[entries:]:
+                entry.stream = entry.stream or self._stream
+        if c[TCP_FIN] == "1" or c[TCP_RST] == "1" or c[TCP_FIN] == "True" or c[TCP_RST] == "True":
+            self._tcp_close(c, frame, t)
+
+    def _tcp_close(self, c, frame, t):
+        """A FIN or RST of a connection to a recognised BU: the first after
+        its last image is kept (a connection that ends while the capture goes
+        on without the BU's images is a finding, see finish)."""
+        ends = ((c[C["ip_src"]], int(c[TCP_SPORT])), (c[C["ip_dst"]], int(c[C["tcp_dstport"]] or 0)))
+        for i, server in enumerate(ends):
+            dev = self.devices.get(("eclink_modbus",) + server)
+            if dev is None:
+                continue
+            if dev.closed is None or dev.closed[0] < dev.last_frame:
+                how = "reset (RST)" if c[TCP_RST] in ("1", "True") else "closed (FIN)"
+                client = "%s:%d" % ends[1 - i]
+                dev.closed = (frame, t, "connection %s to %s:%d %s by the %s in frame %d at %.3f s" % (
+                    client, server[0], server[1], how, "BU" if i == 0 else "PLC", frame, t))
+            return
 
     def _held(self, c):
         """Counts the frame by its transport; the transport's name."""
@@ -538,8 +566,13 @@ class Capture:
         self._experts(dev, c, frame, t)
         if alone is not None:
             alone["entries"] += self.entries[entries:]
-        if good and (typ == "VRPI" or typ == "VRPO"):
-            dev.last_seen[typ] = (frame, t)
+        if typ == "VRPI" or typ == "VRPO":
+            if good:
+                dev.last_seen[typ] = (frame, t)
+            # (a packet with a bad CRC is a frame of its stream all the same:
+            # its sender is not silent, the CRC is a finding of its own)
+            self._stream = health.stream(dev, typ, self.limits)
+            self._stream.add(frame, t)
         if "bu" not in dev.address and typ.endswith("I"):  # the BU's own packets
             dev.address.update(bu=c[C["ip_src"]], group=c[C["ip_dst"]], port=int(c[EG_DPORT] or 0))
         elif "controller" not in dev.address and typ.endswith("O"):
@@ -625,6 +658,8 @@ class Capture:
                 ctrl.series[name] = bu.series.pop(name)
         if "VRPO" in bu.last_seen:
             ctrl.last_seen["VRPO"] = bu.last_seen.pop("VRPO")
+        if "VRPO" in bu.streams:
+            ctrl.streams["VRPO"] = bu.streams.pop("VRPO")
         for entry in alone["entries"]:
             entry.device = ctrl
             for field, latest in list(bu.bursts.items()):
@@ -643,6 +678,8 @@ class Capture:
                 bu.first_frame, bu.first_time = ctrl.first_frame, ctrl.first_time
             bu.ports |= ctrl.ports
             bu.address.setdefault("controller", ctrl.address["controller"])
+            for name, s in ctrl.streams.items():
+                bu.streams.setdefault(name, s)   # (a stream of both: the BU's own is kept)
             for entry in self.entries:
                 if entry.device is ctrl:
                     entry.device = bu
@@ -749,6 +786,10 @@ class Capture:
 
     def _eclink_image(self, dev, c, frame, t, transport):
         images = c[C["eclink_image"]]
+        for name in ("input", "output"):
+            if name in images:
+                self._stream = health.stream(dev, name, self.limits, self._stream_suffix(c, transport))
+                self._stream.add(frame, t)
         if "input" in images:
             self._poll(dev, "input image", frame, t, self.limits["eclink.pci"])
             self._safety(dev, frame, t, *[num(c[C[name]]) if c[C[name]] else None
@@ -768,10 +809,21 @@ class Capture:
                 dev.plot("%s age" % name.upper(), "age", t, float(last(age)), self.limits[limit])
         self._experts(dev, c, frame, t)
 
+    @staticmethod
+    def _stream_suffix(c, transport):
+        """What names a stream beside its direction: its FrameID, the Modbus unit."""
+        if transport == "eclink_modbus":
+            unit = c[C["mbtcp_unit_id"]]
+            return " (unit %d)" % num(unit) if unit else ""
+        return " 0x%04x" % num(c[PN_FRAME_ID]) if c[PN_FRAME_ID] else ""
+
     def _mcmb2(self, c, frame, t):
         uplink = c[C["mcmb2_direction"]] == "uplink"
         mac = c[C["eth_src"]] if uplink else c[C["eth_dst"]]
         dev = self._device(("mcmb2", mac), "mcmb2", frame, t)
+        self._stream = health.stream(dev, "uplink" if uplink else "downlink", self.limits,
+                                     self._stream_suffix(c, "mcmb2"))
+        self._stream.add(frame, t)
         system = c[C["mcmb2_system"]]
         if not dev.name:
             dev.name = "MC-MB2-PN %s base %s" % (system, mac)
@@ -1061,6 +1113,28 @@ class Capture:
         whole capture (its second pass), which one pass cannot know."""
         return not self.devices and any(run[3] - run[2] < SHORT_RUN for run in self._undecoded.values())
 
+    def _stopped(self, dev):
+        """The streams whose last frame is followed by more capture than their
+        limit, and a BU's connection closed or reset while the capture goes
+        on without its images: error entries of the device, at the stream's
+        last frame (the closing frame)."""
+        for s in dev.streams.values():
+            tail = self.last_time - s.last_time
+            if tail > s.limit:
+                s.stopped = tail
+                entry = Entry(dev, s.last_frame, s.last_time, ERROR, "stopped", health.stopped_text(s, tail))
+                entry.stream, entry.duration, entry.end_time = s, tail, self.last_time
+                self.entries.append(entry)
+        if dev.closed is not None and dev.closed[0] >= dev.last_frame:
+            frame, t, text = dev.closed
+            tail = self.last_time - t
+            limit = min((s.limit for s in dev.streams.values()), default=self.limits["eclink.pci"])
+            if tail > limit:
+                entry = Entry(dev, frame, t, ERROR, "stopped",
+                              "%s; the capture goes on %.3f s without it" % (text, tail))
+                entry.duration, entry.end_time = tail, self.last_time
+                self.entries.append(entry)
+
     def finish(self, error=None):
         """Close what is still open at the end; the report as a plain dict."""
         self._candidates()
@@ -1085,6 +1159,8 @@ class Capture:
                     dev.name = "EG-Link BU %s (%s to %s:%d)" % (
                         a["origin"] if "origin" in a else "of unknown origin", sender, a["group"], a["port"])
                 dev.layout = self._eglink_layout(dev)
+        for dev in devices:
+            self._stopped(dev)
         entries = sorted(self.entries, key=lambda e: (e.frame, e.time))
         start = (datetime.datetime.fromtimestamp(self.first_epoch, datetime.timezone.utc)
                  if self.first_epoch is not None else None)
@@ -1103,7 +1179,7 @@ class Capture:
             "start": start.strftime("%Y-%m-%d %H:%M:%S.%f")[:-3] + " UTC" if start else None,
             "start_epoch": self.first_epoch,
             "duration": round(self.last_time, 6),
-            "devices": [d.to_dict() for d in devices],
+            "devices": [d.to_dict(streams=health.rows(d, entries)) for d in devices],
             "timeline": [e.to_dict() for e in entries],
             "counts": counts,
         }

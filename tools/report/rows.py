@@ -65,6 +65,9 @@ FIELDS = [
     # formed no device (the mcmb2 protocol item: a cut Connect, too few
     # cyclic frames), read by their message as tshark gives it
     "frame.len", "frame.cap_len", "eth.type", "vlan.etype", "mcmb2", "_ws.expert.message", "_ws.expert.severity",
+    # the health rows (health.py): the Modbus unit of a stream, the end of a
+    # BU's TCP connection
+    "mbtcp.unit_id", "tcp.flags.fin", "tcp.flags.reset",
 ]
 EXPERT_FIELDS = list(catalog.EXPERTS)
 ALL_FIELDS = FIELDS + EXPERT_FIELDS

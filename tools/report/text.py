@@ -1,5 +1,5 @@
 """The text report: per capture its devices, then its timeline, one line per entry."""
-from . import held
+from . import health, held
 
 
 def plural(n, word):
@@ -20,6 +20,20 @@ def device_lines(dev):
         yield "      terminal %d%s: frames %d-%d (%d), %.3f s to %.3f s" % (
             term["terminal"], slots, term["first_frame"], term["last_frame"], term["frames"],
             term["start"], term["end"])
+
+
+def health_lines(rep):
+    """The health rows: a table of the streams of every device, columns as wide as their cells."""
+    table = [("device",) + health.HEADER]
+    table += [("[%d]" % dev["id"],) + health.cells(row) for dev in rep["devices"] for row in dev["streams"]]
+    if len(table) == 1:
+        return
+    widths = [max(len(r[i]) for r in table) for i in range(len(table[0]))]
+    yield "health (per stream; cycle: the intervals between its frames):"
+    for r in table:
+        # (the names left-aligned, the numbers right-aligned)
+        yield "  " + "  ".join(cell.ljust(w) if i in (0, 1, 4) else cell.rjust(w)
+                               for i, (cell, w) in enumerate(zip(r, widths))).rstrip()
 
 
 def device(entry):
@@ -46,6 +60,7 @@ def capture_lines(rep):
             return
     for dev in rep["devices"]:
         yield from device_lines(dev)
+    yield from health_lines(rep)
     counts = rep["counts"]
     if not rep["timeline"]:
         yield "timeline: no state change and no finding"
