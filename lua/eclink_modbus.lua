@@ -1518,8 +1518,10 @@ end
 
 -- The Info tags of an ADU after those of its images: every frame past a
 -- counter's limit says so, not only the one with the finding; [unacked] (a
--- command whose deadline passed, on the command's frame; in one pass on the
--- frame that saw the deadline pass), [late ack] (an echo after it).
+-- command whose deadline passed, on the command's frame on a second pass,
+-- and on every pass on the frame that saw the deadline pass: a live packet
+-- list draws a row once, before a later frame can mark its command), [late
+-- ack] (an echo after it).
 local function adu_tags(rec, pinfo)
     local tags = handshake.tags(rec[R_PCI_AGE], rec[R_PCO_AGE])
     local fds = rec.findings
@@ -1528,7 +1530,8 @@ local function adu_tags(rec, pinfo)
     local visited = p_visited(pinfo)
     for i = 1, #fds do
         local ex = handshake.shown(fds[i], visited)
-        if ex == ef.cmd_from_ru_late or ex == ef.cmd_to_ru_late then unacked = true end
+        if ex == ef.cmd_from_ru_late or ex == ef.cmd_to_ru_late or ex == ef.cmd_from_ru_deadline
+                or ex == ef.cmd_to_ru_deadline then unacked = true end
         if ex == ef.cmd_from_ru_late_ack or ex == ef.cmd_to_ru_late_ack then late_ack = true end
     end
     if unacked then tags = tags .. " [unacked]" end

@@ -276,12 +276,14 @@ local function show(rec, tvb, pinfo, tree)
     for _, l in ipairs(rec.links or {}) do root:add(hs_fields[l[1]], l[2]):set_generated() end
     show_periodic(rec, root, pinfo, tvb(0, 2):uint())
     attach(rec, "image", info and info.item or root)
-    -- a command's deadline: in one pass the command's warning, else a note
+    -- a command's deadline: in one pass the command's warning, else a note;
+    -- [unacked] either way (a live packet list draws the row once)
     local unacked = rec.unacked
     for _, f in ipairs(rec.passing or {}) do
         local ex, text = eclink_handshake.shown(f, pinfo.visited)
         if ex then record.expert(info and info.item or root, ex, text) end
-        if ex == eef.cmd_from_ru_late or ex == eef.cmd_to_ru_late then unacked = true end
+        if ex == eef.cmd_from_ru_late or ex == eef.cmd_to_ru_late or ex == eef.cmd_from_ru_deadline
+                or ex == eef.cmd_to_ru_deadline then unacked = true end
     end
     if not partial then record.add_ioxs(root, rec, tvb, epf.iops, epf.iocs) end
     record.finish(rec, partial and root or nil)
@@ -359,12 +361,13 @@ local function sparse(rec, tvb, pinfo, tree, view)
         record.finish(rec, nil)
     end
     if p.cols then
-        -- a command's deadline: in one pass the command's warning, as show()
+        -- a command's deadline: [unacked] on every pass, as show()
         local unacked = rec.unacked
-        if not unacked and rec.passing and not pinfo.visited then
+        if not unacked and rec.passing then
             for _, f in ipairs(rec.passing) do
-                local ex = eclink_handshake.shown(f, false)
-                if ex == eef.cmd_from_ru_late or ex == eef.cmd_to_ru_late then unacked = true end
+                local ex = eclink_handshake.shown(f, pinfo.visited)
+                if ex == eef.cmd_from_ru_late or ex == eef.cmd_to_ru_late or ex == eef.cmd_from_ru_deadline
+                        or ex == eef.cmd_to_ru_deadline then unacked = true end
             end
         end
         local tail = eclink_handshake.tags(rec.pci_age, rec.pco_age)

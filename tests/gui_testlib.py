@@ -200,6 +200,18 @@ class Gui:
             self.xvfb.wait()
 
 
+def add_probe(installed, name, probe):
+    """A Lua postdissector (probe: its text, with %r for the file it writes)
+    in the installed layout's personal plugins, and the file it writes,
+    writable by the layout's user."""
+    out = installed.top / "probe.txt"
+    out.touch()
+    if IS_ROOT:
+        os.chown(out, RUN_UID, RUN_UID)
+    installed.add_lua_plugin(name, probe % str(out))
+    return out
+
+
 def have_keys():
     """xdotool, to press Wireshark's keys (tools/setup installs it)."""
     return shutil.which("xdotool") is not None

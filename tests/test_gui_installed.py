@@ -33,8 +33,8 @@ MAX_ROWS = 20       # rows the packet list shows at 1680 x 1000 with room to spa
 # capture -> the danger colour rules that must show in it
 CASES = {
     "eglink_analysis_session.pcap": ["vrshark: ES-Link relays open"],
-    # the unacknowledged commands (17, 18) coloured on their own frames: known
-    # from a later frame, drawn once the file is read
+    # the unacknowledged commands (17, 18) coloured where their deadline passed
+    # (28), as a live capture colours them
     "eclink_modbus_faults.pcap": ["vrshark: watchdog stalled", "vrshark: command not acknowledged"],
     "eglink_analysis_vrci_unacked.pcap": ["vrshark: command not acknowledged"],
     "eclink_pnio_connect.pcap": ["vrshark: watchdog stalled"],

@@ -25,8 +25,8 @@ import time
 import pytest
 
 from conftest import BUILD, CAPTURES
-from gui_testlib import Gui, Session, have_gui, have_keys, read_ppm
-from installed_testlib import IS_ROOT, RUN_UID, Installed
+from gui_testlib import Gui, Session, add_probe, have_gui, have_keys, read_ppm
+from installed_testlib import Installed
 
 pytestmark = pytest.mark.skipif(not (have_gui() and have_keys()),
                                 reason="wireshark, Xvfb, imagemagick or xdotool missing (tools/setup)")
@@ -67,11 +67,7 @@ register_postdissector(probe)
 @pytest.fixture(scope="module", params=["personal", "lua-only"])
 def gui(request):
     inst = Installed(request.param)
-    probe_out = inst.top / "probe.txt"
-    probe_out.touch()
-    if IS_ROOT:
-        subprocess.run(["chown", "%d:%d" % (RUN_UID, RUN_UID), str(probe_out)], check=True)
-    inst.add_lua_plugin("vrshark_reload_probe.lua", PROBE % str(probe_out))
+    probe_out = add_probe(inst, "vrshark_reload_probe.lua", PROBE)
     g = Gui(inst, ARTEFACTS)
     g.probe_out = probe_out
     yield g

@@ -9,7 +9,7 @@ import subprocess
 import pytest
 
 from conftest import PROFILE_DIR as PROFILE
-from conftest import CAPTURES, ROOT, _world_dir, profile_buttons, profile_column_widths
+from conftest import CAPTURES, ROOT, _world_dir, expert_infos, profile_buttons, profile_column_widths, profile_rules
 
 
 @pytest.fixture(scope="module")
@@ -129,27 +129,66 @@ def test_colours_eglink_gaps_have_their_own_rule(profile_conf):
 
 
 def test_colours_a_failed_command_where_the_pass_puts_it(profile_conf):
-    """docs/findings.md "How findings read": `tshark -C vrshark --color` reads one pass,
-    so the first packet past the deadline of VRCI 8 (frame 61) has the colour
-    of a command not acknowledged, not the command (frame 5); the Commands
-    button shows it. The GUI (second pass) colours the command
-    (test_gui_installed)."""
+    """docs/findings.md "How findings read": the first packet past the deadline
+    of VRCI 8 (frame 61) has the colour of a command not acknowledged, not
+    the command (frame 5), on every pass: a live packet list colours a row
+    when it first draws it, before the deadline (test_gui_live). The
+    Commands button shows it."""
     rules = rule_colours()
     rows = coloured_rows(profile_conf, "eglink_analysis_vrci_unacked.pcap")
     assert rows[61] == rules["vrshark: command not acknowledged"]
     assert rows[5] != rules["vrshark: command not acknowledged"]
     assert [n for n, c in rows.items() if c == rules["vrshark: command not acknowledged"]] == [61]
     assert 61 in _matching(profile_conf, "eglink_analysis_vrci_unacked.pcap", _button("Commands"))
+    for two_pass in (False, True):
+        for capture, frames in (("eglink_analysis_vrci_unacked.pcap", [61]),
+                                ("eglink_analysis_vrco_unacked.pcap", [61, 123, 128]),
+                                ("eclink_modbus_faults.pcap", [28, 34]), ("eclink_pnio_connect.pcap", [76])):
+            assert _matching(profile_conf, capture, rule_filter("vrshark: command not acknowledged"),
+                             two_pass) == frames, (capture, two_pass)
+
+
+def rule_filter(name):
+    return dict((n, f) for n, f in profile_rules())[name]
 
 
 def _button(label):
     return dict(profile_buttons())[label]
 
 
-def _matching(conf, capture, expr):
-    out = run(conf, ["-n", "-r", str(ROOT / "captures" / capture), "-Y", expr, "-T", "fields",
-                     "-e", "frame.number"]).stdout
+def _matching(conf, capture, expr, two_pass=False):
+    out = run(conf, ["-n"] + (["-2"] if two_pass else []) + ["-r", str(ROOT / "captures" / capture), "-Y", expr,
+                     "-T", "fields", "-e", "frame.number"]).stdout
     return [int(x) for x in out.split()]
+
+
+# filter button -> the protocols whose findings it must show
+BUTTON_PROTOCOLS = {"EG-Link": ["eglink"], "EC-Link": ["eclink", "eclink_modbus", "eclink_pnio"],
+                    "MC-MB2": ["mcmb2"]}
+FINDING_CAPTURES = ["eglink_analysis_vrci_unacked.pcap", "eglink_analysis_vrpi_gap.pcap",
+                    "eclink_modbus_faults.pcap", "eclink_modbus_commands.pcap", "eclink_pnio_connect.pcap",
+                    "clockstep_modbus.pcap", "mcmb2_duplex_watchdog.pcap", "mcmb2_polled_connect.pcap"]
+
+
+@pytest.mark.parametrize("two_pass", [False, True], ids=["one_pass", "two_pass"])
+def test_protocol_buttons_show_every_finding_of_their_protocol(profile_conf, tshark, two_pass):
+    """The EG-Link, EC-Link and MC-MB2 buttons show every frame with a finding
+    (an expert info named under the protocol), also those that sit on frames
+    of the transport only: a poll gap, or the one-pass [unacked], on the
+    PLC's request (eclink_modbus, no eclink image in it)."""
+    checked = set()
+    for capture in FINDING_CAPTURES:
+        found = {}
+        for frame, name, *_ in expert_infos(tshark.json(ROOT / "captures" / capture, two_pass=two_pass)):
+            found.setdefault(name.split(".")[0], set()).add(frame)
+        for label, protos in BUTTON_PROTOCOLS.items():
+            want = set().union(*(found.get(p, set()) for p in protos))
+            if not want:
+                continue
+            shown = set(_matching(profile_conf, capture, _button(label), two_pass))
+            assert sorted(want - shown) == [], (label, capture)
+            checked.add(label)
+    assert checked == set(BUTTON_PROTOCOLS)
 
 
 def test_safety_button_shows_the_gap_rows(profile_conf):

@@ -48,7 +48,8 @@
 #define EGLINK_ANALYSIS_KEY_BASE 0x45410000u
 /* Commands remembered per direction and BU (bounded: oldest replaced). */
 #define EGLINK_CMD_SLOTS 8
-/* A serial this far behind the last one is a restart, not a repeat. */
+/* A serial this far behind the last one is a restart, not a repeat, even
+ * with no other sign of one (track_serial()). */
 #define EGLINK_SERIAL_REPEAT_WINDOW 1024
 /* Packets of a sender with a bad CRC or size remembered until its next valid one. */
 #define EGLINK_BAD_SLOTS 4
@@ -1084,10 +1085,21 @@ check_clock(packet_info *pinfo, eglink_frame_t *fd)
     eglink_last_ts_frame = pinfo->num;
 }
 
+/* TS-0006 §3.2 numbers a sender's packets sequentially and says nothing of
+ * where a sender starts: a serial that falls back a little is a repeat,
+ * unless the sender shows that it started again. It does when its periodic
+ * packets (VRPI of a BU, VRPO of a controller) stopped for longer than
+ * their gap limit, as in a power cycle, or when its VRPI reports BU state
+ * Initial ("not fully operative yet", TS-0006 §4.1.1). A BU power-cycled
+ * soon after it started falls back by less than the repeat window.
+ * input: the packet is the BU's (else its controller's). */
 static void
-track_serial(eglink_sender_t *s, eglink_frame_t *fd, packet_info *pinfo, guint16 serial)
+track_serial(eglink_sender_t *s, eglink_frame_t *fd, packet_info *pinfo, const eglink_info_t *info,
+             gboolean input)
 {
+    guint16 serial = info->serial;
     guint16 expected, delta;
+    gboolean restarted;
 
     if (!s->have_serial) {
         fd->serial_status = SERIAL_FIRST;
@@ -1104,11 +1116,16 @@ track_serial(eglink_sender_t *s, eglink_frame_t *fd, packet_info *pinfo, guint16
         } else if (delta < 0x8000) {
             fd->serial_status = SERIAL_LOST;
             match_corrupted(s, fd, expected, (guint16)(delta - 1));
-        } else if ((guint16)(s->last_serial - serial) <= EGLINK_SERIAL_REPEAT_WINDOW) {
-            fd->serial_status = SERIAL_REPEAT;
-            add_finding(fd, FND_REPEAT, 0, s->last_serial, 0);
-            return;
         } else {
+            restarted = (info->type == EGLINK_TYPE_VRPI && info->has_bu_state && info->bu_state == 0x00) ||
+                (s->last_periodic_frame && !s->clock_restart &&
+                 ns_between(&pinfo->abs_ts, &s->last_periodic_ts) >
+                     ms_to_ns(input ? pref_vrpi_gap_ms : pref_vrpo_gap_ms));
+            if ((guint16)(s->last_serial - serial) <= EGLINK_SERIAL_REPEAT_WINDOW && !restarted) {
+                fd->serial_status = SERIAL_REPEAT;
+                add_finding(fd, FND_REPEAT, 0, s->last_serial, 0);
+                return;
+            }
             fd->serial_status = SERIAL_RESTART;
             add_finding(fd, FND_RESTART, 0, s->last_serial, 0);
         }
@@ -1788,7 +1805,7 @@ track_revision(eglink_sender_t *s, eglink_frame_t *fd, packet_info *pinfo, const
 {
     fd->flags |= FF_REVISION;
     add_finding(fd, FND_REVISION, 0, info->revision, 0);
-    track_serial(s, fd, pinfo, info->serial);
+    track_serial(s, fd, pinfo, info, eglink_is_input(info->type));
 }
 
 static void
@@ -1848,7 +1865,7 @@ analyse_packet(packet_info *pinfo, const eglink_info_t *info, eglink_frame_t *fd
     if (input)
         bu->origin_known = TRUE;
 
-    track_serial(s, fd, pinfo, info->serial);
+    track_serial(s, fd, pinfo, info, input);
     if (fd->serial_status == SERIAL_REPEAT)
         return;
     if (fd->serial_status == SERIAL_RESTART || fd->serial_status == SERIAL_FIRST)
@@ -1956,11 +1973,15 @@ find_finding(const eglink_frame_t *fd, eglink_finding_kind_t kind)
 
 /* The packet at which the deadline of a command (first sent in `frame`)
  * was seen passing unacknowledged. On the second pass and in the GUI the
- * warning and the [unacked] tag are on the command's frame (show_command())
- * and this packet gets a note naming the command. In one pass (tshark
- * without -2, as CI runs it) the command's frame is behind the reader
- * already: this packet carries the command's warning itself, so a severity
- * filter or "-z expert" finds every failed command. */
+ * warning is on the command's frame (show_command()) and this packet gets a
+ * note naming the command. In one pass (tshark without -2, as CI runs it)
+ * the command's frame is behind the reader already: this packet carries the
+ * command's warning itself, so a severity filter or "-z expert" finds every
+ * failed command. The [unacked] tag and the link are here on every pass: a
+ * live capture colours and draws a row once, from the dissection after its
+ * first pass, before any later packet can mark its command; this packet is
+ * where a live packet list can show the failure, and the profile colours it
+ * by the link. */
 static void
 show_failed(proto_tree *at, tvbuff_t *tvb, packet_info *pinfo, int dir, guint32 frame, guint32 command_id)
 {
@@ -1970,6 +1991,7 @@ show_failed(proto_tree *at, tvbuff_t *tvb, packet_info *pinfo, int dir, guint32 
     const char *ack = vrci ? "VRAO" : "VRAI";
     guint timeout_ms = vrci ? pref_vrci_ack_timeout_ms : pref_vrco_ack_timeout_ms;
 
+    col_append_str(pinfo->cinfo, COL_INFO, " [unacked]");
     if (PINFO_FD_VISITED(pinfo)) {
         expert_add_info_format(pinfo, ti, vrci ? &ei_vrci_deadline : &ei_vrco_deadline,
             "Deadline of %s command %u (frame %u) passed with no %s (%u ms)",
@@ -1979,7 +2001,6 @@ show_failed(proto_tree *at, tvbuff_t *tvb, packet_info *pinfo, int dir, guint32 
     expert_add_info_format(pinfo, ti, vrci ? &ei_vrci_unacked : &ei_vrco_unacked,
         "%s command %u (frame %u) not acknowledged by a %s within %u ms%s", what, command_id, frame, ack,
         timeout_ms, vrci ? ": the BU reports to the RU application that the command failed" : "");
-    col_append_str(pinfo->cinfo, COL_INFO, " [unacked]");
 }
 
 static void
