@@ -439,3 +439,17 @@ def test_clock_findings_filed_under_the_bu_they_name(capture_file):
                    (211, "eclink_modbus.output_missing"): 1, (275, "eclink_modbus.connection_reset"): 2}
     other = [d for d in rep["devices"] if d["id"] == 2][0]
     assert all(s["stalls"] == 0 for s in other["streams"]), other["streams"]
+
+
+def test_profinet_stops_on_frames_of_no_device(capture_file):
+    """mcmb2_duplex_stops.pcap: the downlink's stop and its data hold time
+    are said on frames of a foreign PROFINET device (330, 350): the report
+    files them under the base whose stream ended in the frame they link
+    (mcmb2.missing_since 329), with no note of no device beside them."""
+    _, rep = run_report(capture_file("mcmb2_duplex_stops.pcap"))
+    got = {(e["frame"], e["field"]): e["device"] for e in rep["timeline"] if e["kind"] == "finding"}
+    assert got[(309, "mcmb2.uplink_missing")] == 1
+    assert got[(350, "mcmb2.downlink_missing")] == 1
+    assert [e for e in rep["timeline"] if e["device"] is None] == []
+    down = [s for s in rep["devices"][0]["streams"] if s["stream"].startswith("downlink")][0]
+    assert down["stalls"] >= 1, down

@@ -64,6 +64,13 @@ MCMB2_ITEM, MESSAGES, SEVERITIES = C["mcmb2"], C["_ws_expert_message"], C["_ws_e
 ABOUT_BU = [EXPERT_START + EXPERT_FIELDS.index(name) for name in (
     "eclink_modbus.input_missing", "eclink_modbus.output_missing",
     "eclink_modbus.connection_closed", "eclink_modbus.connection_reset") if name in EXPERT_FIELDS]
+# ... and a PROFINET stream that stopped: its link names the stream's last
+# frame, which is the last frame of that stream in the report too.
+ABOUT_PN = [EXPERT_START + EXPERT_FIELDS.index(name) for name in (
+    "mcmb2.uplink_missing", "mcmb2.downlink_missing", "mcmb2.data_hold_exceeded",
+    "eclink_pnio.input_missing", "eclink_pnio.output_missing", "eclink_pnio.data_hold_exceeded")
+    if name in EXPERT_FIELDS]
+PN_SINCE = (C["mcmb2_missing_since"], C["eclink_pnio_missing_since"])
 BU_NAMED = re.compile(r"\bBU (\d+\.\d+\.\d+\.\d+|[0-9a-fA-F:]+):(\d+)\b")
 # tshark's expert severities (_ws.expert.severity), note and above
 SEVERITY_CODES = {0x00400000: NOTE, 0x00600000: WARNING, 0x00800000: ERROR}
@@ -439,6 +446,8 @@ class Capture:
         self._cut = bool(c[FRAME_LEN] and c[CAP_LEN]) and int(c[CAP_LEN]) < int(c[FRAME_LEN])
         held = self._held(c)
         self._about = self._about_bu(c, frame, t) if any(len(c) > i and c[i] for i in ABOUT_BU) else ()
+        if any(len(c) > i and c[i] for i in ABOUT_PN):
+            self._about = frozenset(self._about) | self._about_pn(c, frame, t)
         formed = True
         self._stream, entries = None, len(self.entries)
         if c[C["eglink_type"]]:
@@ -460,7 +469,9 @@ class Capture:
                 run[0] += 1
                 run[1].update([frame_id] if frame_id is not None else [])
                 run[3] = t
-            if c[MCMB2_ITEM] and c[MESSAGES]:
+            # (a frame of no device that carries only a device's stream that
+            # stopped: filed under that device above, no note of no device)
+            if c[MCMB2_ITEM] and c[MESSAGES] and not self._about:
                 self._capture_notes(c, frame, t)
         if len(c) > CONNECT_CUT and c[CONNECT_CUT] and self._connect_cut is None:
             self._connect_cut = frame
@@ -984,6 +995,35 @@ class Capture:
                     done.append(i)
             return frozenset(done)
         return ()
+
+    def _about_pn(self, c, frame, t):
+        """The findings of this frame that a PROFINET stream of ours stopped
+        (or passed its data hold time), filed under the device whose stream
+        ended in the frame their link names; the columns it filed."""
+        owners = []
+        for col in PN_SINCE:
+            for ref in (c[col].split(",") if len(c) > col and c[col] else ()):
+                for dev in self.devices.values():
+                    for s in dev.streams.values():
+                        if s.last_frame == int(ref) and (dev, s) not in owners:
+                            owners.append((dev, s))
+        done = []
+        for i in ABOUT_PN:
+            if not (len(c) > i and c[i]):
+                continue
+            field = EXPERT_FIELDS[i - EXPERT_START]
+            words = field.split(".", 1)[1]
+            match = [o for o in owners if o[1].name in words] or owners
+            if not match:
+                continue
+            dev, stream = match[0]
+            severity, _, what = catalog.EXPERTS[field]
+            before = len(self.entries)
+            self._finding(dev, c, frame, t, field, severity, what)
+            for entry in self.entries[before:]:
+                entry.stream = stream
+            done.append(i)
+        return frozenset(done)
 
     def _experts(self, dev, c, frame, t):
         tail = c[EXPERT_START:]

@@ -68,6 +68,8 @@ FIELDS = [
     # the health rows (health.py): the Modbus unit of a stream, the end of a
     # BU's TCP connection
     "mbtcp.unit_id", "tcp.flags.fin", "tcp.flags.reset",
+    # a PROFINET stream that stopped, said on another frame: the stream's last frame
+    "mcmb2.missing_since", "eclink_pnio.missing_since",
 ]
 EXPERT_FIELDS = list(catalog.EXPERTS)
 ALL_FIELDS = FIELDS + EXPERT_FIELDS
