@@ -995,10 +995,10 @@ end
 local stream_frame, streams_dropped, tap_tcp
 do
     local STREAM = {
-        input = { expert = "input_missing", what = "input image not read", last = "read", tag = "no input image",
+        input = { expert = "input_missing", what = "input image not read", last = "read", tag = "no input",
                   rule = "PCI timeout", spec = "TS-0007 8.3" },
         output = { expert = "output_missing", what = "output image not written", last = "written",
-                   tag = "no output image", rule = "PCO timeout", spec = "TS-0007 8.4" },
+                   tag = "no output", rule = "PCO timeout", spec = "TS-0007 8.4" },
     }
 
     -- what a finding of the clock adds to the frame that carries it: a

@@ -142,7 +142,7 @@ def test_info_tags_for_stalls_and_unacked_commands(tshark, capture_file):
     assert "Write Multiple Registers [PCO stalled 2.050 s] [EC-Link output PCO=4 " in info[30]
     # [unacked] on the commands (second pass), on the read request that saw the deadline
     # pass in one pass
-    assert info[28].endswith("Read Input Registers [no output image 2.040 s] [unacked] [poll gap 2.050 s]")
+    assert info[28].endswith("Read Input Registers [no output 2.040 s] [unacked] [poll gap 2.050 s]")
     assert [n for n, i in info.items() if "[unacked]" in i] == [28]
     two = {n: r["_ws.col.Info"] for n, r in tshark.frames(capture_file("eclink_modbus_faults.pcap"),
                                                            ["_ws.col.Info"], two_pass=True).items()}
@@ -150,7 +150,7 @@ def test_info_tags_for_stalls_and_unacked_commands(tshark, capture_file):
     assert "Write Multiple Registers [unacked] [EC-Link output PCO=2 CCO=2 " in two[18]
     # ... and on the request past the deadline on every pass (where a live capture shows it), beside
     # the output image that stopped (eclink_modbus.output_missing)
-    assert two[28].endswith("Read Input Registers [no output image 2.040 s] [unacked] [poll gap 2.050 s]")
+    assert two[28].endswith("Read Input Registers [no output 2.040 s] [unacked] [poll gap 2.050 s]")
     assert [n for n, i in two.items() if "[unacked]" in i] == [17, 18, 28]
     # a late echo reads [late ack], as docs/findings.md "How findings read" says (not [unacked])
     assert "Write Multiple Registers [late ack] [EC-Link output " in info[34]

@@ -154,7 +154,7 @@ def _expected(tshark, cap):
                 "BU %s:%d unit 1: %s image not %s for %.3f s (%s): last %s in frame %d"
                 % (ip, rs.PORT, kind, verb, gap, rule, verb, last)))
             links.setdefault(n, []).append((last, gap))
-            tags.setdefault(n, []).append("[no %s image %.3f s]" % (kind, gap))
+            tags.setdefault(n, []).append("[no %s %.3f s]" % (kind, gap))
     for ip in (STOPPED, CLOSED, RESET):
         # (after the PLC's first read: a refused connect before the servers listen is no BU's)
         cport = got[requests(ip, 4)[-1]]["tcp.srcport"]
@@ -229,7 +229,7 @@ def test_the_stops_capture(tshark, capture_file, two_pass):
     tshark.expect(cap, 94, {"eclink_modbus.missing_since": 60, "eclink_modbus.missing_time": "0.510000000",
                             "eclink_modbus.closed_in": None}, two_pass=two_pass)
     # (the tag before the frame's own image summary)
-    assert got[94]["_ws.col.Info"].endswith("Write Multiple Registers [no input image 0.510 s] [EC-Link output PCO=9 "
+    assert got[94]["_ws.col.Info"].endswith("Write Multiple Registers [no input 0.510 s] [EC-Link output PCO=9 "
                                             "CCO=0 CAO=0 size=0 block=0]")
     assert exp[127] == ["TCP connection of the PLC (192.168.2.10:50100) to BU 192.168.2.41:502 closed by FIN in "
                         "frame 124 (from the PLC): input image (unit 1) last read in frame 60, output image (unit 1) "
