@@ -1982,8 +1982,6 @@ local function dissect(tvb, pinfo, tree)
         nf = nf + 5
         off = off + adu_len
     end
-    -- (the streams of this frame are armed: the shared clock's findings go before the ADUs' Info)
-    tick(tvb, pinfo, tree)
     -- shown after all ADUs of the buffer are worked out: one that recognizes the
     -- connection shows the earlier ones of its frame too, in one pass as in two
     for i = 1, nf, 5 do
@@ -2055,9 +2053,9 @@ local function dissect(tvb, pinfo, tree)
 end
 
 -- every Modbus/TCP frame this plugin sees is a tick of the shared clock,
--- after its own analysis armed its streams (dissect() ticks before it writes
--- Info, so that a finding's tag comes before the image summaries; this one
--- is for the frames it returns early on, and does nothing after that one)
+-- after its own analysis armed its streams and its own items are shown (one
+-- place, whatever the view: a sparse display and the full tree put a
+-- clock's finding at the same place, after the frame's own)
 function proto.dissector(tvb, pinfo, tree)
     local r = dissect(tvb, pinfo, tree)
     tick(tvb, pinfo, tree)

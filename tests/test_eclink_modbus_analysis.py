@@ -60,10 +60,10 @@ def test_stalls_and_late_echoes(tshark, capture_file):
     # the first frame after its deadline, lua/vrshark/deadlines.luam)
     missing = "BU 192.168.2.41:502 unit 1: output image not written for 2.040 s (PCO timeout 2.000 s, TS-0007 8.4): " \
         "last written in frame 26"
-    assert exp[28] == [missing,
-                       "Input image not read for 2.050 s (PCI timeout 0.500 s)",
+    assert exp[28] == ["Input image not read for 2.050 s (PCI timeout 0.500 s)",
                        "Command from RU (CCI 2 in frame 17) not acknowledged by CAO within 2.000 s: the BU shows \"EC: Bad data\"",
-                       "Command to RU (CCO 2 in frame 18) not acknowledged by CAI within 2.000 s"]
+                       "Command to RU (CCO 2 in frame 18) not acknowledged by CAI within 2.000 s",
+                       missing]
     tshark.expect(cap, 28, {"eclink_modbus.missing_since": 26, "eclink_modbus.missing_time": "2.040000000"})
     tshark.expect(cap, 28, {"eclink_modbus.cmd_from_ru_in": 17, "eclink_modbus.cmd_to_ru_in": 18,
                             "eclink_modbus.cmd_from_ru.late": True, "eclink_modbus.cmd_to_ru.late": True,
@@ -71,10 +71,10 @@ def test_stalls_and_late_echoes(tshark, capture_file):
     assert exp[17] == ["New command from RU: CCI 1 -> 2"]
     # ... the second pass: there only a note naming each command ...
     two = tshark.experts(cap, two_pass=True)
-    assert two[28] == [missing,
-                       "Input image not read for 2.050 s (PCI timeout 0.500 s)",
+    assert two[28] == ["Input image not read for 2.050 s (PCI timeout 0.500 s)",
                        "Deadline of the command from RU (CCI 2) passed with no CAO echo: the BU shows \"EC: Bad data\"",
-                       "Deadline of the command to RU (CCO 2) passed with no CAI echo"]
+                       "Deadline of the command to RU (CCO 2) passed with no CAI echo",
+                       missing]
     tshark.expect(cap, 28, {"eclink_modbus.cmd_from_ru_in": 17, "eclink_modbus.cmd_to_ru_in": 18,
                             "eclink_modbus.cmd_from_ru.deadline": True, "eclink_modbus.cmd_to_ru.deadline": True,
                             "eclink_modbus.cmd_from_ru.late": None, "eclink_modbus.cmd_to_ru.late": None},
@@ -142,7 +142,7 @@ def test_info_tags_for_stalls_and_unacked_commands(tshark, capture_file):
     assert "Write Multiple Registers [PCO stalled 2.050 s] [EC-Link output PCO=4 " in info[30]
     # [unacked] on the commands (second pass), on the read request that saw the deadline
     # pass in one pass
-    assert info[28].endswith("Read Input Registers [no output 2.040 s] [unacked] [poll gap 2.050 s]")
+    assert info[28].endswith("Read Input Registers [unacked] [poll gap 2.050 s] [no output 2.040 s]")
     assert [n for n, i in info.items() if "[unacked]" in i] == [28]
     two = {n: r["_ws.col.Info"] for n, r in tshark.frames(capture_file("eclink_modbus_faults.pcap"),
                                                            ["_ws.col.Info"], two_pass=True).items()}
@@ -150,7 +150,7 @@ def test_info_tags_for_stalls_and_unacked_commands(tshark, capture_file):
     assert "Write Multiple Registers [unacked] [EC-Link output PCO=2 CCO=2 " in two[18]
     # ... and on the request past the deadline on every pass (where a live capture shows it), beside
     # the output image that stopped (eclink_modbus.output_missing)
-    assert two[28].endswith("Read Input Registers [no output 2.040 s] [unacked] [poll gap 2.050 s]")
+    assert two[28].endswith("Read Input Registers [unacked] [poll gap 2.050 s] [no output 2.040 s]")
     assert [n for n, i in two.items() if "[unacked]" in i] == [17, 18, 28]
     # a late echo reads [late ack], as docs/findings.md "How findings read" says (not [unacked])
     assert "Write Multiple Registers [late ack] [EC-Link output " in info[34]

@@ -228,9 +228,9 @@ def test_the_stops_capture(tshark, capture_file, two_pass):
                        "TS-0007 8.3): last read in frame 60"]
     tshark.expect(cap, 94, {"eclink_modbus.missing_since": 60, "eclink_modbus.missing_time": "0.510000000",
                             "eclink_modbus.closed_in": None}, two_pass=two_pass)
-    # (the tag before the frame's own image summary)
-    assert got[94]["_ws.col.Info"].endswith("Write Multiple Registers [no input 0.510 s] [EC-Link output PCO=9 "
-                                            "CCO=0 CAO=0 size=0 block=0]")
+    # (the tag after the frame's own image summary: the clock ticks once the frame is shown)
+    assert got[94]["_ws.col.Info"].endswith("Write Multiple Registers [EC-Link output PCO=9 "
+                                            "CCO=0 CAO=0 size=0 block=0] [no input 0.510 s]")
     assert exp[127] == ["TCP connection of the PLC (192.168.2.10:50100) to BU 192.168.2.41:502 closed by FIN in "
                         "frame 124 (from the PLC): input image (unit 1) last read in frame 60, output image (unit 1) "
                         "last written in frame 110"]
