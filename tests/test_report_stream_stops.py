@@ -122,16 +122,23 @@ def direction(tshark, capture, src):
     return got, [f for f in got if f[2]["eth.src"] == src and f[2]["pn_rt.frame_id"]]
 
 
+def one_stream_gone(tshark, folder, capture, name, display_filter, mac):
+    """The capture cut by display_filter, its frames and those sent by mac,
+    and the report with --fail-on error (which must exit 1)."""
+    cut_capture = cut(tshark, folder, capture, name, display_filter)
+    got, sent = direction(tshark, cut_capture, mac)
+    status, rep = run_report(cut_capture, "--fail-on", "error")
+    assert status == 1
+    return cut_capture, got, sent, rep
+
+
 def test_uplink_that_never_comes_back(tshark, pnio):
     """The base's uplink removed after 0.8 s, the downlink running on to 3.2 s:
     one error of the base at the uplink's last frame, none for the downlink,
     and --fail-on error exits 1."""
     folder, mcmb2, _ = pnio
-    capture = cut(tshark, folder, mcmb2, "no_uplink.pcap",
-                  "!(frame.time_relative > 0.8 && eth.src == %s)" % BASE_MAC)
-    got, uplink = direction(tshark, capture, BASE_MAC)
-    status, rep = run_report(capture, "--fail-on", "error")
-    assert status == 1
+    _, got, uplink, rep = one_stream_gone(tshark, folder, mcmb2, "no_uplink.pcap",
+                                          "!(frame.time_relative > 0.8 && eth.src == %s)" % BASE_MAC, BASE_MAC)
     assert stopped(rep) == [(uplink[-1][0], "error", stop_line("uplink 0x8001", uplink[-1], got[-1][1], 1000))]
     assert [d["kind"] for d in rep["devices"]] == ["mcmb2"]
     row = {r["stream"]: r for r in rep["devices"][0]["streams"]}
@@ -167,11 +174,8 @@ def test_stream_cut_by_the_capture_end_within_its_limit(tshark, pnio):
 def test_eclink_input_that_never_comes_back(tshark, pnio):
     """The BU's input frames removed after 0.8 s, its output running on: past PCI's 500 ms."""
     folder, _, eclink = pnio
-    capture = cut(tshark, folder, eclink, "no_input.pcap",
-                  "!(frame.time_relative > 0.8 && eth.src == %s)" % BU_MAC)
-    got, inputs = direction(tshark, capture, BU_MAC)
-    status, rep = run_report(capture, "--fail-on", "error")
-    assert status == 1
+    capture, got, inputs, rep = one_stream_gone(tshark, folder, eclink, "no_input.pcap",
+                                                "!(frame.time_relative > 0.8 && eth.src == %s)" % BU_MAC, BU_MAC)
     assert stopped(rep) == [(inputs[-1][0], "error", stop_line("input 0x8030", inputs[-1], got[-1][1], 500))]
     text = run_text(capture)
     assert "%10.3f %7d  %-8s  [1]  %s" % (inputs[-1][1], inputs[-1][0], "error",
