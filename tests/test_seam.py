@@ -190,8 +190,9 @@ def test_a_mistyped_name_or_key_is_an_error(probed):
 
 
 def code_of_c(text):
-    """C text without its comments (string literals kept)."""
-    return re.sub(r'/\*.*?\*/|//[^\n]*', " ", text, flags=re.S)
+    """C text without its comments (string literals kept; lines where they
+    were, so that a finding names its line)."""
+    return re.sub(r'/\*.*?\*/|//[^\n]*', lambda m: " " + "\n" * m.group(0).count("\n"), text, flags=re.S)
 
 
 def code_of_lua(text):
@@ -208,7 +209,9 @@ def code_of_lua(text):
             i = j + 1
         elif text.startswith("--", i):
             if text.startswith("--[[", i):
-                i = text.find("]]", i) + 2
+                end = text.find("]]", i) + 2
+                out.append("\n" * text.count("\n", i, end))
+                i = end
             else:
                 i = text.find("\n", i)
                 i = n if i < 0 else i
