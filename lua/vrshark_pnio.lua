@@ -72,8 +72,8 @@ local fe = require("vrshark.frontends")
 -- (the names shared with the C front ends, taken at load)
 local seam = require("vrshark.seam")
 local seam_view = seam.view
-local HOOK_CANDIDATE, HOOK_PENDING, HOOK_CONNECT, HOOK_RESPONSE = seam.PN_HOOK_CANDIDATE, seam.PN_HOOK_PENDING,
-    seam.PN_HOOK_CONNECT, seam.PN_HOOK_RESPONSE
+local HOOK_CANDIDATE, HOOK_PENDING, HOOK_CONNECT, HOOK_RESPONSE = seam.PN_HOOK_CANDIDATE, seam.FLAG_PN_PENDING,
+    seam.PN_HOOK_CONNECT, seam.FLAG_PN_RESPONSE
 local HOOK_CLOCK = seam.PN_HOOK_CLOCK
 -- (the clock of streams that stop, ticked on every frame the carrier sees)
 local deadlines = require("vrshark.deadlines")

@@ -32,25 +32,30 @@ local accept_from = tonumber(os.getenv("VRSHARK_PROBE_ACCEPT") or "0")
 local probe = Proto("vrshark_probe", "front end probe")
 local install
 function probe.dissector(tvb, pinfo, tree)
-    if pinfo.match_string == nil then install() return 0 end  -- the postdissector call
+    if pinfo.match_string == nil then install(pinfo.number) return 0 end  -- the postdissector call
     out:write(string.format("%s %d %s\n", pinfo.match_string, pinfo.number, tostring(pinfo.visited)))
     out:flush()
     if accept_from > 0 and pinfo.number >= accept_from then return tvb:len() end
     return 0
 end
-function install()
-    local pn = DissectorTable.get("vrshark.pn.hook")
-    pn:add("candidate", probe)
-    pn:add("connect", probe)
+-- (through the contract, as the decoders: vrshark/frontends.luam puts a
+-- hook into its table, a flag or a listed server into the C plugin's state)
+local fe = require("vrshark.frontends")
+local seam = require("vrshark.seam")
+-- (the server listed only after frame `from` up to frame `to`, when given)
+local from, to = (os.getenv("VRSHARK_PROBE_SERVER_FRAMES") or ""):match("^(%d+)-(%d+)$")
+function install(number)
+    fe.hook(fe.pn_hook, seam.PN_HOOK_CANDIDATE, probe, true)
+    fe.hook(fe.pn_hook, seam.PN_HOOK_CONNECT, probe, true)
     -- a decoder that holds an AR learned from a request wants the responses
-    if os.getenv("VRSHARK_PROBE_RESPONSE") == "1" then pn:add("response", probe) end
-    local mb = DissectorTable.get("vrshark.mbtcp.hook")
-    mb:add("heuristic", probe)
-    -- a listed server, as eclink_modbus.servers registers it
+    if os.getenv("VRSHARK_PROBE_RESPONSE") == "1" then fe.hook(fe.pn_hook, seam.FLAG_PN_RESPONSE, probe, true) end
+    fe.hook(fe.mb_hook, seam.MB_HOOK_HEURISTIC, probe, true)
+    -- a listed server, as eclink_modbus.servers lists it
     local server = os.getenv("VRSHARK_PROBE_SERVER") or ""
     if server ~= "" then
-        mb:add("server", probe)
-        mb:add("server " .. server, probe)
+        local on = not from or (number >= tonumber(from) and number < tonumber(to))
+        fe.hook(fe.mb_hook, seam.MB_HOOK_SERVER, probe, on)
+        fe.hook(fe.mb_hook, seam.MB_SERVER_PREFIX .. server, probe, on)
     end
 end
 register_postdissector(probe)
@@ -68,7 +73,8 @@ def _write(cap, work_dir, name):
     return path
 
 
-def _probe(tshark, work_dir, capture, two_pass=False, accept_from=0, extra=(), server="", response=False):
+def _probe(tshark, work_dir, capture, two_pass=False, accept_from=0, extra=(), server="", response=False,
+           server_frames=""):
     """[(hook, frame, visited)] of every call into the probe."""
     script = work_dir / "probe.lua"
     script.write_text(PROBE)
@@ -77,7 +83,8 @@ def _probe(tshark, work_dir, capture, two_pass=False, accept_from=0, extra=(), s
     out.touch()
     out.chmod(0o666)
     env = dict(tshark.env, VRSHARK_PROBE_OUT=str(out), VRSHARK_PROBE_ACCEPT=str(accept_from),
-               VRSHARK_PROBE_SERVER=server, VRSHARK_PROBE_RESPONSE="1" if response else "0")
+               VRSHARK_PROBE_SERVER=server, VRSHARK_PROBE_RESPONSE="1" if response else "0",
+               VRSHARK_PROBE_SERVER_FRAMES=server_frames)
     args = [tshark.cmd, "-n", "-r", str(capture), "-X", "lua_script:%s" % script] + list(extra)
     if two_pass:
         args.append("-2")
@@ -134,9 +141,9 @@ def test_an_accepted_candidate_is_not_counted(tshark, work_dir):
 @pytest.mark.parametrize("two_pass", [False, True])
 def test_only_connects_reach_the_connect_hook(tshark, work_dir, capture_file, response, two_pass):
     """Of the PNIO-CM datagrams, the Connect request goes to Lua, and on the
-    first pass its response while the decoder says (hook "response") that it
-    holds an AR learned from a request: a capture of foreign devices hands it
-    none. On the second pass the response goes to it whatever the hook says
+    first pass its response while the decoder says (flag FLAG_PN_RESPONSE)
+    that it holds an AR learned from a request: a capture of foreign devices hands it
+    none. On the second pass the response goes to it whatever the flag says
     (an AR held on the first pass may have been dropped since)."""
     src = capture_file("mcmb2_duplex_cm_port.pcap")
     cap = Capture()
@@ -161,7 +168,7 @@ def test_only_connects_reach_the_connect_hook(tshark, work_dir, capture_file, re
 def test_foreign_connect_requests_are_handed_over_once(tshark, work_dir, capture_file, response):
     """A Connect request the decoder returned 0 for (no system of ours) is
     not handed over again with the same expected submodules while it holds
-    no AR (hook "response" absent); a request with other submodules is. With
+    no AR (flag FLAG_PN_RESPONSE off); a request with other submodules is. With
     an AR held, every request and response goes to it."""
     def connects(name):
         frames = [bytes(p) for p in rdpcap(str(capture_file(name)))]
@@ -223,7 +230,7 @@ def test_modbus_without_image_shaped_requests_never_reaches_lua(tshark, work_dir
 @pytest.mark.parametrize("server,reached", [("192.168.2.60", True), ("192.168.2.60:502", True),
                                             ("192.168.2.60:5020", False), ("192.168.2.61", False)])
 def test_a_listed_modbus_server_gets_every_frame(tshark, work_dir, server, reached):
-    """A server in eclink_modbus.servers (hook keys "server ADDR" or "server
+    """A server in eclink_modbus.servers (listed as "server ADDR" or "server
     ADDR:PORT"): every frame from the first, on both passes, even one that
     gives no evidence; another address or port: none."""
     cap, adus = _modbus_plain(work_dir, 20, image_shaped=False)
@@ -234,6 +241,18 @@ def test_a_listed_modbus_server_gets_every_frame(tshark, work_dir, server, reach
     assert all(hook.split(".")[0] == "server" for hook, _, _ in calls)
     assert [frame for _, frame, visited in calls if not visited] == adus
     assert [frame for _, frame, visited in calls if visited] == adus
+
+
+@needs_c
+def test_a_server_listed_for_a_while_gets_those_frames(tshark, work_dir):
+    """The list of servers and hook "server" are the Lua side's word from the
+    moment it says it (vrshark-flags.c; the front end reads the Modbus hooks
+    again then), not once a file: listed after frame 12 and no longer after
+    frame 30, the server gets frames 13 to 30 of the first pass."""
+    cap, adus = _modbus_plain(work_dir, 20, image_shaped=False)
+    calls = _probe(tshark, work_dir, cap, server="192.168.2.60:502", server_frames="12-30")
+    assert [frame for _, frame, _ in calls] == [n for n in adus if 12 < n <= 30]
+    assert all(hook.split(".")[0] == "server" for hook, _, _ in calls)
 
 
 @needs_c

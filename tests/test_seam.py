@@ -91,12 +91,14 @@ local function try(what, f, ...)
     out:write("try\t", what, "\t", tostring(ok), "\t", tostring(err):gsub("\n", " "), "\n")
 end
 try("mistyped_name", function() return seam.PN_HOOK_PENDNG end)
-try("set_name", function() seam.PN_HOOK_PENDING = "x" end)
+try("set_name", function() seam.FLAG_PN_PENDING = "x" end)
 try("mistyped_key", seam.key, seam.PN_HOOK_TABLE, "pendng")
 try("other_tables_key", seam.key, seam.PN_HOOK_TABLE, seam.MB_HOOK_ALWAYS)
 try("server_key_pn", seam.key, seam.PN_HOOK_TABLE, seam.server_key("10.0.0.1", 502))
-try("no_table", seam.key, "vrshark.pn.hooks", seam.PN_HOOK_PENDING)
-try("pending", seam.key, seam.PN_HOOK_TABLE, seam.PN_HOOK_PENDING)
+try("no_table", seam.key, "vrshark.pn.hooks", seam.FLAG_PN_PENDING)
+try("pending", seam.key, seam.PN_HOOK_TABLE, seam.FLAG_PN_PENDING)
+try("mistyped_flag", seam.key, seam.PN_HOOK_TABLE, "pn.pendng")
+try("flag_in_mb", seam.key, seam.MB_HOOK_TABLE, seam.FLAG_PN_RESPONSE)
 try("port_hint", seam.key, seam.MB_HOOK_TABLE, seam.MB_HOOK_PORT_HINT)
 try("server_key", seam.key, seam.MB_HOOK_TABLE, seam.server_key("10.0.0.1", 502))
 try("server_key_any_port", seam.key, seam.MB_HOOK_TABLE, seam.server_key("10.0.0.1"))
@@ -159,7 +161,8 @@ def test_both_sides_name_the_same(probed):
     # (Lua's numbers may print as 64 or 64.0: compared as numbers)
     got = {k: (int(float(v)) if k.endswith("_TRIES") else v) for k, v in probed["const"].items()}
     assert got == CONTRACT
-    assert {"PN_HOOK_TABLE", "MB_HOOK_TABLE", "PN_HOOK_PENDING", "MB_HOOK_PORT_HINT", "VIEW_MALFORMED",
+    assert {"PN_HOOK_TABLE", "MB_HOOK_TABLE", "FLAG_PN_PENDING", "FLAG_PN_RESPONSE", "FN_FLAG", "FN_SERVERS",
+            "FN_MB_HOOKS_CHANGED", "MB_HOOK_PORT_HINT", "VIEW_MALFORMED",
             "ENV_FULL_TREE", "PN_CANDIDATE_TRIES", "MB_CANDIDATE_TRIES"} <= set(CONTRACT)
 
 
@@ -171,22 +174,25 @@ def test_the_view_reads_back_as_written(probed):
 
 def test_a_mistyped_name_or_key_is_an_error(probed):
     t = probed["try"]
-    for what, needle in (("mistyped_name", "no PN_HOOK_PENDNG"), ("set_name", "PN_HOOK_PENDING is not to be set"),
+    for what, needle in (("mistyped_name", "no PN_HOOK_PENDNG"), ("set_name", "FLAG_PN_PENDING is not to be set"),
                          ("mistyped_key", "no hook pendng in vrshark.pn.hook"),
+                         ("mistyped_flag", "no hook pn.pendng in vrshark.pn.hook"),
+                         ("flag_in_mb", "no hook pn.response in vrshark.mbtcp.hook"),
                          ("other_tables_key", "no hook always in vrshark.pn.hook"),
                          ("server_key_pn", "no hook server 10.0.0.1:502 in vrshark.pn.hook"),
                          ("no_table", "no hook table vrshark.pn.hooks")):
         ok, err = t[what]
         assert not ok and needle in err, (what, err)
-    assert t["pending"] == (True, "pending")
+    assert t["pending"] == (True, "pn.pending")
     assert t["port_hint"] == (True, "port_hint")
     assert t["server_key"] == (True, "server 10.0.0.1:502")
     assert t["server_key_any_port"] == (True, "server 10.0.0.1")
 
 
 def code_of_c(text):
-    """C text without its comments (string literals kept)."""
-    return re.sub(r'/\*.*?\*/|//[^\n]*', " ", text, flags=re.S)
+    """C text without its comments (string literals kept; lines where they
+    were, so that a finding names its line)."""
+    return re.sub(r'/\*.*?\*/|//[^\n]*', lambda m: " " + "\n" * m.group(0).count("\n"), text, flags=re.S)
 
 
 def code_of_lua(text):
@@ -203,7 +209,9 @@ def code_of_lua(text):
             i = j + 1
         elif text.startswith("--", i):
             if text.startswith("--[[", i):
-                i = text.find("]]", i) + 2
+                end = text.find("]]", i) + 2
+                out.append("\n" * text.count("\n", i, end))
+                i = end
             else:
                 i = text.find("\n", i)
                 i = n if i < 0 else i
@@ -275,3 +283,101 @@ def test_the_column_writers_named_are_exported():
     text = (ROOT / "plugins" / "vrshark" / "vrshark-columns.c").read_text()
     for name in ("FN_SET_COLS", "FN_APPEND_INFO", "FN_CLOCK_DUE", "FN_CLOCK_MARK"):
         assert re.search(r"VRSHARK_EXPORT int %s\(lua_State \*L\);" % CONTRACT[name], text), name
+
+
+def test_the_state_functions_named_are_exported():
+    text = (ROOT / "plugins" / "vrshark" / "vrshark-flags.c").read_text()
+    for name in ("FN_FLAG", "FN_SERVERS", "FN_MB_HOOKS_CHANGED"):
+        assert re.search(r"VRSHARK_EXPORT int %s\(lua_State \*L\);" % CONTRACT[name], text), name
+
+
+# The contract's own families of names in C: one not #defined by the header
+# is a mistyped name (a literal in its place is caught by literal_uses).
+C_NAME = re.compile(r"\bVRSHARK_((?:PN|MB|VIEW|ENV|FN|FLAG)_\w+)")
+C_FILES = sorted((ROOT / "plugins" / "vrshark").glob("*.[ch]"))
+
+
+def undefined_names(path):
+    """(file, line, name) of each contract-family name the C code uses that
+    the contract does not define."""
+    code = code_of_c(path.read_text())
+    return [(path.name, n, m.group(0)) for n, line in enumerate(code.splitlines(), 1)
+            for m in C_NAME.finditer(line) if m.group(1) not in CONTRACT]
+
+
+def test_c_uses_only_names_the_contract_defines():
+    assert [u for path in C_FILES for u in undefined_names(path)] == []
+
+
+# Where a Lua source takes a hook key or a flag into a local to hand it to
+# fe.hook: `local A, B = seam.X, seam.Y` (over lines; a literal among them
+# binds its name to nothing).
+SEAM_VALUE = r'(?:seam\.\w+|"[^"\n]*")'
+SEAM_LOCALS = re.compile(r"\blocal\s+([\w\s,]+?)\s*=\s*(%s(?:\s*,\s*%s)*)" % (SEAM_VALUE, SEAM_VALUE))
+FE_HOOK_KEY = re.compile(r"\bfe\.hook\s*\(\s*[\w.]+\s*,\s*([^,]+?)\s*,")
+
+
+def hook_key_uses(path):
+    """(file, line, key) of each fe.hook call whose key is not a local bound
+    to a hook or flag name of the contract."""
+    code = code_of_lua(path.read_text())
+    bound = {}
+    for names, values in SEAM_LOCALS.findall(code):
+        for name, value in zip(re.split(r"\s*,\s*", names.strip()), re.split(r"\s*,\s*", values.strip())):
+            bound[name] = value[len("seam."):]
+    found = []
+    for n, line in enumerate(code.splitlines(), 1):
+        for m in FE_HOOK_KEY.finditer(line):
+            name = bound.get(m.group(1))
+            if not (name in CONTRACT and ("_HOOK_" in name or name.startswith("FLAG_"))):
+                found.append((path.name, n, m.group(1)))
+    return found
+
+
+def test_every_hook_key_handed_over_is_a_contract_name():
+    assert [u for path in LUA_SOURCES for u in hook_key_uses(path)] == []
+
+
+# Only frontends.luam touches the hook tables and the C functions: what a
+# decoder puts into them goes through its hook(), which checks the key
+# (seam.key) and sends a flag or a listed server to C.
+ONLY_FRONTENDS = re.compile(r"\bseam\.(?:PN_HOOK_TABLE|MB_HOOK_TABLE|FN_\w+)\b|\bpackage\.loadlib\b")
+
+
+def test_only_frontends_touches_the_hook_tables():
+    found = [(path.name, n, line.strip()) for path in LUA_SOURCES if path.name != "frontends.luam"
+             for n, line in enumerate(code_of_lua(path.read_text()).splitlines(), 1) if ONLY_FRONTENDS.search(line)]
+    assert found == []
+
+
+# Mistakes put into copies of the real sources, and what catches each.
+MISTAKES = [
+    # (source, the text replaced, its replacement, the check, what it reports)
+    ("lua/vrshark_pnio.lua", "seam.FLAG_PN_PENDING", '"pn.pendng"', hook_key_uses, "HOOK_PENDING"),
+    ("lua/vrshark_pnio.lua", "fe.hook(fe.pn_hook, HOOK_CONNECT,", 'fe.hook(fe.pn_hook, "conect",', literal_uses,
+     'fe.hook(fe.pn_hook, "conect", carrier, learn)'),
+    ("lua/eclink_modbus.lua", "fe.hook(fe.mb_hook, HOOK_ALWAYS,", 'fe.hook(fe.mb_hook, "always",', literal_uses,
+     'fe.hook(fe.mb_hook, "always", proto, opt.detection == DETECT_ALWAYS)'),
+    ("plugins/vrshark/vrshark-frontends.c", "VRSHARK_PN_HOOK_CONNECT, tvb", '"connect", tvb', literal_uses,
+     'dissector_try_string_with_data(pn_hook_table, "connect", tvb'),
+    ("plugins/vrshark/vrshark-frontends.c", "VRSHARK_PN_HOOK_CLOCK)))", "VRSHARK_PN_HOOK_CLOK)))", undefined_names,
+     "VRSHARK_PN_HOOK_CLOK"),
+    ("plugins/vrshark/vrshark-flags.c", "VRSHARK_FLAG_PN_RESPONSE)", '"pn.response")', literal_uses,
+     'strcmp(name, "pn.response")'),
+    ("plugins/vrshark/vrshark-flags.c", "VRSHARK_FLAG_PN_RESPONSE)", "VRSHARK_FLAG_PN_RESPONS)", undefined_names,
+     "VRSHARK_FLAG_PN_RESPONS"),
+]
+
+
+@pytest.mark.parametrize("source,old,new,check,reported", MISTAKES, ids=[
+    "lua-flag-local", "lua-hook-literal", "lua-mb-hook-literal", "c-hook-literal", "c-undefined-hook",
+    "c-flag-literal", "c-undefined-flag"])
+def test_a_mistake_in_a_real_source_is_caught(tmp_path, source, old, new, check, reported):
+    real = ROOT / source
+    text = real.read_text()
+    assert old in text, "the source changed: pick another place for the mistake"
+    assert check(real) == []
+    bad = tmp_path / real.name
+    bad.write_text(text.replace(old, new, 1))
+    found = check(bad)
+    assert len(found) == 1 and reported in found[0][2], found

@@ -8,17 +8,16 @@
  *                        in vrshark.pn.frame_id        -> that Lua decoder
  *                        0x8000..0xFBFF, first pass    -> hook "candidate",
  *                          at most VRSHARK_PN_CANDIDATE_TRIES refusals per
- *                          FrameID (unbounded while hook "pending" exists)
+ *                          FrameID (unbounded while flag "pending" is on)
  *   UDP 34964 and the  a DCE/RPC connectionless request/response
  *   controllers' ports (version 4) goes to the UDP heuristics (DCE/RPC,
  *                      PNIO-CM); a Connect (opnum 0, whole or a fragment)
- *                      then to hook "connect" (while hook "response" is
- *                      absent, i.e. the carrier holds no AR learned from a
+ *                      then to hook "connect" (while flag "response" is
+ *                      off, i.e. the carrier holds no AR learned from a
  *                      request: no response, and no request whose expected
  *                      submodule blocks it returned 0 for before). The
- *                      source port of a
- *                      Connect request is added to udp.port for the
- *                      response (until the next file).
+ *                      source port of a Connect request is added to
+ *                      udp.port for the response (until the next file).
  *   Modbus/TCP ports   "vrshark.mbtcp" (protocol "vrshark_mbtcp", which
  *   (eclink_modbus.    takes itself out of the layer list): mbtcp first,
  *   port, a range,     then the Lua decoder registered in vrshark.mbtcp.hook
@@ -36,10 +35,11 @@
  *                      server's port as its own while it runs: it tells
  *                      queries from responses by that preference.
  *                      A server the user listed (eclink_modbus.servers: the
- *                      Lua side registers "server ADDR:PORT" or "server
- *                      ADDR" in vrshark.mbtcp.hook, and "server" while any
- *                      is listed) goes to the decoder from its first frame
- *                      as hook "server", whatever the detection; the Lua
+ *                      Lua side says the list, "server ADDR:PORT" or
+ *                      "server ADDR" each, and registers hook "server"
+ *                      while any is listed) goes to the decoder from its
+ *                      first frame as hook "server", whatever the
+ *                      detection; the Lua
  *                      side also puts this front end on the ports its
  *                      entries name. On later passes the frames a candidate
  *                      handed to "heuristic" on the first pass go there
@@ -54,12 +54,14 @@
  *
  * Table entries are taken again when each file starts (own_pn_rt,
  * own_pn_cm, own_mb_port): the order of plugin hand-offs depends on the
- * folders the plugins sit in, and a later hand-off replaces an entry. The
- * Modbus hooks are read once per file (mb_read_hooks): the Lua side sets
- * them only when its preferences change, and Wireshark dissects anew then.
- * Nothing looked up of the Lua side (protocol ids, fields, hooks) outlives
- * a file either: Analyze > Reload Lua Plugins registers it all anew under
- * other ids and then dissects anew (forget_lua_side).
+ * folders the plugins sit in, and a later hand-off replaces an entry.
+ * The flags "pending" and "response" and the list of servers are the Lua
+ * side's state, set by it the moment they change (vrshark-flags.c); the
+ * Modbus hooks are read again when it says it changed them
+ * (mb_read_hooks). Nothing looked up of the Lua side (protocol ids,
+ * fields, hooks) outlives a file either: Analyze > Reload Lua Plugins
+ * registers it all anew under other ids and then dissects anew
+ * (forget_lua_side).
  *
  * The Lua side detects these tables (DissectorTable.get under pcall),
  * registers its decoders and the FrameIDs it learns into them, and stops
@@ -97,6 +99,7 @@
 #include <epan/show_exception.h>
 
 #include "vrshark-columns.h"
+#include "vrshark-flags.h"
 #include "vrshark-frontends.h"
 #include "vrshark-output.h"
 
@@ -132,29 +135,6 @@ static dissector_handle_t mb_front_handle;
 static dissector_table_t pn_frame_id_table;
 static dissector_table_t pn_hook_table;
 
-/* Whether hook "pending" exists: 1, 0, or -1 not known. The Lua carrier
- * adds or removes it only at its init and inside its own dissector calls,
- * which the front ends make (pn_lua_calling()), so the answer of one lookup
- * holds until the next such call or file. A foreign FrameID past its tries
- * asked on every frame, and a string table lookup copies its key: about
- * 300 instructions a frame (docs/quality.md, foreign traffic). */
-static int pn_pending = -1;
-
-static gboolean
-pn_pending_hook(void)
-{
-    if (pn_pending < 0)
-        pn_pending = dissector_get_string_handle(pn_hook_table, VRSHARK_PN_HOOK_PENDING) != NULL;
-    return pn_pending != 0;
-}
-
-/* Before every call into the Lua carrier (it may change its hooks; an
- * exception may end the call). */
-static void
-pn_lua_calling(void)
-{
-    pn_pending = -1;
-}
 static dissector_table_t mb_hook_table;
 static heur_dissector_list_t udp_heur_list;
 
@@ -197,24 +177,24 @@ static lua_view_t view_mb_server = { VRSHARK_MB_HOOK_SERVER, mb_lua_protos, { 0 
                                      { NULL } };
 
 /* The Lua decoder's Modbus hooks ("always", "heuristic", "server"), looked up
- * once per file: it changes them only in its preference callback, and
- * Wireshark dissects every frame anew after that (frontends_init first).
- * Three lookups by string a frame were most of what the front end cost a
- * Modbus/TCP connection that is no BU's. */
+ * again only when the Lua side says it changed them
+ * (vrshark_mb_hooks_changes, vrshark-flags.c), or on every frame where it
+ * cannot say so. Three lookups by string a frame were most of what the
+ * front end cost a Modbus/TCP connection that is no BU's. */
 static struct {
-    gboolean read;
+    guint changes;      /* vrshark_mb_hooks_changes when read; 0: not read */
     dissector_handle_t always, heuristic, server;
 } mb_hooks;
 
 static void
 mb_read_hooks(void)
 {
-    if (mb_hooks.read)
+    if (mb_hooks.changes && mb_hooks.changes == vrshark_mb_hooks_changes)
         return;
     mb_hooks.always = dissector_get_string_handle(mb_hook_table, view_mb_always.hook);
     mb_hooks.heuristic = dissector_get_string_handle(mb_hook_table, view_mb_heuristic.hook);
     mb_hooks.server = dissector_get_string_handle(mb_hook_table, view_mb_server.hook);
-    mb_hooks.read = TRUE;
+    mb_hooks.changes = vrshark_mb_hooks_changes;
 }
 
 static GArray *view_scratch;   /* lua_view()'s list of this frame */
@@ -547,7 +527,6 @@ clock_tick(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree)
         return;
     saved = pinfo->match_string;
     pinfo->match_string = VRSHARK_PN_HOOK_CLOCK;
-    pn_lua_calling();
     call_lua_decoder(h, tvb, pinfo, tree);
     pinfo->match_string = saved;
 }
@@ -566,7 +545,6 @@ pn_cyclic(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
         fid = tvb_get_ntohs(tvb, 0);
         consumed = call_pn_rt_known(tvb, pinfo, tree, data, &thrown);
         pinfo->match_string = thrown ? VRSHARK_VIEW_MALFORMED : lua_view(&view_pn, pinfo, tree);
-        pn_lua_calling();
         call_lua_frame_id(fid, tvb, pinfo, tree);
         pinfo->match_string = saved;
         return thrown ? (int)tvb_captured_length(tvb) : consumed;
@@ -578,9 +556,8 @@ pn_cyclic(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
     if (fid < PN_CANDIDATE_FIRST || fid > PN_CANDIDATE_LAST || pinfo->fd->visited)
         return consumed;
     idx = fid - PN_CANDIDATE_FIRST;
-    if (pn_tries[idx] >= VRSHARK_PN_CANDIDATE_TRIES && !pn_pending_hook())
+    if (pn_tries[idx] >= VRSHARK_PN_CANDIDATE_TRIES && !vrshark_flag_pn_pending)
         return consumed;
-    pn_lua_calling();
     if (!dissector_try_string_with_data(pn_hook_table, VRSHARK_PN_HOOK_CANDIDATE, tvb, pinfo, tree, FALSE, NULL) &&
         pn_tries[idx] < VRSHARK_PN_CANDIDATE_TRIES)
         pn_tries[idx]++;
@@ -786,7 +763,6 @@ pn_cm(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
      * on it; it is handed over once. */
     if (tvb_captured_length(tvb) < tvb_reported_length(tvb) && tvb_captured_length(tvb) >= 2 &&
         tvb_get_uint8(tvb, 0) == DCERPC_DG_VERSION && dissector_get_string_handle(pn_hook_table, VRSHARK_PN_HOOK_CONNECT)) {
-        pn_lua_calling();
         dissector_try_string_with_data(pn_hook_table, VRSHARK_PN_HOOK_CONNECT, tvb, pinfo, tree, FALSE, NULL);
         cut = TRUE;
     }
@@ -802,19 +778,19 @@ pn_cm(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
                 &ei_pn_taken, "Cyclic frames of this Connect are not decoded: EtherType 0x8892 is taken "
                 "by \"%s\", not by vrshark_pnio", pn_taken_by);
         /* A response teaches the carrier something only about an AR it
-         * learned from a request, and it says when it holds one (hook
-         * "response"): a capture of foreign devices hands it no response,
-         * and no request it found foreign before (pn_foreign_subs). On a
-         * later pass every response goes to it (what it learned on the
-         * first is shown; an AR may have been dropped since). */
-        if (!dissector_get_string_handle(pn_hook_table, VRSHARK_PN_HOOK_RESPONSE)) {
+         * learned from a request, and it says when it holds one (flag
+         * VRSHARK_FLAG_PN_RESPONSE): a capture of foreign devices hands it
+         * no response, and no request it found foreign before
+         * (pn_foreign_subs). On a later pass every response goes to it
+         * (what it learned on the first is shown; an AR may have been
+         * dropped since). */
+        if (!vrshark_flag_pn_response) {
             if (tvb_get_uint8(tvb, 1) == DCERPC_DG_RESPONSE && !pinfo->fd->visited)
                 return tvb_captured_length(tvb);
             keyed = !(tvb_get_uint8(tvb, 2) & DCERPC_DG_FLAGS1_FRAG) && pn_subs_of(tvb, pinfo, &subs);
             if (keyed && wmem_map_contains(pn_foreign_subs, &subs))
                 return tvb_captured_length(tvb);
         }
-        pn_lua_calling();
         if (dissector_try_string_with_data(pn_hook_table, VRSHARK_PN_HOOK_CONNECT, tvb, pinfo, tree, FALSE, NULL) == 0 && keyed &&
             !pinfo->fd->visited) {
             pn_subs_key_t *kept = wmem_new(wmem_file_scope(), pn_subs_key_t);
@@ -993,9 +969,20 @@ leave_layer_list(packet_info *pinfo)
     }
 }
 
+/* Is `name` a listed server: in the list the Lua side said
+ * (vrshark_mb_servers), or where it cannot say it, an entry of the hook
+ * table? */
+static gboolean
+mb_server_named(const char *name)
+{
+    if (vrshark_mb_servers)
+        return g_hash_table_contains(vrshark_mb_servers, name);
+    return dissector_get_string_handle(mb_hook_table, name) != NULL;
+}
+
 /* Is the server of this frame (the destination of a request: to the port
- * the front end was called for) one the user listed? The key the Lua side
- * registers: "server ADDR:PORT", or "server ADDR" for every port. */
+ * the front end was called for) one the user listed? Its name in the list:
+ * "server ADDR:PORT", or "server ADDR" for every port. */
 static gboolean
 mb_listed(packet_info *pinfo, guint32 server_port)
 {
@@ -1004,7 +991,7 @@ mb_listed(packet_info *pinfo, guint32 server_port)
     char *addr, *key;
     gboolean found;
 
-    if (!mb_hooks.server)
+    if (!mb_hooks.server || (vrshark_mb_servers && g_hash_table_size(vrshark_mb_servers) == 0))
         return FALSE;
     if (pinfo->destport == server_port) {
         server = &pinfo->dst;
@@ -1015,10 +1002,10 @@ mb_listed(packet_info *pinfo, guint32 server_port)
     }
     addr = address_to_str(pinfo->pool, server);
     key = wmem_strdup_printf(pinfo->pool, VRSHARK_MB_SERVER_PREFIX "%s:%u", addr, port);
-    found = dissector_get_string_handle(mb_hook_table, key) != NULL;
+    found = mb_server_named(key);
     if (!found) {
         key = wmem_strdup_printf(pinfo->pool, VRSHARK_MB_SERVER_PREFIX "%s", addr);
-        found = dissector_get_string_handle(mb_hook_table, key) != NULL;
+        found = mb_server_named(key);
     }
     return found;
 }
@@ -1300,8 +1287,7 @@ forget_lua_side(void)
         g_array_free(named_fields, TRUE);
     named_fields = NULL;
     named_other = FALSE;
-    mb_hooks.read = FALSE;
-    pn_pending = -1;
+    mb_hooks.changes = 0;
 }
 
 static void

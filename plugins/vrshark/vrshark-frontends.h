@@ -25,17 +25,14 @@
 
 /* PROFINET hooks (in VRSHARK_PN_HOOK_TABLE):
  *   candidate  called: unknown FrameIDs of the RT class 1 range, first pass,
- *              VRSHARK_PN_CANDIDATE_TRIES refusals (0 back) per FrameID;
- *   pending    flag: the Lua side waits for a downlink FrameID or an
- *              inference is alive: candidates are tried beyond the bound;
+ *              VRSHARK_PN_CANDIDATE_TRIES refusals (0 back) per FrameID
+ *              (unbounded while flag VRSHARK_FLAG_PN_PENDING is on);
  *   connect    called: PNIO-CM Connect requests and responses (after
- *              DCE/RPC); 0 back for a request of no system of the Lua side;
- *   response   flag: the Lua side holds an AR learned from a request, so
- *              responses are handed over on the first pass too. */
+ *              DCE/RPC); 0 back for a request of no system of the Lua side
+ *              (responses on the first pass while flag
+ *              VRSHARK_FLAG_PN_RESPONSE is on). */
 #define VRSHARK_PN_HOOK_CANDIDATE   "candidate"
-#define VRSHARK_PN_HOOK_PENDING     "pending"
 #define VRSHARK_PN_HOOK_CONNECT     "connect"
-#define VRSHARK_PN_HOOK_RESPONSE    "response"
 
 /* The clock (in VRSHARK_PN_HOOK_TABLE, called by every front end): a frame
  * that otherwise does not reach Lua, on a first pass once its time is past
@@ -50,16 +47,29 @@
  *              (non-zero back; VRSHARK_MB_CANDIDATE_TRIES refusals per
  *              connection) and every frame after that;
  *   always     called: every frame;
- *   server     called and flag: the listed servers' frames, present while
- *              any server is listed; each is a key of its own,
- *              VRSHARK_MB_SERVER_PREFIX "ADDR:PORT" or "ADDR" (every port);
+ *   server     called: the frames of the servers listed through
+ *              VRSHARK_FN_SERVERS, present while any is listed;
  *   port_hint  called: a request on a port nobody reads as Modbus/TCP that
- *              asks for a BU's evidence. */
+ *              asks for a BU's evidence.
+ * A listed server is VRSHARK_MB_SERVER_PREFIX "ADDR:PORT", or "ADDR" for
+ * every port (a name VRSHARK_FN_SERVERS takes, not a table key). */
 #define VRSHARK_MB_HOOK_HEURISTIC   "heuristic"
 #define VRSHARK_MB_HOOK_ALWAYS      "always"
 #define VRSHARK_MB_HOOK_SERVER      "server"
 #define VRSHARK_MB_SERVER_PREFIX    "server "
 #define VRSHARK_MB_HOOK_PORT_HINT   "port_hint"
+
+/* Flags: state of the Lua side that the front ends read on every frame,
+ * kept in C (vrshark-flags.c) and set by the Lua side through
+ * VRSHARK_FN_FLAG the moment it changes:
+ *   pending    the PROFINET carrier waits for a downlink FrameID or an
+ *              inference is alive: candidates are tried beyond the bound;
+ *   response   the carrier holds an AR learned from a request: Connect
+ *              responses are handed over on the first pass too.
+ * Both are on until the Lua side first sets them (it asks for every frame
+ * it might want). */
+#define VRSHARK_FLAG_PN_PENDING     "pn.pending"
+#define VRSHARK_FLAG_PN_RESPONSE    "pn.response"
 
 /* The view, in pinfo->match_string (vrshark-frontends.c:lua_view encodes it,
  * seam.luam's view() decodes it): HOOK alone (everything), HOOK
@@ -89,6 +99,14 @@
 #define VRSHARK_FN_APPEND_INFO      "vrshark_lua_append_info"
 #define VRSHARK_FN_CLOCK_DUE        "vrshark_lua_clock_due"
 #define VRSHARK_FN_CLOCK_MARK       "vrshark_lua_clock_mark"
+
+/* The Lua side's state the front ends read (vrshark-flags.c): a flag
+ * (VRSHARK_FLAG_*) on or off; the listed servers, all of them each time
+ * (none: no server listed); the entries of VRSHARK_MB_HOOK_TABLE changed
+ * (the front end reads them again). */
+#define VRSHARK_FN_FLAG             "vrshark_lua_flag"
+#define VRSHARK_FN_SERVERS          "vrshark_lua_servers"
+#define VRSHARK_FN_MB_HOOKS_CHANGED "vrshark_lua_mb_hooks_changed"
 
 /* Heuristic tries: cyclic frames per FrameID, frames per TCP connection
  * (the Lua decoders bound their own tries by the same numbers).
