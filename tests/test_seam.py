@@ -275,3 +275,36 @@ def test_the_column_writers_named_are_exported():
     text = (ROOT / "plugins" / "vrshark" / "vrshark-columns.c").read_text()
     for name in ("FN_SET_COLS", "FN_APPEND_INFO", "FN_CLOCK_DUE", "FN_CLOCK_MARK"):
         assert re.search(r"VRSHARK_EXPORT int %s\(lua_State \*L\);" % CONTRACT[name], text), name
+
+
+# A BU's evidence: the addresses of its images (tests/test_modbus_evidence.py
+# feeds both sides the requests at and around each bound).
+EVIDENCE = {"MB_INPUT_REG_FIRST", "MB_INPUT_HOLDING_FIRST", "MB_INPUT_REGS", "MB_INPUT_BIT_FIRST", "MB_INPUT_BITS",
+            "MB_OUTPUT_REG_FIRST", "MB_OUTPUT_REGS", "MB_OUTPUT_COMMANDS_REGS", "MB_OUTPUT_COIL_FIRST"}
+
+
+def evidence_numbers():
+    """The addresses and counts of the evidence, and the bounds made of them."""
+    c = CONTRACT
+    found = set()
+    for first, n in (("MB_INPUT_REG_FIRST", "MB_INPUT_REGS"), ("MB_INPUT_HOLDING_FIRST", "MB_INPUT_REGS"),
+                     ("MB_INPUT_BIT_FIRST", "MB_INPUT_BITS"), ("MB_OUTPUT_REG_FIRST", "MB_OUTPUT_REGS")):
+        found |= {c[first], c[n], c[first] + c[n] - 1, c[first] + c[n]}
+    found |= {c["MB_OUTPUT_COMMANDS_REGS"], c["MB_OUTPUT_COIL_FIRST"] + 16 * c["MB_OUTPUT_REGS"] - 1}
+    return found - {0, 1}
+
+
+def test_the_evidence_is_written_once():
+    """Both sides read the evidence from the contract: the C front end's
+    test and the Lua decoder's image map and whole-image tests name no
+    address or count of it (a tvb offset, `off + 10`, is no address)."""
+    assert EVIDENCE <= set(CONTRACT)
+    numbers = evidence_numbers()
+    c = code_of_c((ROOT / "plugins" / "vrshark" / "vrshark-frontends.c").read_text())
+    c = c[c.index("mb_covers(guint"):c.index("find_mbtcp_port(const")]
+    lua = code_of_lua((ROOT / "lua" / "eclink_modbus.lua").read_text())
+    lua = lua[lua.index("local REGIONS = {"):lua.index("local TABLE_NAMES")] \
+        + lua[lua.index("local function full_input("):lua.index("local READS")]
+    for where, text in (("C", re.sub(r"\boff\s*\+\s*\d+", "off", c)), ("Lua", lua)):
+        spelt = sorted(int(n) for n in re.findall(r"\b\d+\b", text) if int(n) in numbers)
+        assert spelt == [], where
