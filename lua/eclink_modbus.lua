@@ -49,6 +49,9 @@ decoded with the new one. Wireshark's Modbus/TCP dissector tells queries
 from responses by its own port, so on another port the BU's port is
 presented to it as that one while it runs, and on its own port it is left
 alone.
+The ports are taken, and mbtcp called, by the transport
+(vrshark/transport.luam): the C front end with the C plugin, Lua without
+it; the decoder is the same either way and never asks which.
 
 Per connection, on the first pass, the latest value of every image byte is
 kept (so each frame can show the assembled images as of that frame), the
@@ -65,14 +68,9 @@ set_plugin_info(require("vrshark.version").info("EC-Link images in Modbus/TCP (V
 local image = require("vrshark.eclink_image")
 local periodic = require("vrshark.eclink_periodic")
 local handshake = require("vrshark.eclink_handshake")
-local wrap = require("vrshark.wrap")
 local fe = require("vrshark.frontends")
--- (the names shared with the C front end, taken at load)
+-- (the names and limits shared with the C front end, taken at load)
 local seam = require("vrshark.seam")
-local seam_view, server_key = seam.view, seam.server_key
-local NO_VIEW = seam_view(nil)   -- (without the C plugin: no match_string is read)
-local HOOK_HEURISTIC, HOOK_ALWAYS, HOOK_SERVER, HOOK_PORT_HINT = seam.MB_HOOK_HEURISTIC, seam.MB_HOOK_ALWAYS,
-    seam.MB_HOOK_SERVER, seam.MB_HOOK_PORT_HINT
 local append_info = fe.append_info
 local detect = require("vrshark.modbus_detect")
 local servers = require("vrshark.modbus_servers")
@@ -81,15 +79,13 @@ local record = require("vrshark.pnio_record") -- add_time(): times to the ms, as
 local iodata = require("vrshark.iodata") -- vrshark_io hook
 -- the shared clock of streams that stop (TS-0007 8.3, 8.4: the images themselves)
 local deadlines = require("vrshark.deadlines")
-local tick = deadlines.tick
 -- (methods called as functions on the per-frame paths: vrshark/api.luam says why)
 local api = require("vrshark.api")
 local add, set_generated, append_text, tvb_len, tvb_raw = api.add, api.set_generated, api.append_text, api.len, api.raw
 -- (the pinfo attributes read on every frame)
 local p_number, p_visited, p_abs_ts, p_src, p_dst = api.pinfo.number, api.pinfo.visited, api.pinfo.abs_ts,
     api.pinfo.src, api.pinfo.dst
-local p_src_port, p_dst_port, p_match_uint, p_match_string = api.pinfo.src_port, api.pinfo.dst_port,
-    api.pinfo.match_uint, api.pinfo.match_string
+local p_match_uint = api.pinfo.match_uint
 local tvb_reported_len = api.reported_len
 -- (the flat records by frame number: vrshark/framemap.luam says why)
 local framemap = require("vrshark.framemap")
@@ -101,12 +97,11 @@ image.proto()  -- the single Proto("eclink"), shared with the other EC-Link plug
 local proto = Proto("eclink_modbus", "EC-Link over Modbus/TCP")
 -- the Protos of its fields (frontends.lua_view())
 local LUA_PROTOS = { proto, image.proto() }
-local mbtcp = Dissector.get("mbtcp")
--- With the C front end (vrshark.frontends) the port gets "vrshark.mbtcp",
--- which calls mbtcp and hands this plugin only the connections it accepted
--- or still considers; without it this plugin wraps mbtcp itself.
-local C = fe.mb_front ~= nil
-local front = C and fe.mb_front or proto
+-- Its transport (vrshark/transport.luam): the C front end or, without the
+-- C plugin, mbtcp wrapped in Lua; chosen once, when the module loads. The
+-- decoder's entry point, dissect() below, is the same for both.
+local transport = require("vrshark.transport").modbus(proto, LUA_PROTOS)
+local lua_view = transport.lua_view
 
 ------------------------------------------------------------------------
 -- Fields
@@ -214,12 +209,18 @@ local LCD = handshake.lcd_by_expert(ef)
 ------------------------------------------------------------------------
 -- Value tables
 ------------------------------------------------------------------------
--- Modbus tables and where they sit in the images: { kind, first address, last address }
+-- Modbus tables and where they sit in the images: { kind, first address,
+-- last address }, at the addresses of the seam contract (a BU's evidence:
+-- the C front end reads the same)
+local IN_REG, IN_HOLD, IN_REGS = seam.MB_INPUT_REG_FIRST, seam.MB_INPUT_HOLDING_FIRST, seam.MB_INPUT_REGS
+local IN_BIT, IN_BITS = seam.MB_INPUT_BIT_FIRST, seam.MB_INPUT_BITS
+local OUT_REG, OUT_REGS, OUT_COMMANDS_REGS = seam.MB_OUTPUT_REG_FIRST, seam.MB_OUTPUT_REGS, seam.MB_OUTPUT_COMMANDS_REGS
+local OUT_COIL = seam.MB_OUTPUT_COIL_FIRST
 local REGIONS = {
-    input_registers = { { "input", 0, 31 } },
-    holding_registers = { { "output", 0, 111 }, { "input", 2048, 2079 } },
-    discrete_inputs = { { "input", 0, 511 } },
-    coils = { { "output", 0, 1791 } },
+    input_registers = { { "input", IN_REG, IN_REG + IN_REGS - 1 } },
+    holding_registers = { { "output", OUT_REG, OUT_REG + OUT_REGS - 1 }, { "input", IN_HOLD, IN_HOLD + IN_REGS - 1 } },
+    discrete_inputs = { { "input", IN_BIT, IN_BIT + IN_BITS - 1 } },
+    coils = { { "output", OUT_COIL, OUT_COIL + OUT_REGS * 16 - 1 } },
 }
 local TABLE_NAMES = {
     input_registers = "Input registers", holding_registers = "Holding registers",
@@ -271,13 +272,8 @@ proto.prefs.cai_timeout = Pref.uint("CAI timeout (ms)", 2000,
 proto.prefs.assembled = Pref.bool("Show assembled images", false,
     "Show on every EC-Link frame the input and output images as assembled from all accesses so far")
 
+-- (port_hint(): a port some dissector sits on)
 local tcp_port_table = DissectorTable.get("tcp.port")
--- without the C plugin: port -> true when the decoder took it from Wireshark's
--- Modbus/TCP dissector, false when it was free
-local placed = {}
--- Wireshark's Modbus/TCP dissector tells queries from responses by its own
--- port preference, mbtcp.tcp.port (Lua-only; the C front end reads it).
-local mbtcp_port = 502
 -- preference values read once per change, not per ADU
 local opt = {}
 
@@ -305,120 +301,16 @@ local function read_prefs()
     read_servers()
 end
 
--- Dissectors compare by name (Lua gives each lookup a new object).
-local function holds(port, d)
-    local cur = tcp_port_table:get_dissector(port)
-    return cur ~= nil and tostring(cur) == tostring(d)
-end
-
--- mbtcp.tcp.port, which Lua cannot read (a Decode As preference): the port
--- the tcp.port table gives Wireshark's Modbus/TCP dissector, one other than
--- 502 if there is one (502 keeps it too); nil when it has none. About 15 ms;
--- once a file.
-local function find_mbtcp_port()
-    local found
-    -- (holds() unrolled: 65,535 lookups, most of them nil)
-    local name, get = tostring(mbtcp), tcp_port_table.get_dissector
-    for p = 1, 65535 do
-        local cur = get(tcp_port_table, p)
-        if cur ~= nil and tostring(cur) == name and (found == nil or found == 502) then found = p end
-    end
-    return found
-end
-
--- Without the C plugin: the decoder on its ports (every port of
--- eclink_modbus.port and mbtcp.tcp.port's), at each file start and
--- preference change. A later DissectorTable add (a plugin loaded after this
--- one putting Modbus/TCP back) replaces ours silently, so the ports are taken
--- again each time. With the C plugin its front end does the same in C
--- (own_mb_port).
--- The scan of find_mbtcp_port() (65,535 lookups) is the plugin's largest
--- start-up cost on a short capture, and tshark made it three times: at
--- load, at the file's start, and once more after its last frame (the init
--- routines run again when the file is closed). So: not at load (every file
--- starts with init(), which places the decoder with the preferences and
--- Decode As entries of that moment), and in tshark, where neither changes
--- once the file is open, once: at the first init (`scanned`: its result;
--- a preference change after load scans again). The GUI scans at each init.
-local loaded = false
-local scanned -- { found = mbtcp's port or false }, tshark only
-local function place_on_port(from_init)
-    if C or not loaded then return end
-    local ours = Dissector.get("eclink_modbus")     -- (tostring of a Proto is not its dissector's)
-    -- the ports of the last file given back first (to mbtcp where it had
-    -- them), so that mbtcp's own port is found in the table as Wireshark set it
-    for port, displaced in pairs(placed) do
-        if holds(port, ours) then
-            tcp_port_table:remove(port, front)
-            if displaced then tcp_port_table:add(port, mbtcp) end
-        end
-    end
-    placed = {}
-    local found
-    if from_init and scanned then
-        found = scanned.found or nil
-    else
-        found = find_mbtcp_port()
-        scanned = from_init and not gui_enabled() and { found = found or false } or nil
-    end
-    mbtcp_port = found or 502
-    local want = ports.parse(proto.prefs.port)
-    want[mbtcp_port] = true
-    for port in pairs(want) do
-        if not holds(port, ours) then
-            -- (mbtcp on no port: Analyze > Reload Lua Plugins took the decoder
-            -- that had displaced it out of the table and left the port empty;
-            -- mbtcp gets it back when the decoder leaves it, as if it had been
-            -- found there)
-            placed[port] = holds(port, mbtcp) or (found == nil and port == mbtcp_port)
-            tcp_port_table:add(port, front)
-        end
-    end
-end
-
--- The ports named in eclink_modbus.servers are decoded too: the decoder (or
--- the C front end) is put on each that has not got it, taking it from
--- whatever had it (given back when the entry goes). With the C plugin the
--- listed servers go into vrshark.mbtcp.hook as "server ADDR" / "server
--- ADDR:PORT" (and "server", the hook, while any is listed): the front end hands
--- their frames to this decoder whatever the detection.
-local server_ports = {}     -- port -> the dissector it had before (false: none)
-local server_keys = {}      -- hook keys registered
-local function place_servers()
-    for port, before in pairs(server_ports) do
-        if holds(port, front) then
-            tcp_port_table:remove(port, front)
-            if before then tcp_port_table:add(port, before) end
-        end
-    end
-    server_ports = {}
-    if C then
-        for _, key in ipairs(server_keys) do fe.mb_hook:remove(key, proto) end
-        server_keys = {}
-    end
-    for port in pairs(opt.servers.ports) do
-        if not holds(port, front) and not holds(port, proto) then
-            server_ports[port] = tcp_port_table:get_dissector(port) or false
-            tcp_port_table:add(port, front)
-        end
-    end
-    if C then
-        for _, e in ipairs(opt.servers.list) do
-            server_keys[#server_keys + 1] = server_key(e.addr, e.port)
-        end
-        if #server_keys > 0 then server_keys[#server_keys + 1] = HOOK_SERVER end
-        for _, key in ipairs(server_keys) do fe.mb_hook:add(key, proto) end
-    end
+-- The ports, the listed servers and the hooks of the C front end
+-- (vrshark/transport.luam place()): at each file start and preference
+-- change.
+local function place(from_init)
+    transport.place(from_init, opt.servers, opt.detection == DETECT_HEURISTIC, opt.detection == DETECT_ALWAYS)
 end
 
 local function prefs_changed()
     read_prefs()
-    place_on_port()
-    place_servers()
-    if C then
-        fe.hook(fe.mb_hook, HOOK_HEURISTIC, proto, opt.detection == DETECT_HEURISTIC)
-        fe.hook(fe.mb_hook, HOOK_ALWAYS, proto, opt.detection == DETECT_ALWAYS)
-    end
+    place(false)
 end
 proto.prefs_changed = prefs_changed
 
@@ -630,8 +522,7 @@ end
 proto.init = function()
     init_state()
     health.reset()
-    place_on_port(true)
-    place_servers()
+    place(true)
 end
 init_state()
 
@@ -777,7 +668,8 @@ local function mapped(a, tvb, off)
     return pieces
 end
 
--- Does an access cover a whole input image (the heuristic looks at those)?
+-- Does an access cover a whole input image (the heuristic looks at those;
+-- the C front end's mb_evidence_request() asks the same)?
 local function full_input(tname, start, count)
     local regions = REGIONS[tname]
     for i = 1, #regions do
@@ -787,9 +679,11 @@ local function full_input(tname, start, count)
     return false
 end
 
--- Is a write the whole output image (10 or 112 holding registers from 0)?
+-- Is a write the whole output image (OUT_COMMANDS_REGS or OUT_REGS holding
+-- registers from OUT_REG)?
 local function full_output_write(a)
-    return a.write and a.tname == "holding_registers" and a.start == 0 and (a.count == 10 or a.count == 112)
+    return a.write and a.tname == "holding_registers" and a.start == OUT_REG
+        and (a.count == OUT_COMMANDS_REGS or a.count == OUT_REGS)
 end
 
 -- Does a read request (function 2, 3, 4 or 23) cover PCI, input image byte 0?
@@ -1236,36 +1130,23 @@ local function take_req()
     return r
 end
 
--- First pass: work out what this ADU means and update the connection.
-local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb, number, src_port, dst_port)
-    local fc = fcb % 128
-    local pdu, plen = off + 7, adu_len - 7
-    local tname = FC_TABLE[fc]
-    if not tname then return NOT_DECODED end
-    local c = get_conn(conn_key(pinfo, is_request, src_port, dst_port))
-    if c.pinned == nil then
-        -- the server: named in eclink_modbus.servers?
-        local addr = tostring(is_request and pinfo.dst or pinfo.src)
-        local port = is_request and pinfo.dst_port or pinfo.src_port
-        c.pinned = opt.any_servers and servers.listed(opt.servers, addr, port, pinfo.match_uint) or false
-        c.mode = c.pinned and servers.mode(opt.servers, addr, port, pinfo.match_uint) or opt.mode
-        c.setting = servers.setting(addr, port, proto.prefs.servers)
-    end
-    -- a connection the heuristic gave up on stays Modbus's: nothing more to work out
-    if c.tries >= CANDIDATE_TRIES and not c.accepted and not c.pinned and opt.detection == DETECT_HEURISTIC then
-        last_request = false
-        return NOT_DECODED
-    end
-    local tkey = (tid * 256 + unit) * 256 + fc
-    -- (every rule of the connection goes by a time that never runs
-    -- backwards: a clock step is a finding, no time shown is negative)
-    local t, step = handshake.clock(c.hs, p_abs_ts(pinfo), number,
-        "the PCI, PCO, command deadline and poll gap rules")
-    -- the usual per-frame values in the array part (8 slots, no hash part)
-    local rec = take_rec()
-    if step then add_finding(rec, { ef.time_backwards, step[2] }) end
+-- A connection's server, the first time: named in eclink_modbus.servers
+-- (pinned: decoded from the first frame), its EC-Link mode, and the setting
+-- that would name it.
+local function pin(c, pinfo, is_request)
+    local addr = tostring(is_request and pinfo.dst or pinfo.src)
+    local port = is_request and pinfo.dst_port or pinfo.src_port
+    c.pinned = opt.any_servers and servers.listed(opt.servers, addr, port, pinfo.match_uint) or false
+    c.mode = c.pinned and servers.mode(opt.servers, addr, port, pinfo.match_uint) or opt.mode
+    c.setting = servers.setting(addr, port, proto.prefs.servers)
+end
+
+-- A request kept pending for its response, or a response paired with its
+-- request (connection + transaction + unit + function code): the record's
+-- range and links. Returns the request (parsed, or the pending one), nil
+-- when unknown.
+local function pair(c, rec, tvb, pdu, plen, fc, tkey, is_request, number, t)
     local r
-    last_request = false
     if is_request then
         r = parse_request_pdu(tvb, pdu, plen, fc, take_req())
         if r then
@@ -1274,81 +1155,84 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb, 
             last_request = r
             rec[R_START], rec[R_COUNT] = r.start, r.count
         end
+        return r
+    end
+    r = c.pending[tkey]
+    if r then
+        c.pending[tkey] = nil
+        rec[R_REQUEST] = r.frame
+        rec[R_TIME] = to_us(t - r.t)
+        local flat = r.flat
+        if flat then
+            -- (a flat request: its response's frame goes into at_la)
+            local la = fget(at_la, flat)
+            fset(at_la, flat, la - la % LINK_SPAN + link_code(flat, number, true))
+        elseif r.rec then
+            r.rec[R_RESPONSE] = number
+        end
+        rec[R_START], rec[R_COUNT] = r.start, r.count
     else
-        r = c.pending[tkey]
-        if r then
-            c.pending[tkey] = nil
-            rec[R_REQUEST] = r.frame
-            rec[R_TIME] = to_us(t - r.t)
-            local flat = r.flat
-            if flat then
-                -- (a flat request: its response's frame goes into at_la)
-                local la = fget(at_la, flat)
-                fset(at_la, flat, la - la % LINK_SPAN + link_code(flat, number, true))
-            elseif r.rec then
-                r.rec[R_RESPONSE] = number
-            end
-            rec[R_START], rec[R_COUNT] = r.start, r.count
-        else
-            rec.no_request = true
+        rec.no_request = true
+    end
+    return r
+end
+
+-- The heuristic's turn on a connection not accepted yet: from the first
+-- evidence on, a candidate's ADUs are analysed like an accepted
+-- connection's, and shown once it is accepted. False: the ADU stays
+-- Modbus's.
+local function judge(c, rec, accesses, tvb, off, t, number)
+    if c.tries >= CANDIDATE_TRIES then return false end
+    c.tries = c.tries + 1
+    c.det.shaped = nil
+    if look(c, accesses, tvb, off, t) then
+        c.accepted = number
+        for _, pr in ipairs(c.pre) do pr[R_ACCEPTED] = number end
+        c.pre = nil
+    elseif detect.candidate(c.det) then
+        rec.pending = true
+        c.pre[#c.pre + 1] = rec
+        if c.det.shaped then
+            -- never silent: what is missing, and the setting that decodes it now
+            local missing = detect.missing(c.det)
+            rec.hint = string.format("Looks like a BU (%s), not recognised: needs %s; to decode it now: %s",
+                c.det.shaped,
+                missing ~= "" and missing or "more of its traffic", c.setting)
+            rec.hint_setting = c.setting
         end
+    else
+        return false
     end
-    local accesses = adu_accesses(tvb, off, adu_len, fcb, is_request, r)
-    -- (a response's request is done with: nobody keeps it)
-    if r and not is_request then spare_req = r end
-    fp_tvb, fp_off, fp_accesses = tvb, off, accesses
-    -- detection: from the first evidence on, a candidate's ADUs are analysed
-    -- like an accepted connection's, and shown once it is accepted
-    -- a listed server: decoded from the first frame, as with "always"
-    local det = c.pinned and DETECT_ALWAYS or opt.detection
-    if det == DETECT_OFF then return NOT_DECODED end
-    if det == DETECT_HEURISTIC and not c.accepted then
-        if c.tries >= CANDIDATE_TRIES then return NOT_DECODED end
-        c.tries = c.tries + 1
-        c.det.shaped = nil
-        if look(c, accesses, tvb, off, t) then
-            c.accepted = number
-            for _, pr in ipairs(c.pre) do pr[R_ACCEPTED] = number end
-            c.pre = nil
-        elseif detect.candidate(c.det) then
-            rec.pending = true
-            c.pre[#c.pre + 1] = rec
-            if c.det.shaped then
-                -- never silent: what is missing, and the setting that decodes it now
-                local missing = detect.missing(c.det)
-                rec.hint = string.format("Looks like a BU (%s), not recognised: needs %s; to decode it now: %s",
-                    c.det.shaped,
-                    missing ~= "" and missing or "more of its traffic", c.setting)
-                rec.hint_setting = c.setting
-            end
-        else
-            return NOT_DECODED
-        end
+    return true
+end
+
+-- An accepted connection whose input images stopped being valid: judged
+-- afresh from the next ADU on; this one says so (a note, instead of alarms
+-- on every frame of a device that is not, or no longer, a BU).
+local function drop(c, rec, pinfo, is_request, src_port, dst_port)
+    add_finding(rec, { ef.dropped, string.format(
+        "%d input images in a row not valid: connection (recognized in frame %d) no longer taken for a BU's; "
+        .. "left to Modbus/TCP until it is recognized again", detect.DROP_IMAGES, c.accepted) })
+    rec[R_ACCEPTED] = c.accepted
+    streams_dropped(c)
+    conns[conn_key(pinfo, is_request, src_port, dst_port)] = nil
+    return rec
+end
+
+-- poll gap: the first read of the input image after more than the PCI timeout
+local function poll(c, rec, t, number)
+    if c.last_read and t - c.last_read > opt.pci_timeout then
+        local gap = t - c.last_read
+        rec.poll_gap, rec.poll_gap_from = gap, c.last_read_frame
+        add_finding(rec, { ef.poll_gap, string.format("Input image not read for %.3f s (PCI timeout %.3f s)",
+            gap, opt.pci_timeout) })
     end
-    -- accepted, but the input images stopped being valid: the connection is
-    -- judged afresh from the next ADU on; this one says so (a note, instead
-    -- of alarms on every frame of a device that is not, or no longer, a BU)
-    if det == DETECT_HEURISTIC and c.accepted and c.accepted ~= number
-        and not still_valid(c, accesses, tvb, off) then
-        add_finding(rec, { ef.dropped, string.format(
-            "%d input images in a row not valid: connection (recognized in frame %d) no longer taken for a BU's; "
-            .. "left to Modbus/TCP until it is recognized again", detect.DROP_IMAGES, c.accepted) })
-        rec[R_ACCEPTED] = c.accepted
-        streams_dropped(c)
-        conns[conn_key(pinfo, is_request, src_port, dst_port)] = nil
-        return rec
-    end
-    rec[R_ACCEPTED] = c.accepted or false
-    -- poll gap: the first read of the input image after more than the PCI timeout
-    if is_request and r and reads_pci(fc, r) then
-        if c.last_read and t - c.last_read > opt.pci_timeout then
-            local gap = t - c.last_read
-            rec.poll_gap, rec.poll_gap_from = gap, c.last_read_frame
-            add_finding(rec, { ef.poll_gap, string.format("Input image not read for %.3f s (PCI timeout %.3f s)",
-                gap, opt.pci_timeout) })
-        end
-        c.last_read, c.last_read_frame = t, number
-    end
+    c.last_read, c.last_read_frame = t, number
+end
+
+-- The ADU's image bytes into the connection's images: which image it
+-- touched, and whether a request wrote PCO (output byte 0).
+local function store_accesses(c, accesses, tvb, off, is_request)
     local touched_in, touched_out, wrote_pco = false, false, false
     for i = 1, #accesses do
         local pieces = mapped(accesses[i], tvb, off)
@@ -1363,26 +1247,69 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb, 
             end
         end
     end
-    -- the BU's streams (a connection taken for a BU's only): the input image
-    -- read (its PCI), the output image written where the mode has periodic
-    -- output (Standard, given or guessed from writes past the 20 bytes of
-    -- Input + Commands mode: TS-0007 2.1, 8.4)
-    if c.accepted or det == DETECT_ALWAYS then
-        if not c.armed then
-            c.armed = true
-            tap_tcp()
-        end
-        if is_request and r and reads_pci(fc, r) then
-            stream_frame(c, "input", unit, number, p_abs_ts(pinfo), opt.pci_timeout, pinfo)
-        end
-        if wrote_pco and (c.mode == "standard" or c.mode == "auto" and known(c.output, 20, 2)) then
-            stream_frame(c, "output", unit, number, p_abs_ts(pinfo), handshake.LIMITS.pco, pinfo)
-        end
+    return touched_in, touched_out, wrote_pco
+end
+
+-- the BU's streams (a connection taken for a BU's only): the input image
+-- read (its PCI), the output image written where the mode has periodic
+-- output (Standard, given or guessed from writes past the 20 bytes of
+-- Input + Commands mode: TS-0007 2.1, 8.4)
+local function arm_streams(c, unit, number, pinfo, reads, wrote_pco)
+    if not c.armed then
+        c.armed = true
+        tap_tcp()
     end
+    if reads then
+        stream_frame(c, "input", unit, number, p_abs_ts(pinfo), opt.pci_timeout, pinfo)
+    end
+    if wrote_pco and (c.mode == "standard" or c.mode == "auto" and known(c.output, 20, 2)) then
+        stream_frame(c, "output", unit, number, p_abs_ts(pinfo), handshake.LIMITS.pco, pinfo)
+    end
+end
+
+-- First pass: work out what this ADU means and update the connection.
+local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb, number, src_port, dst_port)
+    local fc = fcb % 128
+    local tname = FC_TABLE[fc]
+    if not tname then return NOT_DECODED end
+    local c = get_conn(conn_key(pinfo, is_request, src_port, dst_port))
+    if c.pinned == nil then pin(c, pinfo, is_request) end
+    -- a connection the heuristic gave up on stays Modbus's: nothing more to work out
+    if c.tries >= CANDIDATE_TRIES and not c.accepted and not c.pinned and opt.detection == DETECT_HEURISTIC then
+        last_request = false
+        return NOT_DECODED
+    end
+    -- (every rule of the connection goes by a time that never runs
+    -- backwards: a clock step is a finding, no time shown is negative)
+    local t, step = handshake.clock(c.hs, p_abs_ts(pinfo), number,
+        "the PCI, PCO, command deadline and poll gap rules")
+    -- the usual per-frame values in the array part (8 slots, no hash part)
+    local rec = take_rec()
+    if step then add_finding(rec, { ef.time_backwards, step[2] }) end
+    last_request = false
+    local r = pair(c, rec, tvb, off + 7, adu_len - 7, fc, (tid * 256 + unit) * 256 + fc, is_request, number, t)
+    local accesses = adu_accesses(tvb, off, adu_len, fcb, is_request, r)
+    -- (a response's request is done with: nobody keeps it)
+    if r and not is_request then spare_req = r end
+    fp_tvb, fp_off, fp_accesses = tvb, off, accesses
+    -- a listed server: decoded from the first frame, as with "always"
+    local det = c.pinned and DETECT_ALWAYS or opt.detection
+    if det == DETECT_OFF then return NOT_DECODED end
+    if det == DETECT_HEURISTIC and not c.accepted and not judge(c, rec, accesses, tvb, off, t, number) then
+        return NOT_DECODED
+    end
+    if det == DETECT_HEURISTIC and c.accepted and c.accepted ~= number
+        and not still_valid(c, accesses, tvb, off) then
+        return drop(c, rec, pinfo, is_request, src_port, dst_port)
+    end
+    rec[R_ACCEPTED] = c.accepted or false
+    local reads = is_request and r and reads_pci(fc, r)
+    if reads then poll(c, rec, t, number) end
+    local touched_in, touched_out, wrote_pco = store_accesses(c, accesses, tvb, off, is_request)
+    if c.accepted or det == DETECT_ALWAYS then arm_streams(c, unit, number, pinfo, reads, wrote_pco) end
     analyse(c, rec, t, number, touched_in, touched_out)
     health.modbus(c, rec, is_request and pinfo.dst or pinfo.src, is_request and dst_port or src_port, unit, is_request,
-        is_request and r and reads_pci(fc, r), is_request and touched_out, touched_in,
-        det ~= DETECT_HEURISTIC or c.accepted, t, number)
+        reads, is_request and touched_out, touched_in, det ~= DETECT_HEURISTIC or c.accepted, t, number)
     if opt.assembled then
         rec.snap_in = snapshot(c, "input")
         rec.snap_out = snapshot(c, "output")
@@ -1544,7 +1471,6 @@ local LINK_NAMES = { "pci_since", "pco_since", "cmd_from_ru_in", "cao_in", "cmd_
                      "periodic_reassembled_in" }
 local LATENCY_NAMES = { "cmd_from_ru_latency", "cmd_to_ru_latency" }
 
--- sp: a sparse plan (sparse_plan()) or nil: the full tree.
 -- The request's start and count as parse_request_pdu() gives them (a
 -- response's accesses need no more).
 local function request_of(rec)
@@ -1560,81 +1486,163 @@ local sparse_opts = {}
 -- call of the dissector).
 local info_parts, info_np = {}, 0
 
-local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp)
-    local fc = fcb % 128
-    if sp then
-        -- (a tap that walks the tree's top level, -z io,phs, counts the protocol)
-        local root = sp.protos and add(tree, proto, tvb(off, adu_len))
-        local adders = sp.adders
-        if #adders > 0 then
-            local c = sparse_ctx
-            c.rec, c.tree, c.pinfo, c.is_request = rec, tree, pinfo, is_request
-            for i = 1, #adders do adders[i](c) end
-            c.rec, c.tree, c.pinfo = false, false, false
-        end
-        local experts = sp.experts
-        if experts and rec.no_request then tree:add_proto_expert_info(ef.no_request, NO_REQUEST_TEXT) end
-        -- (no columns: no Info text, no image summaries; infos: made when
-        -- something goes in, which through the C plugin is a tag only)
-        local cols = sp.cols
-        local infos = NONE
-        local accesses
-        if rawequal(fp_tvb, tvb) and fp_off == off then
-            accesses = fp_accesses  -- worked out by the first pass of this call
-        elseif is_request then
-            accesses = adu_accesses(tvb, off, adu_len, fcb, true, parse_request_pdu(tvb, off + 7, adu_len - 7, fc))
-        else
-            accesses = adu_accesses(tvb, off, adu_len, fcb, false, rec[R_REQUEST] and request_of(rec))
-        end
-        local o = sparse_opts
-        o.only, o.no_summary, o.experts, o.proto_in = sp.only, not cols, experts, root
-        -- (the C plugin writes the Info text: the summaries as parts, info_parts)
-        local as_parts = cols and append_info and true or false
-        o.parts = as_parts and info_parts
-        for i = 1, #accesses do
-            local pieces = mapped(accesses[i], tvb, off)
-            for j = 1, #pieces do
-                local p = pieces[j]
-                if p.length > 0 then
-                    local src, soff = piece_source(tvb, p)
-                    o.kind, o.offset, o.first, o.length = p.kind, soff, p.first, p.length
-                    o.swap, o.data = p.swap, p.data
-                    o.image_len = (p.kind == "input") and 64 or 224
-                    if as_parts and info_np > 0 then
-                        info_np = info_np + 1
-                        info_parts[info_np] = "; "
-                    end
-                    o.np = info_np
-                    local info = image.dissect(src, pinfo, tree, o)
-                    if as_parts then
-                        info_np = info.np
-                    elseif cols then
-                        if infos == NONE then infos = {} end
-                        infos[#infos + 1] = info.label or (p.kind .. " " .. info.summary)
-                    end
-                    if cols and info.tags ~= "" then
-                        if infos == NONE then infos = {} end
-                        infos.tags = (infos.tags or "") .. info.tags
-                    end
+-- The sparse view's images: only the referenced image fields (opts.only)
+-- and, with the columns, their Info text (as parts for the C plugin's
+-- append_info(), else in `infos`). Returns infos (NONE: nothing went in).
+local function sparse_images(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp, root)
+    local cols, experts = sp.cols, sp.experts
+    -- (no columns: no Info text, no image summaries; infos: made when
+    -- something goes in, which through the C plugin is a tag only)
+    local infos = NONE
+    local accesses
+    if rawequal(fp_tvb, tvb) and fp_off == off then
+        accesses = fp_accesses  -- worked out by the first pass of this call
+    elseif is_request then
+        accesses = adu_accesses(tvb, off, adu_len, fcb, true,
+            parse_request_pdu(tvb, off + 7, adu_len - 7, fcb % 128))
+    else
+        accesses = adu_accesses(tvb, off, adu_len, fcb, false, rec[R_REQUEST] and request_of(rec))
+    end
+    local o = sparse_opts
+    o.only, o.no_summary, o.experts, o.proto_in = sp.only, not cols, experts, root
+    -- (the C plugin writes the Info text: the summaries as parts, info_parts)
+    local as_parts = cols and append_info and true or false
+    o.parts = as_parts and info_parts
+    for i = 1, #accesses do
+        local pieces = mapped(accesses[i], tvb, off)
+        for j = 1, #pieces do
+            local p = pieces[j]
+            if p.length > 0 then
+                local src, soff = piece_source(tvb, p)
+                o.kind, o.offset, o.first, o.length = p.kind, soff, p.first, p.length
+                o.swap, o.data = p.swap, p.data
+                o.image_len = (p.kind == "input") and 64 or 224
+                if as_parts and info_np > 0 then
+                    info_np = info_np + 1
+                    info_parts[info_np] = "; "
+                end
+                o.np = info_np
+                local info = image.dissect(src, pinfo, tree, o)
+                if as_parts then
+                    info_np = info.np
+                elseif cols then
+                    if infos == NONE then infos = {} end
+                    infos[#infos + 1] = info.label or (p.kind .. " " .. info.summary)
+                end
+                if cols and info.tags ~= "" then
+                    if infos == NONE then infos = {} end
+                    infos.tags = (infos.tags or "") .. info.tags
                 end
             end
         end
-        o.data = false
-        if experts and rec.findings then
-            local visited = p_visited(pinfo)
-            for _, fd in ipairs(rec.findings) do
-                local ex, text = handshake.shown(fd, visited)
-                if ex then tree:add_proto_expert_info(ex, text) end
+    end
+    o.data = false
+    return infos
+end
+
+-- An ADU in a sparse view (sp: sparse_plan()): the referenced facts flat
+-- under the caller's tree, its images, the expert info when it is looked
+-- at, the Info tags with the columns. Returns the Info parts (NONE:
+-- nothing) and the poll gap to tag.
+local function show_sparse(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp)
+    -- (a tap that walks the tree's top level, -z io,phs, counts the protocol)
+    local root = sp.protos and add(tree, proto, tvb(off, adu_len))
+    local adders = sp.adders
+    if #adders > 0 then
+        local c = sparse_ctx
+        c.rec, c.tree, c.pinfo, c.is_request = rec, tree, pinfo, is_request
+        for i = 1, #adders do adders[i](c) end
+        c.rec, c.tree, c.pinfo = false, false, false
+    end
+    local experts = sp.experts
+    if experts and rec.no_request then tree:add_proto_expert_info(ef.no_request, NO_REQUEST_TEXT) end
+    local infos = sparse_images(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp, root)
+    if experts and rec.findings then
+        local visited = p_visited(pinfo)
+        for _, fd in ipairs(rec.findings) do
+            local ex, text = handshake.shown(fd, visited)
+            if ex then tree:add_proto_expert_info(ex, text) end
+        end
+    end
+    if not sp.cols then return infos, false end
+    local tags = adu_tags(rec, pinfo)
+    if tags ~= "" then
+        if infos == NONE then infos = {} end
+        infos.tags = (infos.tags or "") .. tags
+    end
+    return infos, rec.poll_gap
+end
+
+-- The full tree's images of an ADU, under its item; returns their Info
+-- parts.
+local function tree_images(tvb, pinfo, item, off, adu_len, fcb, is_request, r)
+    local infos = {}
+    for _, a in ipairs(adu_accesses(tvb, off, adu_len, fcb, is_request, r)) do
+        for _, p in ipairs(mapped(a, tvb, off)) do
+            if p.length > 0 then
+                local src, soff = piece_source(tvb, p)
+                local label = string.format("(%s %d-%d%s)", TABLE_NAMES[a.tname]:lower(), p.addr_lo, p.addr_hi,
+                    a.write and ", written" or "")
+                local info = image.dissect(src, pinfo, item, { kind = p.kind, offset = soff, first = p.first,
+                    length = p.length, swap = p.swap, label = label, data = p.data,
+                    image_len = (p.kind == "input") and 64 or 224 })
+                iodata.decode_eclink(info, -- vrshark_io hook
+                    { server = tostring(is_request and pinfo.dst or pinfo.src) }, pinfo) -- vrshark_io hook
+                infos[#infos + 1] = p.kind .. " " .. info.summary
+                if info.tags ~= "" then infos.tags = (infos.tags or "") .. info.tags end
+            end
+            if p.bitmask then
+                for _, bt in ipairs(bit_text(p)) do
+                    set_generated(add(item, pf.bits, tvb(off, adu_len), bt[2]))
+                end
             end
         end
-        if not cols then return infos, false end
-        local tags = adu_tags(rec, pinfo)
-        if tags ~= "" then
-            if infos == NONE then infos = {} end
-            infos.tags = (infos.tags or "") .. tags
-        end
-        return infos, rec.poll_gap
     end
+    return infos
+end
+
+-- The full tree's ages, previous BU state and handshake links of an ADU.
+local function tree_links(item, rec)
+    if rec[R_PCI_AGE] then
+        record.add_time(item, pf.pci_age, "Time since PCI changed", rec[R_PCI_AGE], nstime(rec[R_PCI_AGE]),
+                        pf.pci_age_ms)
+    end
+    if rec[R_PCO_AGE] then
+        record.add_time(item, pf.pco_age, "Time since PCO changed", rec[R_PCO_AGE], nstime(rec[R_PCO_AGE]),
+                        pf.pco_age_ms)
+    end
+    if rec.bu_state_prev then set_generated(add(item, pf.bu_state_prev, rec.bu_state_prev)) end
+    local l = rec.links or NONE
+    if l ~= NONE then
+        for _, name in ipairs(LINK_NAMES) do
+            if l[name] then set_generated(add(item, pf[name], l[name])) end
+        end
+        for _, name in ipairs(LATENCY_NAMES) do
+            local v = l[name]
+            if v then set_generated(add(item, pf[name], nstime(v))) end
+        end
+    end
+end
+
+-- The reassembled periodic data an ADU completed, under its item.
+local function tree_periodic(item, pinfo, rec, is_request)
+    local ba = ByteArray.new(rec.periodic.data, true)
+    local rtvb = ba:tvb("Reassembled periodic data")
+    local pt = add(item, pf.periodic_data, rtvb())
+    iodata.decode("periodic.to_ru", -- vrshark_io hook
+        { server = tostring(is_request and pinfo.dst or pinfo.src) }, rtvb(), pt, pinfo) -- vrshark_io hook
+    pt:set_generated()
+    pt:add(pf.periodic_length, #rec.periodic.data):set_generated()
+    for _, fr in ipairs(rec.periodic.frames) do
+        pt:add(pf.periodic_block_in, fr):set_generated()
+    end
+end
+
+-- An ADU in the full tree: its item with the table and range, the server,
+-- the links, its images, the findings. Returns the Info parts and the poll
+-- gap to tag.
+local function show_tree(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb)
+    local fc = fcb % 128
     local r
     if is_request then
         r = parse_request_pdu(tvb, off + 7, adu_len - 7, fc)
@@ -1665,47 +1673,8 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
         set_generated(add(item, pf.poll_gap_time, nstime(rec.poll_gap)))
         set_generated(add(item, pf.poll_gap_from, rec.poll_gap_from))
     end
-    local infos = {}
-    for _, a in ipairs(adu_accesses(tvb, off, adu_len, fcb, is_request, r)) do
-        for _, p in ipairs(mapped(a, tvb, off)) do
-            if p.length > 0 then
-                local src, soff = piece_source(tvb, p)
-                local label = string.format("(%s %d-%d%s)", TABLE_NAMES[a.tname]:lower(), p.addr_lo, p.addr_hi,
-                    a.write and ", written" or "")
-                local info = image.dissect(src, pinfo, item, { kind = p.kind, offset = soff, first = p.first,
-                    length = p.length, swap = p.swap, label = label, data = p.data,
-                    image_len = (p.kind == "input") and 64 or 224 })
-                iodata.decode_eclink(info, -- vrshark_io hook
-                    { server = tostring(is_request and pinfo.dst or pinfo.src) }, pinfo) -- vrshark_io hook
-                infos[#infos + 1] = p.kind .. " " .. info.summary
-                if info.tags ~= "" then infos.tags = (infos.tags or "") .. info.tags end
-            end
-            if p.bitmask then
-                for _, bt in ipairs(bit_text(p)) do
-                    set_generated(add(item, pf.bits, tvb(off, adu_len), bt[2]))
-                end
-            end
-        end
-    end
-    if rec[R_PCI_AGE] then
-        record.add_time(item, pf.pci_age, "Time since PCI changed", rec[R_PCI_AGE], nstime(rec[R_PCI_AGE]),
-                        pf.pci_age_ms)
-    end
-    if rec[R_PCO_AGE] then
-        record.add_time(item, pf.pco_age, "Time since PCO changed", rec[R_PCO_AGE], nstime(rec[R_PCO_AGE]),
-                        pf.pco_age_ms)
-    end
-    if rec.bu_state_prev then set_generated(add(item, pf.bu_state_prev, rec.bu_state_prev)) end
-    local l = rec.links or NONE
-    if l ~= NONE then
-        for _, name in ipairs(LINK_NAMES) do
-            if l[name] then set_generated(add(item, pf[name], l[name])) end
-        end
-        for _, name in ipairs(LATENCY_NAMES) do
-            local v = l[name]
-            if v then set_generated(add(item, pf[name], nstime(v))) end
-        end
-    end
+    local infos = tree_images(tvb, pinfo, item, off, adu_len, fcb, is_request, r)
+    tree_links(item, rec)
     for _, fd in ipairs(rec.findings or NONE) do
         local ex, text = handshake.shown(fd, pinfo.visited)
         if ex then
@@ -1715,35 +1684,13 @@ local function show_adu(tvb, pinfo, tree, off, adu_len, rec, is_request, fcb, sp
     end
     local tags = adu_tags(rec, pinfo)
     if tags ~= "" then infos.tags = (infos.tags or "") .. tags end
-    if rec.periodic then
-        local ba = ByteArray.new(rec.periodic.data, true)
-        local rtvb = ba:tvb("Reassembled periodic data")
-        local pt = add(item, pf.periodic_data, rtvb())
-        iodata.decode("periodic.to_ru", -- vrshark_io hook
-            { server = tostring(is_request and pinfo.dst or pinfo.src) }, rtvb(), pt, pinfo) -- vrshark_io hook
-        pt:set_generated()
-        pt:add(pf.periodic_length, #rec.periodic.data):set_generated()
-        for _, fr in ipairs(rec.periodic.frames) do
-            pt:add(pf.periodic_block_in, fr):set_generated()
-        end
-    end
+    if rec.periodic then tree_periodic(item, pinfo, rec, is_request) end
     if opt.assembled then
         show_assembled(item, pinfo, rec.snap_in, "input")
         show_assembled(item, pinfo, rec.snap_out, "output")
     end
     return infos, rec.poll_gap
 end
-
-------------------------------------------------------------------------
--- The dissector: mbtcp first, then the EC-Link view of each complete ADU
-------------------------------------------------------------------------
--- Called by the C front end (its hook names are in match_string), mbtcp
--- has run already and the result tells it whether the connection is
--- accepted (0: not yet); ".quiet": nobody looks at this frame's tree or
--- columns, only the state is kept; ".sparse:..." an invisible tree
--- (vrshark/seam.luam view(); sparse_plan()). Called by TCP (no C plugin, or Decode
--- As), this plugin calls mbtcp itself.
-local HOOKS = { [HOOK_HEURISTIC] = true, [HOOK_ALWAYS] = true, [HOOK_SERVER] = true }
 
 ------------------------------------------------------------------------
 -- A BU's server on a TCP port nobody reads as Modbus/TCP
@@ -1760,7 +1707,8 @@ local HOOKS = { [HOOK_HEURISTIC] = true, [HOOK_ALWAYS] = true, [HOOK_SERVER] = t
 -- (eclink_modbus.servers:ADDR:PORT), which decodes it from its first frame.
 -- Worked out on the first pass and kept per frame: one pass and two agree.
 -- With the C plugin its front end checks the same in C and calls hook
--- "port_hint"; without it this is a heuristic of TCP. Either way it is asked
+-- "port_hint"; without it this is a heuristic of TCP (vrshark/transport.luam
+-- serve() registers either). Either way it is asked
 -- before Wireshark's own TCP heuristics (rpcap takes some Modbus requests
 -- for its own and fails on them). Off with detection off.
 local function image_request(tvb)
@@ -1907,54 +1855,34 @@ local function show_hint(tvb, tree, off, adu_len, rec)
     item:add_proto_expert_info(ef.candidate, rec.hint)
 end
 
--- The ADUs of a buffer (offset, length, record, function code byte, each),
--- one array used again by every call: the ADUs are worked out before any is
--- shown, and nothing shown calls this dissector again.
+------------------------------------------------------------------------
+-- The dissector: the EC-Link view of each complete ADU, mbtcp run first
+------------------------------------------------------------------------
+-- dissect() is the one entry point, whatever calls it (vrshark/transport.luam
+-- serve() says who): the C front end with its view (seam.luam view():
+-- ".quiet": nobody looks at this frame's tree or columns, only the state is
+-- kept; ".sparse:..." an invisible tree, sparse_plan()) and whether the
+-- connection is accepted (non-zero back: yes), or TCP, through the
+-- transport that ran mbtcp in Lua (no C plugin, or Decode As).
+
+-- The ADUs of a buffer (offset, length, record, function code byte, flat,
+-- each), one array used again by every call: the ADUs are worked out before
+-- any is shown, and nothing shown calls this dissector again.
 local found_scratch = {}
-local function dissect(tvb, pinfo, tree)
-    local consumed = 0
-    local how = C and seam_view(p_match_string(pinfo)) or NO_VIEW
-    if how.hook == HOOK_PORT_HINT then return port_hint(tvb, pinfo, tree) end
-    local via_front = HOOKS[how.hook] or false
-    local view = via_front and how.view
-    local quiet = view and view.quiet
-    local port = p_match_uint(pinfo)
-    local src_port, dst_port = p_src_port(pinfo), p_dst_port(pinfo)
-    local is_request = (dst_port == port) and (src_port ~= port)
-    if not via_front then
-        -- let mbtcp use TCP desegmentation as if TCP had called it directly
-        if pinfo.can_desegment > 0 then pinfo.can_desegment = pinfo.can_desegment + 1 end
-        -- mbtcp tells queries from responses by its own port: show it the BU's as that
-        local sp, dp = src_port, dst_port
-        local moved = port ~= mbtcp_port and (sp == port) ~= (dp == port)
-            and sp ~= mbtcp_port and dp ~= mbtcp_port
-        if moved then
-            if is_request then pinfo.dst_port = mbtcp_port else pinfo.src_port = mbtcp_port end
-        end
-        consumed = wrap.call(mbtcp, tvb, pinfo, tree)
-        if moved then pinfo.src_port, pinfo.dst_port = sp, dp end
-        -- a malformed Modbus/TCP PDU: Wireshark's report stands, no EC-Link view
-        if consumed == nil then return tvb:len() end
+
+-- tshark -2 -R: a dropped frame's records under this number, forgotten
+-- once per frame.
+local function forget_dropped(number, visited)
+    if passes.stale("eclink_modbus", number, visited) and number == top_n then
+        for i = 1, #top_keys do adus[top_keys[i]] = nil end
+        top_keys = {}
     end
-    if opt.detection == DETECT_OFF and not opt.any_servers then return consumed end
-    local decoded = false
-    info_np = 0
-    local gaps
-    local found, nf = found_scratch, 0
-    -- (made at the first ADU shown; false: the full tree. Without the C
-    -- front end the view is made from what is referenced: frontends.lua_view())
-    local sp
-    local n = tvb_len(tvb)
-    local off = 0
-    local infos
-    local number, rl = p_number(pinfo), tvb_reported_len(tvb)
-    if renumbers then
-        -- (a dropped frame's records under this number: forgotten once per frame)
-        if passes.stale("eclink_modbus", number, p_visited(pinfo)) and number == top_n then
-            for i = 1, #top_keys do adus[top_keys[i]] = nil end
-            top_keys = {}
-        end
-    end
+end
+
+-- Each complete ADU of the buffer worked out (its record loaded, or made by
+-- the first pass) into found_scratch; returns how many slots it filled.
+local function work_out(tvb, pinfo, n, number, rl, is_request, via_front, src_port, dst_port)
+    local found, nf, off = found_scratch, 0, 0
     while off + 8 <= n do
         local t1, t2, p1, p2, l1, l2, unit, fcb = tvb_raw(tvb, off, 8):byte(1, 8)
         local plen = l1 * 256 + l2
@@ -1982,8 +1910,19 @@ local function dissect(tvb, pinfo, tree)
         nf = nf + 5
         off = off + adu_len
     end
-    -- shown after all ADUs of the buffer are worked out: one that recognizes the
-    -- connection shows the earlier ones of its frame too, in one pass as in two
+    return nf
+end
+
+-- The ADUs worked out, shown after all of the buffer's are: one that
+-- recognizes the connection shows the earlier ones of its frame too, in one
+-- pass as in two. Returns whether one was decoded, the Info parts of their
+-- images (NONE: nothing to show) and the poll gaps' tags (nil: none).
+local function show_found(tvb, pinfo, tree, nf, view, quiet, is_request)
+    local found = found_scratch
+    local decoded, infos, gaps = false, nil, nil
+    -- (made at the first ADU shown; false: the full tree. Without the C
+    -- front end the view is made from what is referenced: transport.lua_view())
+    local sp
     for i = 1, nf, 5 do
         local f_off, f_len, rec, f_fcb = found[i], found[i + 1], found[i + 2], found[i + 3]
         found[i + 2] = false
@@ -1993,11 +1932,13 @@ local function dissect(tvb, pinfo, tree)
             decoded = true
         elseif shown then
             decoded = true
-            if sp == nil then
-                sp = sparse_plan(view or not C and fe.lua_view(LUA_PROTOS, tree, p_visited(pinfo)) or nil)
-                    or false
+            if sp == nil then sp = sparse_plan(view or lua_view(tree, pinfo)) or false end
+            local adu_infos, gap
+            if sp then
+                adu_infos, gap = show_sparse(tvb, pinfo, tree, f_off, f_len, rec, is_request, f_fcb, sp)
+            else
+                adu_infos, gap = show_tree(tvb, pinfo, tree, f_off, f_len, rec, is_request, f_fcb)
             end
-            local adu_infos, gap = show_adu(tvb, pinfo, tree, f_off, f_len, rec, is_request, f_fcb, sp or nil)
             if not infos or infos == NONE then
                 infos = adu_infos  -- (the usual buffer: one ADU; NONE: nothing to show)
             elseif adu_infos ~= NONE then
@@ -2013,28 +1954,38 @@ local function dissect(tvb, pinfo, tree)
         end
         if found[i + 4] then spare_rec = rec end
     end
-    if nf == 0 and n < 8 and pinfo.can_desegment > 0 and pinfo.desegment_len == 0 then
+    return decoded, infos or NONE, gaps
+end
+
+-- A buffer with no complete ADU: the head of a BU's response that TCP is
+-- to join with the next segment (true: asked for), or data from inside an
+-- ADU, noted.
+local function no_adu(tvb, pinfo, tree, n, rl, view, quiet, is_request, src_port, dst_port)
+    if n < 8 and pinfo.can_desegment > 0 and pinfo.desegment_len == 0 then
         local more = head_more(tvb, pinfo, is_request, src_port, dst_port)
         if more then
             pinfo.desegment_offset, pinfo.desegment_len = 0, more
-            return n
+            return true
         end
     end
-    if nf == 0 and n >= 6 then
-        local note = mid_adu_note(tvb, pinfo, is_request, src_port, dst_port, n, rl)
-        if note and not quiet then
-            sp = sparse_plan(view or not C and fe.lua_view(LUA_PROTOS, tree, p_visited(pinfo)) or nil) or false
-            -- (under the protocol's item, as a tree shows it; the bytes stay Data)
-            local item = (not sp or sp.protos) and add(tree, proto, tvb())
-            if item then append_text(item, ": TCP data from inside an ADU, not decoded") end
-            set_generated(add(item or tree, pf.server, server_text(pinfo, is_request)))
-            if not sp or sp.experts then (item or tree):add_proto_expert_info(ef.mid_adu, note) end
-            if not sp or sp.cols then pinfo.cols.info:append(" [EC-Link ADU not decoded]") end
-        end
+    if n < 6 then return false end
+    local note = mid_adu_note(tvb, pinfo, is_request, src_port, dst_port, n, rl)
+    if note and not quiet then
+        local sp = sparse_plan(view or lua_view(tree, pinfo)) or false
+        -- (under the protocol's item, as a tree shows it; the bytes stay Data)
+        local item = (not sp or sp.protos) and add(tree, proto, tvb())
+        if item then append_text(item, ": TCP data from inside an ADU, not decoded") end
+        set_generated(add(item or tree, pf.server, server_text(pinfo, is_request)))
+        if not sp or sp.experts then (item or tree):add_proto_expert_info(ef.mid_adu, note) end
+        if not sp or sp.cols then pinfo.cols.info:append(" [EC-Link ADU not decoded]") end
     end
-    infos = infos or NONE
-    -- the tags first: after Modbus's own long text they stay in view in a
-    -- packet list column that cannot show the whole image summary too
+    return false
+end
+
+-- The frame's Info: the tags first (after Modbus's own long text they stay
+-- in view in a packet list column that cannot show the whole image summary
+-- too), then the images' summaries.
+local function write_info(pinfo, infos, gaps)
     local tags = infos.tags or ""
     if gaps then tags = tags .. table.concat(gaps) end
     if info_np > 0 then
@@ -2048,25 +1999,29 @@ local function dissect(tvb, pinfo, tree)
     elseif tags ~= "" then
         pinfo.cols.info:append(tags)
     end
+end
+
+-- view: what is looked at (false: not sent: the whole tree, or made from
+-- the tree, lua_view()); via_front: the C front end picked this frame;
+-- consumed: what mbtcp took.
+local function dissect(tvb, pinfo, tree, view, via_front, consumed, src_port, dst_port, is_request)
+    if opt.detection == DETECT_OFF and not opt.any_servers then return consumed end
+    info_np = 0
+    local quiet = view and view.quiet
+    local n, number, rl = tvb_len(tvb), p_number(pinfo), tvb_reported_len(tvb)
+    if renumbers then forget_dropped(number, p_visited(pinfo)) end
+    local nf = work_out(tvb, pinfo, n, number, rl, is_request, via_front, src_port, dst_port)
+    if nf == 0 then
+        if no_adu(tvb, pinfo, tree, n, rl, view, quiet, is_request, src_port, dst_port) then return n end
+        return consumed
+    end
+    local decoded, infos, gaps = show_found(tvb, pinfo, tree, nf, view, quiet, is_request)
+    write_info(pinfo, infos, gaps)
     if via_front and decoded then return n end
     return consumed
 end
 
--- every Modbus/TCP frame this plugin sees is a tick of the shared clock,
--- after its own analysis armed its streams and its own items are shown (one
--- place, whatever the view: a sparse display and the full tree put a
--- clock's finding at the same place, after the frame's own)
-function proto.dissector(tvb, pinfo, tree)
-    local r = dissect(tvb, pinfo, tree)
-    tick(tvb, pinfo, tree)
-    return r
-end
-
-tcp_port_table:add_for_decode_as(proto)
-if C then
-    fe.hook(fe.mb_hook, HOOK_PORT_HINT, proto, true)
-else
-    proto:register_heuristic("tcp", function(tvb, pinfo, tree) return port_hint(tvb, pinfo, tree) > 0 end)
-end
-prefs_changed()
-loaded = true
+-- (every Modbus/TCP frame the decoder sees is a tick of the shared clock,
+-- after its own analysis armed its streams and its own items are shown:
+-- the transport's entry point ticks after dissect())
+transport.serve(dissect, port_hint, prefs_changed)

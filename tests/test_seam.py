@@ -356,8 +356,8 @@ MISTAKES = [
     ("lua/vrshark_pnio.lua", "seam.FLAG_PN_PENDING", '"pn.pendng"', hook_key_uses, "HOOK_PENDING"),
     ("lua/vrshark_pnio.lua", "fe.hook(fe.pn_hook, HOOK_CONNECT,", 'fe.hook(fe.pn_hook, "conect",', literal_uses,
      'fe.hook(fe.pn_hook, "conect", carrier, learn)'),
-    ("lua/eclink_modbus.lua", "fe.hook(fe.mb_hook, HOOK_ALWAYS,", 'fe.hook(fe.mb_hook, "always",', literal_uses,
-     'fe.hook(fe.mb_hook, "always", proto, opt.detection == DETECT_ALWAYS)'),
+    ("lua/vrshark/transport.luam", "fe.hook(fe.mb_hook, HOOK_ALWAYS,", 'fe.hook(fe.mb_hook, "always",', literal_uses,
+     'fe.hook(fe.mb_hook, "always", proto, always)'),
     ("plugins/vrshark/vrshark-frontends.c", "VRSHARK_PN_HOOK_CONNECT, tvb", '"connect", tvb', literal_uses,
      'dissector_try_string_with_data(pn_hook_table, "connect", tvb'),
     ("plugins/vrshark/vrshark-frontends.c", "VRSHARK_PN_HOOK_CLOCK)))", "VRSHARK_PN_HOOK_CLOK)))", undefined_names,
@@ -381,3 +381,36 @@ def test_a_mistake_in_a_real_source_is_caught(tmp_path, source, old, new, check,
     bad.write_text(text.replace(old, new, 1))
     found = check(bad)
     assert len(found) == 1 and reported in found[0][2], found
+
+
+# A BU's evidence: the addresses of its images (tests/test_modbus_evidence.py
+# feeds both sides the requests at and around each bound).
+EVIDENCE = {"MB_INPUT_REG_FIRST", "MB_INPUT_HOLDING_FIRST", "MB_INPUT_REGS", "MB_INPUT_BIT_FIRST", "MB_INPUT_BITS",
+            "MB_OUTPUT_REG_FIRST", "MB_OUTPUT_REGS", "MB_OUTPUT_COMMANDS_REGS", "MB_OUTPUT_COIL_FIRST"}
+
+
+def evidence_numbers():
+    """The addresses and counts of the evidence, and the bounds made of them."""
+    c = CONTRACT
+    found = set()
+    for first, n in (("MB_INPUT_REG_FIRST", "MB_INPUT_REGS"), ("MB_INPUT_HOLDING_FIRST", "MB_INPUT_REGS"),
+                     ("MB_INPUT_BIT_FIRST", "MB_INPUT_BITS"), ("MB_OUTPUT_REG_FIRST", "MB_OUTPUT_REGS")):
+        found |= {c[first], c[n], c[first] + c[n] - 1, c[first] + c[n]}
+    found |= {c["MB_OUTPUT_COMMANDS_REGS"], c["MB_OUTPUT_COIL_FIRST"] + 16 * c["MB_OUTPUT_REGS"] - 1}
+    return found - {0, 1}
+
+
+def test_the_evidence_is_written_once():
+    """Both sides read the evidence from the contract: the C front end's
+    test and the Lua decoder's image map and whole-image tests name no
+    address or count of it (a tvb offset, `off + 10`, is no address)."""
+    assert EVIDENCE <= set(CONTRACT)
+    numbers = evidence_numbers()
+    c = code_of_c((ROOT / "plugins" / "vrshark" / "vrshark-frontends.c").read_text())
+    c = c[c.index("mb_covers(guint"):c.index("find_mbtcp_port(const")]
+    lua = code_of_lua((ROOT / "lua" / "eclink_modbus.lua").read_text())
+    lua = lua[lua.index("local REGIONS = {"):lua.index("local TABLE_NAMES")] \
+        + lua[lua.index("local function full_input("):lua.index("local READS")]
+    for where, text in (("C", re.sub(r"\boff\s*\+\s*\d+", "off", c)), ("Lua", lua)):
+        spelt = sorted(int(n) for n in re.findall(r"\b\d+\b", text) if int(n) in numbers)
+        assert spelt == [], where

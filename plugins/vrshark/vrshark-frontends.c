@@ -820,13 +820,28 @@ dissect_pn_cm(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
 #define MB_TRIED    0               /* proto data key: a frame the decoder refused */
 #define MB_MID_ADU  1               /* packet-scope key: bytes mbtcp refused, handed to the decoder */
 
+/* Does [start, start + count) cover the n addresses from first? */
+static gboolean
+mb_covers(guint start, guint count, guint first, guint n)
+{
+    return start <= first && start + count >= first + n;
+}
+
+/* Is this the whole output image written (Standard or Input + Commands)? */
+static gboolean
+mb_output_write(guint start, guint count)
+{
+    return start == VRSHARK_MB_OUTPUT_REG_FIRST &&
+           (count == VRSHARK_MB_OUTPUT_COMMANDS_REGS || count == VRSHARK_MB_OUTPUT_REGS);
+}
+
 /* Would this request, if the server were a BU, carry the evidence the Lua
  * heuristic accepts a connection on (vrshark/modbus_detect.luam): the whole
- * input image read (input registers 0-31, holding registers 2048-2079,
- * discrete inputs 0-511) or the whole output image written (10 or 112
- * holding registers from 0)? A connection whose client never asks for one
- * can never be accepted, so its frames need not reach Lua at all: that keeps
- * ordinary Modbus/TCP out of Lua. Every ADU of the buffer is looked at. */
+ * input image read or the whole output image written, at the addresses of
+ * the seam contract (VRSHARK_MB_INPUT_*, VRSHARK_MB_OUTPUT_*)? A connection
+ * whose client never asks for one can never be accepted, so its frames need
+ * not reach Lua at all: that keeps ordinary Modbus/TCP out of Lua. Every ADU
+ * of the buffer is looked at. */
 static gboolean
 mb_evidence_request(tvbuff_t *tvb)
 {
@@ -841,27 +856,26 @@ mb_evidence_request(tvbuff_t *tvb)
         if (adu < 8)
             return FALSE;
         switch (fc) {
-        case 2:     /* discrete inputs: the input image as 512 bits */
-            if (start == 0 && count >= 512)
+        case 2:     /* discrete inputs: the input image as bits */
+            if (mb_covers(start, count, VRSHARK_MB_INPUT_BIT_FIRST, VRSHARK_MB_INPUT_BITS))
                 return TRUE;
             break;
-        case 3:     /* holding registers 2048-2079: the input image */
-            if (start <= 2048 && start + count >= 2080)
+        case 3:     /* holding registers: the input image */
+            if (mb_covers(start, count, VRSHARK_MB_INPUT_HOLDING_FIRST, VRSHARK_MB_INPUT_REGS))
                 return TRUE;
             break;
-        case 4:     /* input registers 0-31: the input image */
-            if (start == 0 && count >= 32)
+        case 4:     /* input registers: the input image */
+            if (mb_covers(start, count, VRSHARK_MB_INPUT_REG_FIRST, VRSHARK_MB_INPUT_REGS))
                 return TRUE;
             break;
         case 16:    /* the output image written */
-            if (start == 0 && (count == 10 || count == 112))
+            if (mb_output_write(start, count))
                 return TRUE;
             break;
         case 23:    /* read and write: either part */
-            if (start <= 2048 && start + count >= 2080)
+            if (mb_covers(start, count, VRSHARK_MB_INPUT_HOLDING_FIRST, VRSHARK_MB_INPUT_REGS))
                 return TRUE;
-            if (off + 16 <= len && tvb_get_ntohs(tvb, off + 12) == 0 &&
-                (tvb_get_ntohs(tvb, off + 14) == 10 || tvb_get_ntohs(tvb, off + 14) == 112))
+            if (off + 16 <= len && mb_output_write(tvb_get_ntohs(tvb, off + 12), tvb_get_ntohs(tvb, off + 14)))
                 return TRUE;
             break;
         default:

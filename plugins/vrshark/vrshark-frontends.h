@@ -116,6 +116,28 @@
 #define VRSHARK_PN_CANDIDATE_TRIES  64
 #define VRSHARK_MB_CANDIDATE_TRIES  1024
 
+/* A BU's evidence: the Modbus addresses of its images, which a request must
+ * read whole (the input image) or write whole (the output image) for the
+ * Lua heuristic to accept a connection on it (lua/vrshark/modbus_detect.luam;
+ * vrshark-frontends.c:mb_evidence_request, eclink_modbus.lua's full_input and
+ * full_output_write). The input image, 64 bytes: VRSHARK_MB_INPUT_REGS input
+ * registers from VRSHARK_MB_INPUT_REG_FIRST, or as many holding registers
+ * from VRSHARK_MB_INPUT_HOLDING_FIRST, or VRSHARK_MB_INPUT_BITS discrete
+ * inputs from VRSHARK_MB_INPUT_BIT_FIRST. The output image: holding
+ * registers from VRSHARK_MB_OUTPUT_REG_FIRST, written whole as
+ * VRSHARK_MB_OUTPUT_REGS (224 bytes, Standard mode) or
+ * VRSHARK_MB_OUTPUT_COMMANDS_REGS (its first 20 bytes, Input + Commands
+ * mode); its bits are coils from VRSHARK_MB_OUTPUT_COIL_FIRST. */
+#define VRSHARK_MB_INPUT_REG_FIRST      0
+#define VRSHARK_MB_INPUT_HOLDING_FIRST  2048
+#define VRSHARK_MB_INPUT_REGS           32
+#define VRSHARK_MB_INPUT_BIT_FIRST      0
+#define VRSHARK_MB_INPUT_BITS           512
+#define VRSHARK_MB_OUTPUT_REG_FIRST     0
+#define VRSHARK_MB_OUTPUT_REGS          112
+#define VRSHARK_MB_OUTPUT_COMMANDS_REGS 10
+#define VRSHARK_MB_OUTPUT_COIL_FIRST    0
+
 void proto_register_vrshark_frontends(void);
 void proto_reg_handoff_vrshark_frontends(void);
 
