@@ -7,24 +7,25 @@ Transport: PROFINET RT, EtherType 0x8892 (optionally 802.1Q tagged):
 
   FrameID (2) | C-SDU (40..1440) | CycleCounter (2) | DataStatus (1) | TransferStatus (1)
 
-Wireshark's own pn_rt/pn_io dissectors decode the frame as always. With the
-C front ends of the C plugin (vrshark/frontends.luam), the C plugin is the
-protocol "vrshark_pnio": it runs PN-RT and DCE/RPC itself and calls this
-carrier only for the FrameIDs it registered, for candidate FrameIDs while
-polled-header recognition is on ("candidate" and "pending" hooks) and for
-Connects ("connect" hook; while the "response" hook says no AR learned
-from a request is held, no response on the first pass, and no request
-whose expected submodules it returned 0 for before); the carrier then
-registers under the Proto of mcmb2 (the C plugin owns the name). Without the C plugin the carrier is the
-protocol "vrshark_pnio" itself: it takes EtherType 0x8892 (tagged frames
-reach it through the same table), calls Wireshark's PN-RT dissector first and
-then hands the C-SDU of the FrameIDs it knows to their decoder (an unknown
-FrameID costs a table lookup). The Connect request/response (DCE/RPC over
-UDP, PNIO-CM) reaches it through UDP port 34964 and, for the response coming
-from the device's own port, through the controller's port learned from the
-request; it hands the datagram to the UDP heuristics (where Wireshark finds
-DCE/RPC) and reads the blocks from the bytes. Other traffic never reaches the
-plugin.
+Wireshark's own pn_rt/pn_io dissectors decode the frame as always, before
+the carrier sees it. The carrier has one entry for a cyclic frame (cyclic())
+and one for a Connect request/response (DCE/RPC over UDP, PNIO-CM:
+connect(), cut_datagram()), and never asks which mode it runs in: its
+transport, `front` (vrshark/transport.luam pnio()), is chosen once at load.
+With the C front ends of the C plugin (vrshark/frontends.luam), the C plugin
+is the protocol "vrshark_pnio": it runs PN-RT and DCE/RPC itself and calls
+the carrier only for the FrameIDs it was given (front.watch), for candidate
+FrameIDs while polled-header recognition is on ("candidate" and "pending"
+hooks) and for Connects ("connect" hook; while the "response" hook says no
+AR learned from a request is held, no response on the first pass, and no
+request whose expected submodules were refused before): front.hooks. The
+carrier then runs under the Proto of mcmb2 (the C plugin owns the name).
+Without the C plugin the transport is the protocol "vrshark_pnio": it takes
+EtherType 0x8892 and UDP port 34964 (and, for the response coming from the
+device's own port, the controller's port learned from the request), calls
+PN-RT or the UDP heuristics first, and hands the frame to the same entries
+(an unknown FrameID costs a table lookup). The blocks of a Connect are read
+from the bytes. Other traffic never reaches the plugin.
 
 Layouts (vrshark/pnio_layout.luam) come from, best first:
   1. the Connect request/response in the capture (IOCR blocks give FrameIDs
@@ -60,24 +61,15 @@ local layout = require("vrshark.pnio_layout")
 local infer = require("vrshark.pnio_infer")
 local record = require("vrshark.pnio_record")
 local systems = require("vrshark.pnio_systems")
-local wrap = require("vrshark.wrap")
 -- (methods called as functions: vrshark/api.luam says why)
 local api = require("vrshark.api")
 local tvb_len, tvb_raw, tvb_reported_len = api.len, api.raw, api.reported_len
 -- (the pinfo attributes read on every cyclic frame)
-local p_number, p_visited, p_abs_ts, p_dl_src, p_dl_dst, p_match_string, p_match_uint = api.pinfo.number,
-    api.pinfo.visited, api.pinfo.abs_ts, api.pinfo.dl_src, api.pinfo.dl_dst, api.pinfo.match_string,
-    api.pinfo.match_uint
-local fe = require("vrshark.frontends")
--- (the names shared with the C front ends, taken at load)
+local p_number, p_visited, p_abs_ts, p_dl_src, p_dl_dst = api.pinfo.number, api.pinfo.visited, api.pinfo.abs_ts,
+    api.pinfo.dl_src, api.pinfo.dl_dst
 local seam = require("vrshark.seam")
-local seam_view = seam.view
-local HOOK_CANDIDATE, HOOK_PENDING, HOOK_CONNECT, HOOK_RESPONSE = seam.PN_HOOK_CANDIDATE, seam.FLAG_PN_PENDING,
-    seam.PN_HOOK_CONNECT, seam.FLAG_PN_RESPONSE
-local HOOK_CLOCK = seam.PN_HOOK_CLOCK
--- (the clock of streams that stop, ticked on every frame the carrier sees)
+-- (the clock of streams that stop, ticked by the transport on every frame the carrier sees)
 local deadlines = require("vrshark.deadlines")
-local tick = deadlines.tick
 local stops = require("vrshark.pnio_stops")
 -- (frames and per_frame by frame number: vrshark/framemap.luam says why)
 local framemap = require("vrshark.framemap")
@@ -85,25 +77,13 @@ local passes = require("vrshark.passes")
 local health = require("vrshark.health") -- Statistics > MC-MB2-PN, EC-Link
 local fget, fset = framemap.get, framemap.set
 
--- With the C front ends the C plugin is "vrshark_pnio"; the carrier is then
--- called through the front ends' tables under mcmb2's Proto.
-local C = fe.pn_frame_id ~= nil
+-- The transport, in the mode the plugin runs in (vrshark/transport.luam
+-- says what each method does in each); the carrier's Proto is the
+-- transport's (mcmb2's with the C front ends, which own the name "vrshark_pnio").
 local mcmb2_proto = systems.mcmb2_proto()
-local carrier = C and mcmb2_proto or Proto("vrshark_pnio", "vrshark PROFINET IO cyclic data")
-local ethertype_table = DissectorTable.get("ethertype")
-local udp_table = DissectorTable.get("udp.port")
--- Wireshark's PN-RT dissector, called first without the C plugin. Found by
--- name: once the carrier holds EtherType 0x8892 the table names the carrier,
--- and Analyze > Reload Lua Plugins takes the old carrier out of the table and
--- leaves the entry empty (PN-RT is not put back).
-local function find_pn_rt()
-    local ok, d = pcall(Dissector.get, "pn_rt")
-    if ok and d then return d end
-    local cur = ethertype_table:get_dissector(0x8892)
-    return cur and tostring(cur) == "PN-RT" and cur or nil
-end
-local pn_rt = find_pn_rt()
-local ETH_PNRT, UDP_PNIO_CM = 0x8892, 34964
+local front = require("vrshark.transport").pnio()
+local carrier = front.proto
+local view_for = front.view_for
 
 -- Failed polled-header checks per unknown FrameID before it is given up
 -- (the C front end's bound of candidate refusals too).
@@ -112,34 +92,63 @@ local HEUR_TRIES = seam.PN_CANDIDATE_TRIES
 ------------------------------------------------------------------------
 -- Per-capture state
 ------------------------------------------------------------------------
-local by_fid      -- FrameID -> { plan, ... } (plan.sender: Ethernet source Address, or nil = any)
-local noted_fid   -- FrameID -> true: in the C front end's table for a polled downlink's note (down_note())
-local pending_down -- { { ctl = Address, dev = Address, plan = downlink plan waiting for its FrameID }, ... }
-local cm_ports    -- UDP port -> true: controller ports added to udp.port for Connect responses
-local tries       -- FrameID -> failed header checks
-local frames      -- frame number -> record (shared by frames that analyse alike: shared_record), vrshark.framemap
-local per_frame   -- frame number -> the decoder's per_frame value or false, vrshark.framemap; n: highest filled
-local last_rec    -- plan -> its latest distinct records (shared_record)
-local spare       -- an emptied record table for the next frame (new_record), or nil
--- true in a one-pass tshark run (vrshark/passes.luam): no frame is shown
--- again, so a cyclic frame's record is not kept (with no finding, its
--- table is the next frame's)
+-- Everything the carrier learns from one capture, all of it made anew by
+-- new_capture() when a file starts (init()), nothing else kept across
+-- files. Plain upvalues, not one table: the cyclic path reads by_fid,
+-- frames, once and spare on every frame. What else a file start resets:
+-- the clock (deadlines.reset), the streams (stops.reset), the statistics
+-- (health.reset), the transport's own (vrshark/transport.luam on_init:
+-- EtherType and controller ports), each decoder its per-device state (the
+-- init of its Proto).
+--
+-- layouts     by_fid       FrameID -> { plan, ... } (plan.sender: Ethernet source Address, or nil = any)
+--             noted_fid    FrameID -> true: watched for a polled downlink's note (down_note())
+--             pending_down { { ctl = Address, dev = Address, plan = downlink plan waiting for its FrameID }, ... }
+--             tries        FrameID -> failed header checks
+-- Connect     ars          AR UUID -> parsed Connect
+--             not_ours     expected submodule blocks (connect_blocks' key) -> true: no system of ours
+--             frags        fragments of Connects being put together (defragment())
+--             cut_connect  the first DCE/RPC datagram that may be a Connect the capture cut
+--                          (cut_datagram()), or nil
+-- inference   runs         vrshark.pnio_infer state: the runs of FrameIDs without a layout
+--             gone         FrameID -> { src, dst, src, dst, ... }: Ethernet Addresses of its runs given up
+--                          (gave_up())
+--             addr_of      station key of pnio_infer (tostring of an Ethernet address) -> Address
+--             hint_recs    hint of pnio_infer -> the record of its candidate frames
+--             reopening    FrameID -> the note of its frames while a layout re-opened is inferred again, or
+--                          given up (one pass)
+--             unsettled    second pass: whether a run was left unsettled (nil: not asked yet)
+-- records     frames       frame number -> record (shared by frames that analyse alike: shared_record),
+--                          vrshark.framemap
+--             per_frame    frame number -> the decoder's per_frame value or false, vrshark.framemap; n: highest
+--                          filled
+--             last_rec     plan -> its latest distinct records (shared_record)
+--             spare        an emptied record table for the next frame (new_record), or nil
+--             once         true in a one-pass tshark run (vrshark/passes.luam): no frame is shown again, so a
+--                          cyclic frame's record is not kept (with no finding, its table is the next frame's)
+-- preferences heuristic, learn   mcmb2.heuristic and mcmb2.connect (also read at load, for the hooks)
+local by_fid, noted_fid, pending_down, tries
+local ars, not_ours, frags, cut_connect
+local runs, gone, addr_of, hint_recs, reopening, unsettled
+local frames, per_frame, last_rec, spare
 local once = false
-local ars         -- AR UUID -> parsed Connect
-local not_ours    -- expected submodule blocks (connect_blocks' key) -> true: no system of ours
-local frags       -- fragments of Connects being put together (defragment())
-local runs        -- vrshark.pnio_infer state: the runs of FrameIDs without a layout
-local gone        -- FrameID -> { src, dst, src, dst, ... }: Ethernet Addresses of its runs given up (gave_up())
-local addr_of     -- station key of pnio_infer (tostring of an Ethernet address) -> Address
-local hint_recs   -- hint of pnio_infer -> the record of its candidate frames
-local reopening  -- FrameID -> the note of its frames while a layout re-opened is inferred again, or given up (one pass)
-local unsettled   -- second pass: whether a run was left unsettled (nil: not asked yet)
-local cut_connect -- the first DCE/RPC datagram that may be a Connect the capture cut (cut_datagram()), or nil
-local heuristic, learn -- the preferences mcmb2.heuristic and mcmb2.connect, read in init()
+local heuristic, learn
+
+local function new_capture()
+    by_fid, noted_fid, pending_down, tries = {}, {}, {}, {}
+    ars, not_ours, frags, cut_connect = {}, {}, {}, nil
+    runs, gone, addr_of, hint_recs, reopening, unsettled = infer.new(), {}, {}, {}, {}, nil
+    -- (packed: vrshark/framemap.luam says why; the ages are rounded to the ms)
+    frames, per_frame = framemap.packed_refs(), framemap.packed_ms()
+    last_rec, per_frame.n, spare = {}, 0, nil
+    once = passes.once()
+    local prefs = systems.prefs()
+    heuristic, learn = prefs.heuristic, prefs.connect
+end
 
 local function register(plan)
     if not plan or not plan.fid or plan.fid == 0xFFFF then return end
-    if C then fe.pn_frame_id:add(plan.fid, carrier) end
+    front.watch(plan.fid)
     local t = by_fid[plan.fid]
     if not t then
         t = {}
@@ -189,87 +198,33 @@ local function table_plans(text)
     return plans
 end
 
--- The C front ends' hooks: which frames the C plugin hands to the carrier.
+-- Which frames the C front ends hand to the carrier, as its state says
+-- (front.hooks; without them every frame reaches it).
 local function set_hooks()
-    if not C then return end
-    fe.hook(fe.pn_hook, HOOK_CANDIDATE, carrier, heuristic)
-    fe.hook(fe.pn_hook, HOOK_CONNECT, carrier, learn)
-    fe.hook(fe.pn_hook, HOOK_PENDING, carrier, (pending_down ~= nil and #pending_down > 0)
-        or (runs ~= nil and infer.alive(runs)))
-    fe.hook(fe.pn_hook, HOOK_RESPONSE, carrier, ars ~= nil and next(ars) ~= nil)
-    fe.hook(fe.pn_hook, HOOK_CLOCK, carrier, true)
+    front.hooks(heuristic, learn, (pending_down ~= nil and #pending_down > 0) or (runs ~= nil and infer.alive(runs)),
+        ars ~= nil and next(ars) ~= nil)
 end
 
 -- Connect responses are read only for an AR learned from its request: the
--- C front end hands them over while the hook "response" says one is held.
+-- C front end hands them over while the flag FLAG_PN_RESPONSE says one is held.
 local function ars_changed(had)
-    if C and had ~= (next(ars) ~= nil) then set_hooks() end
-end
-
--- Without the C plugin: EtherType 0x8892 is taken again when each file
--- starts, in case a plugin loaded after this one put PN-RT back (a later
--- DissectorTable add replaces ours silently). PN-RT, or nothing, is replaced
--- (PN-RT becomes the dissector called first); anything else is somebody's
--- own wrapper: left alone, said once on stderr and on each Connect.
--- (Dissectors compare by name: Lua gives each lookup a new object.)
-local taken_by      -- name of the dissector holding 0x8892 instead of ours, or nil
-local told_taken
-local ef_taken = not C and ProtoExpert.new("vrshark_pnio.ethertype_taken",
-    "EtherType 0x8892 is taken by another dissector: cyclic frames are not decoded",
-    expert.group.UNDECODED, expert.severity.ERROR) or nil
-if ef_taken then carrier.experts = { ef_taken } end
-
-local function own_ethertype()
-    local cur = ethertype_table:get_dissector(ETH_PNRT)
-    local name = cur and tostring(cur)
-    taken_by = nil
-    if name ~= nil and name == tostring(Dissector.get("vrshark_pnio")) then return end
-    if cur == nil or name == "PN-RT" then
-        pn_rt = cur or pn_rt
-        ethertype_table:add(ETH_PNRT, carrier)
-        return
-    end
-    taken_by = name
-    if not told_taken then
-        told_taken = true
-        io.stderr:write(string.format('vrshark: EtherType 0x8892 (PROFINET RT) is taken by "%s": MC-MB2-PN and '
-            .. "EC-Link over PROFINET are not decoded; remove or disable that plugin\n", name))
-    end
+    if had ~= (next(ars) ~= nil) then set_hooks() end
 end
 
 local function init()
-    if not C then own_ethertype() end
     deadlines.reset()
     stops.reset()
-    for port in pairs(cm_ports or {}) do udp_table:remove(port, carrier) end
-    by_fid, pending_down, tries, ars, cm_ports, not_ours, frags = {}, {}, {}, {}, {}, {}, {}
-    noted_fid = {}
-    runs, gone = infer.new(), {}
-    addr_of, hint_recs, unsettled, cut_connect, reopening = {}, {}, nil, nil, {}
-    -- (packed: vrshark/framemap.luam says why; the ages are rounded to the ms)
-    frames, per_frame = framemap.packed_refs(), framemap.packed_ms()
-    last_rec, per_frame.n, spare = {}, 0, nil
-    once = passes.once()
+    new_capture()
     health.reset()
-    local prefs = systems.prefs()
-    heuristic, learn = prefs.heuristic, prefs.connect
-    if C then fe.pn_frame_id:remove_all(carrier) end
+    front.forget_all()
     set_hooks()
-    for _, p in ipairs(table_plans(prefs.layouts)) do register(p) end
+    for _, p in ipairs(table_plans(systems.prefs().layouts)) do register(p) end
 end
-if C then systems.on_init(init) else carrier.init = init end
+front.on_init(init)
 
 ------------------------------------------------------------------------
 -- Learning from the Connect
 ------------------------------------------------------------------------
--- A DCE/RPC connectionless PDU (version 4, request or response): the
--- datagrams the carrier hands to the UDP heuristics.
-local function is_dcerpc_dg(tvb)
-    if tvb:len() < 80 or tvb:range(0, 1):uint() ~= 4 then return false end
-    local ptype = tvb:range(1, 1):uint()
-    return ptype == 0 or ptype == 2
-end
-
 -- The blocks read, and (true) those read first: the AR and the expected
 -- submodules of a request, the AR of a response. A Connect not of ours
 -- stops there (its submodules are no system of ours, or the response's AR
@@ -547,10 +502,10 @@ end
 -- the uplink is decoded, so its downlink is not left without a word. When
 -- HEUR_TRIES such frames did not fit, the FrameID gets a placeholder plan
 -- with this note (first_pass: plan.refused), so later frames say it too.
--- The C front end hands later passes only the FrameIDs in its table: fid
--- goes there.
+-- The C front end hands later passes only the FrameIDs it watches: fid
+-- is watched.
 local function down_note(w, fid)
-    if C then fe.pn_frame_id:add(fid, carrier) end
+    front.watch(fid)
     noted_fid[fid] = true
     if not w.note then
         local h = w.h
@@ -1002,19 +957,15 @@ function inferred(fid, s, pinfo, n)
     local res = infer.feed(runs, fid, src, dst, s, p_abs_ts(pinfo), n)
     if infer.alive(runs) ~= was then set_hooks() end
     if #runs.watch > 0 then
-        -- the C front end hands later passes only the FrameIDs in its table
-        if C then
-            for _, f in ipairs(runs.watch) do fe.pn_frame_id:add(f, carrier) end
-        end
+        -- the C front end hands later passes only the FrameIDs it watches
+        for _, f in ipairs(runs.watch) do front.watch(f) end
         runs.watch = {}
     end
     if #runs.unwatch > 0 then
         -- (a FrameID watched only for an excerpt too short, whose runs grew
-        -- past it: out of the table again, unless a layout or a note has it)
-        if C then
-            for _, f in ipairs(runs.unwatch) do
-                if not by_fid[f] and not noted_fid[f] then fe.pn_frame_id:remove(f, carrier) end
-            end
+        -- past it: not watched any more, unless a layout or a note has it)
+        for _, f in ipairs(runs.unwatch) do
+            if not by_fid[f] and not noted_fid[f] then front.unwatch(f) end
         end
         runs.unwatch = {}
     end
@@ -1215,50 +1166,66 @@ local function gave_up(fid, pinfo)
     return true
 end
 
--- EtherType 0x8892: Wireshark's PN-RT first, then our cyclic data. With
--- the C front end PN-RT has run already; 0 tells it the frame is not ours;
--- view: what the front end says is looked at (vrshark/seam.luam view():
--- nil everything, quiet nothing, or sparse: the decoder's sparse() adds
--- only that, or says it needs show()).
--- thrown: PN-RT (or PNIO below it) raised an exception on this frame.
-local function cyclic(tvb, pinfo, tree, view, thrown)
-    local consumed, skipped = 0, false
-    -- (each C call counts on a foreign frame: the length is read once)
-    local len = not C and tvb_len(tvb) or nil
-    -- A frame of ours the capture cut (snaplen): PN-RT would throw an
-    -- exception Dissector.call() does not catch (a bounds error ends the
-    -- frame's dissection), so it is not called; the decoder's note says
-    -- the frame was cut. (Two C calls a frame; the C front end catches it.)
-    if not C and tvb_reported_len(tvb) > len and len >= 2
-            and (p_visited(pinfo) and fget(frames, p_number(pinfo)) or by_fid[tvb:range(0, 2):uint()]) then
-        thrown, consumed, skipped = true, len, true
-    elseif not C then
-        consumed = wrap.call(pn_rt, tvb, pinfo, tree)
-        -- A malformed PN-RT frame: Wireshark's report stands. A FrameID of
-        -- ours is decoded all the same (pn_malformed_note); others are not.
-        if consumed == nil then
-            if pinfo.visited and not fget(frames, pinfo.number) then return tvb:len() end
-            if not pinfo.visited and (tvb:len() < 2 or not by_fid[tvb:range(0, 2):uint()]) then
-                return tvb:len()
-            end
-            thrown, consumed = true, tvb:len()
+-- On a later pass, a frame whose first-pass record may not stand: asked
+-- only when it has none, when it holds a one-pass early hint, or when the
+-- layout that decoded it was contradicted since.
+local function revised(rec, tvb, pinfo, n)
+    -- (decoded by a layout contradicted later: decoded again by the one that replaced it)
+    local p = rec and (rec.plan or rec.was)
+    if p and (p.next or p.again) then rec = redone(rec, p, tvb, pinfo, n) end
+    -- (a one-pass early hint gives way to the hint known at the end)
+    if (rec == nil or rec.early) and unsettled ~= false and tvb:len() >= 2 then
+        rec = final_candidate(tvb, pinfo) or rec
+    end
+    -- (a frame the capture cut before the layout of its run was inferred)
+    if rec == nil and tvb_reported_len(tvb) > tvb_len(tvb) then rec = cut_before_inferred(tvb, pinfo) end
+    return rec
+end
+
+-- The display of frame n's record (fresh: made by this first pass, held
+-- by nobody else; visited: pinfo.visited): its per-frame value put back,
+-- the tree and columns as the view says (none in a quiet one), then a
+-- fresh record without findings is the next frame's table.
+local function shown(rec, fresh, n, visited, tvb, pinfo, tree, view, thrown)
+    local plan = rec.plan
+    -- (the decoder whose findings the record holds, as owner() says)
+    local dec = systems.decoder(plan and plan.system or rec.system or "duplex")
+    local per = not once and plan and dec.per_frame
+    if per then load_per_frame(per, rec, n) end
+    if not (view and view.quiet) then
+        -- (MC-MB2-PN and EC-Link frames: the view over the Protos of their
+        -- fields, front.view_for(): the C front end's, or made in Lua)
+        local protos = not thrown and plan and (dec.lua_protos or dec.proto == mcmb2_proto and dec.proto)
+        if protos then view = view_for(protos, tree, visited, view) end
+        -- (under the decoder's own Proto: pnio_systems.through() says why)
+        if dec.proto == carrier then
+            display(rec, tvb, pinfo, tree, view, thrown)
+        else
+            systems.through(dec, display, rec, tvb, pinfo, tree, view, thrown)
         end
     end
+    if fresh and rec.findings == record.NO_FINDINGS then release(rec) end
+end
+
+-- A PN-RT frame after PN-RT (the transport's entry: PN-RT ran on it, or,
+-- for a frame of ours the capture cut, did not): its record, from the
+-- first pass or kept for a later one, and its display. view: what is
+-- looked at (vrshark/seam.luam view(): nil everything, quiet nothing, or
+-- sparse: the decoder's sparse() adds only that, or says it needs show());
+-- thrown: PN-RT (or PNIO below it) raised an exception on this frame; len:
+-- the frame's length, or nil. Returns the record, or nil for a frame not
+-- of ours. (Every frame of a foreign device in the Lua-only mode comes
+-- here: the first pass costs it the FrameID read and a table lookup.)
+local function cyclic(tvb, pinfo, tree, view, thrown, len)
     -- (the note is an expert item: everything is shown)
     if thrown then view = nil end
+    local visited = p_visited(pinfo)
     local rec, fresh, n
-    if p_visited(pinfo) then
+    if visited then
         n = p_number(pinfo)
         rec = fget(frames, n)
-        -- (decoded by a layout contradicted later: decoded again by the one that replaced it)
         local p = rec and (rec.plan or rec.was)
-        if p and (p.next or p.again) then rec = redone(rec, p, tvb, pinfo, n) end
-        -- (a one-pass early hint gives way to the hint known at the end)
-        if (rec == nil or rec.early) and unsettled ~= false and tvb:len() >= 2 then
-            rec = final_candidate(tvb, pinfo) or rec
-        end
-        -- (a frame the capture cut before the layout of its run was inferred)
-        if rec == nil and tvb_reported_len(tvb) > tvb_len(tvb) then rec = cut_before_inferred(tvb, pinfo) end
+        if not rec or rec.early or (p and (p.next or p.again)) then rec = revised(rec, tvb, pinfo, n) end
     else
         len = len or tvb_len(tvb)
         -- (the FrameID from the bytes: a TvbRange costs more than the frame's other reads)
@@ -1272,42 +1239,23 @@ local function cyclic(tvb, pinfo, tree, view, thrown)
             if not once then fset(frames, n, rec) end
         end
     end
-    -- (a cut frame of a FrameID of ours from another sender: PN-RT as always)
-    if skipped and not rec then return wrap.call(pn_rt, tvb, pinfo, tree) or tvb_len(tvb) end
-    -- (a note on a cut frame PN-RT did not see: its columns as PN-RT writes them)
-    if skipped and rec and rec.kind == "candidate" then
-        pinfo.cols.protocol = "PN-RT"
-        pinfo.cols.info = "PROFINET Real-Time[Packet size limited during capture]"
-    end
-    if rec then
-        local per = not once and rec.plan and systems.decoder(rec.plan.system).per_frame
-        if per then load_per_frame(per, rec, n) end
-        if not (view and view.quiet) then
-            -- (under the decoder's own Proto: pnio_systems.through() says why)
-            local dec = owner(rec)
-            -- (without the C front ends MC-MB2-PN and EC-Link make their view
-            -- themselves: frontends.lua_view(), over the Protos of their fields)
-            local protos = not C and not thrown and rec.plan
-                and (dec.lua_protos or dec.proto == mcmb2_proto and dec.proto)
-            if protos then view = fe.lua_view(protos, tree, p_visited(pinfo)) end
-            if dec.proto == carrier then
-                display(rec, tvb, pinfo, tree, view, thrown)
-            else
-                systems.through(dec, display, rec, tvb, pinfo, tree, view, thrown)
-            end
-        end
-        if fresh and rec.findings == record.NO_FINDINGS then release(rec) end
-        if C then return tvb:len() end
-    end
-    return consumed
+    if rec then shown(rec, fresh, n, visited, tvb, pinfo, tree, view, thrown) end
+    return rec
 end
+
+-- Which frames are of ours, for the transport's rules on the frames PN-RT
+-- must not see or reported malformed: frame n's record, FrameID fid's
+-- layouts (or nil).
+local function recorded(n) return fget(frames, n) end
+local function has_fid(fid) return by_fid[fid] end
 
 ------------------------------------------------------------------------
 -- The Connect
 ------------------------------------------------------------------------
--- UDP 34964 (and the controllers' ports): the UDP heuristics (DCE/RPC)
--- first, then the Connect blocks.
--- With the C front end DCE/RPC has run already, and it learns the ports.
+-- A PNIO-CM datagram (UDP 34964 or a controller's port) reaches the
+-- carrier through its transport, which calls cut_datagram() for one the
+-- capture cut and connect() for the others, after the UDP heuristics
+-- (DCE/RPC) have run.
 -- A DCE/RPC datagram the capture cut (snaplen): when it may be a Connect
 -- (a request or response whose operation is 0, or was cut before it), the
 -- note that its layout cannot be read and what decodes its cyclic frames
@@ -1340,12 +1288,12 @@ local function cut_datagram(tvb, pinfo, tree)
     return 0
 end
 
+-- A DCE/RPC datagram after DCE/RPC: the Connect blocks read on the first
+-- pass, its note shown. Returns the record (nil: no Connect of ours) and
+-- whether it is a request of devices of no system of ours (the C front end
+-- then hands over no more requests with these expected submodules while
+-- no AR is held: nothing would be read).
 local function connect(tvb, pinfo, tree)
-    if tvb:reported_len() > tvb:len() then return cut_datagram(tvb, pinfo, tree) end
-    if not C then
-        if not is_dcerpc_dg(tvb) then return 0 end
-        if not DissectorTable.try_heuristics("udp", tvb, pinfo, tree) then return 0 end
-    end
     local rec
     if pinfo.visited then
         rec = fget(frames, pinfo.number)
@@ -1354,18 +1302,11 @@ local function connect(tvb, pinfo, tree)
         local blocks, request
         if s then blocks, request = connect_blocks(s) end
         if blocks then
-            if not C and request and pinfo.src_port ~= UDP_PNIO_CM and pinfo.src_port ~= ETH_PNRT
-                    and not cm_ports[pinfo.src_port] and not udp_table:get_dissector(pinfo.src_port) then
-                -- The response comes from the device's own port to this one.
-                cm_ports[pinfo.src_port] = true
-                udp_table:add(pinfo.src_port, carrier)
-            end
+            -- (the response comes from the device's own port to the request's)
+            if request then front.request_from(pinfo) end
             rec = learn_connect(pinfo, blocks)
             fset(frames, pinfo.number, rec)
-            -- A request of devices no system of ours: 0 tells the C front
-            -- end to hand over no more requests with these expected
-            -- submodules while no AR is held (nothing would be read).
-            if C and request and not rec and blocks.key and not_ours[blocks.key] then return 0 end
+            if request and not rec and blocks.key and not_ours[blocks.key] then return nil, true end
         end
     end
     if rec then
@@ -1373,49 +1314,15 @@ local function connect(tvb, pinfo, tree)
         if dec.proto == carrier then show(rec, tvb, pinfo, tree)
         else systems.through(dec, show, rec, tvb, pinfo, tree) end
     end
-    if rec and taken_by then
-        tree:add_proto_expert_info(ef_taken, string.format('Cyclic frames of this Connect are not decoded: '
-            .. 'EtherType 0x8892 is taken by "%s", not by vrshark_pnio', taken_by))
-    end
-    return tvb:len()
+    return rec, false
 end
 
--- Every frame the carrier sees ticks the clock after its decoder has armed
--- the frame's stream and written its columns (a finding's Info tag comes
--- after the decoder's text); with the C front ends, the frames Lua would
--- not see otherwise come through hook "clock" (vrshark/deadlines.luam).
-function carrier.dissector(tvb, pinfo, tree)
-    -- The C front end calls the "connect" hook for PNIO-CM, the FrameID
-    -- table and the "candidate" hook for cyclic frames, "clock" for the rest.
-    local ret
-    if C then
-        -- (mcmb2's Proto is the carrier's: a finding shown through it)
-        if systems.calling() then return systems.dissector(tvb, pinfo, tree) end
-        local how = seam_view(p_match_string(pinfo))
-        if how.hook == HOOK_CLOCK then
-            tick(tvb, pinfo, tree)
-            return 0
-        end
-        if how.hook == HOOK_CONNECT then ret = connect(tvb, pinfo, tree)
-        else ret = cyclic(tvb, pinfo, tree, how.view, how.malformed) end
-    -- No controller port is ever 0x8892 (see connect), so match_uint tells
-    -- the two tables apart.
-    elseif p_match_uint(pinfo) == ETH_PNRT then
-        ret = cyclic(tvb, pinfo, tree)
-    else
-        ret = connect(tvb, pinfo, tree)
-    end
-    tick(tvb, pinfo, tree)
-    return ret
-end
-
-if C then
+-- The transport takes the frames, and the hooks are set as the preferences
+-- are at load (the C front ends ask them before the first file starts).
+front.serve({ cyclic = cyclic, cut_datagram = cut_datagram, connect = connect, recorded = recorded,
+              has_fid = has_fid })
+do
     local prefs = systems.prefs()
     heuristic, learn = prefs.heuristic, prefs.connect
-    set_hooks()
-else
-    -- (mcmb2's frames shown through its own dissector: pnio_systems.through())
-    systems.mcmb2_proto().dissector = systems.dissector
-    ethertype_table:add(ETH_PNRT, carrier)
-    udp_table:add(UDP_PNIO_CM, carrier)
 end
+set_hooks()

@@ -353,9 +353,9 @@ def test_only_frontends_touches_the_hook_tables():
 # Mistakes put into copies of the real sources, and what catches each.
 MISTAKES = [
     # (source, the text replaced, its replacement, the check, what it reports)
-    ("lua/vrshark_pnio.lua", "seam.FLAG_PN_PENDING", '"pn.pendng"', hook_key_uses, "HOOK_PENDING"),
-    ("lua/vrshark_pnio.lua", "fe.hook(fe.pn_hook, HOOK_CONNECT,", 'fe.hook(fe.pn_hook, "conect",', literal_uses,
-     'fe.hook(fe.pn_hook, "conect", carrier, learn)'),
+    ("lua/vrshark/transport.luam", "seam.FLAG_PN_PENDING", '"pn.pendng"', hook_key_uses, "FLAG_PENDING"),
+    ("lua/vrshark/transport.luam", "fe.hook(hook_table, HOOK_CONNECT,", 'fe.hook(hook_table, "conect",', literal_uses,
+     'fe.hook(hook_table, "conect", proto, connect)'),
     ("lua/vrshark/transport.luam", "fe.hook(fe.mb_hook, HOOK_ALWAYS,", 'fe.hook(fe.mb_hook, "always",', literal_uses,
      'fe.hook(fe.mb_hook, "always", proto, always)'),
     ("plugins/vrshark/vrshark-frontends.c", "VRSHARK_PN_HOOK_CONNECT, tvb", '"connect", tvb', literal_uses,
