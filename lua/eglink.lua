@@ -19,8 +19,9 @@ Every EG-Link packet is one UDP datagram, all integers little-endian:
 
 Input port 5825 (configurable), output port = input port + 2, multicast
 239.255.42.20. The per-BU conversation analysis, command links and VRPO
-reassembly live in vrshark/eglink_analysis.luam (as eglink-analysis.c), the
-"eglink.data" hand-off in vrshark/eglink_data.luam. The statistics tree of
+reassembly live in vrshark/eglink_analysis.luam and the modules it requires
+(as eglink-analysis.c and the files beside it), the "eglink.data" hand-off in
+vrshark/eglink_data.luam. The statistics tree of
 the C plugin (-z eglink,tree) has no Lua counterpart; its table, -z eglink,stat,
 has (docs/eglink.md).
 ]]

@@ -36,7 +36,9 @@ PENDING = set()
 
 
 def test_sources_found():
-    assert {p.name for p in C_FILES} >= {"packet-eglink.c", "plugin.c", "eglink-analysis.c",
+    assert {p.name for p in C_FILES} >= {"packet-eglink.c", "plugin.c", "eglink-analysis.c", "eglink-records.c",
+                                          "eglink-channels.c", "eglink-serials.c", "eglink-timing.c",
+                                          "eglink-commands.c", "eglink-bursts.c", "eglink-findings.c",
                                           "eglink-stats.c", "vrshark-frontends.c"}
 
 

@@ -1,4 +1,4 @@
-"""Statistics > EG-Link without the C plugin (lua/vrshark/eglink_analysis.luam):
+"""Statistics > EG-Link without the C plugin (lua/vrshark/eglink_stats.luam):
 with VRSHARK_EGLINK_STATS set, a Lua-only tshark run prints the same tree as
 the C plugin's -z eglink,stat (eglink-stats.c), rows, counts, averages,
 minimums, maximums and percentages, in one pass and two (docs/eglink.md,
@@ -71,7 +71,7 @@ def test_lua_stats_session_values():
 def test_walkthrough_names_the_lua_menu_item():
     """README's walkthrough names the Statistics item of both installs: the Lua
     EG-Link registers its own (a Lua plugin cannot take the C plugin's name)."""
-    lua = (ROOT / "lua" / "vrshark" / "eglink_analysis.luam").read_text()
+    lua = (ROOT / "lua" / "vrshark" / "eglink_stats.luam").read_text()
     item = re.search(r'register_menu\("([^"]+)"', lua).group(1)
     walkthrough = (ROOT / "README.md").read_text().split("## A five-minute walkthrough", 1)[1].split("\n## ")[0]
     text = " ".join(walkthrough.split())

@@ -127,6 +127,52 @@ def test_capture_list():
     assert "crane_eglink.pcap" in CAPTURE_NAMES and "eglink_truncated.pcap" in CAPTURE_NAMES
 
 
+# --- the twins, file by file -----------------------------------------------------
+
+PLUGIN = ROOT / "plugins" / "vrshark"
+LUA_MODULES = ROOT / "lua" / "vrshark"
+# The files of the analysis in C and their Lua twins: eglink-X.c (or .h) and
+# eglink_X.luam (eglink-analysis.h and eglink-compat.h are C only, the Lua
+# modules' own: eglink_data.luam, the twin of packet-eglink.c's table).
+C_ONLY = {"eglink-analysis.h", "eglink-compat.h"}
+TWINS = {p: LUA_MODULES / (p.stem.replace("-", "_") + ".luam")
+         for p in sorted(PLUGIN.glob("eglink-*.[ch]")) if p.name not in C_ONLY}
+C_FUNCTION = re.compile(r"^(?:static )?[a-z_][\w ]*\**\n\**([a-z_]\w*)\(", re.M)
+LUA_FUNCTION = re.compile(r"^(?:local )?function (?:M\.)?(\w+)\(", re.M)
+
+
+def _c_names(path):
+    """A C file's functions, without the eglink_ prefix the Lua names do without."""
+    return {n[len("eglink_"):] if n.startswith("eglink_") else n for n in C_FUNCTION.findall(path.read_text())}
+
+
+def test_twin_files():
+    """Every file of the C analysis has its Lua twin of the same name and the
+    other way round, and each header names its twin."""
+    assert len(TWINS) >= 10
+    lua = {p.name for p in LUA_MODULES.glob("eglink_*.luam")} - {"eglink_data.luam"}
+    assert lua == {p.name for p in TWINS.values()}
+    for c, luam in TWINS.items():
+        assert "lua/vrshark/" + luam.name in c.read_text().split("*/", 1)[0], c.name
+        assert "plugins/vrshark/" + c.name in luam.read_text().split("\nlocal ", 1)[0], luam.name
+
+
+def test_twin_functions():
+    """A function of the analysis with the same name in C and Lua is in the
+    twin files: a reader finds its twin in the file of the same name."""
+    c_files = {}
+    for c in TWINS:
+        for name in _c_names(c):
+            c_files.setdefault(name, set()).add(c.name)
+    shared = 0
+    for c, luam in TWINS.items():
+        for name in LUA_FUNCTION.findall(luam.read_text()):
+            if name in c_files:
+                assert c.name in c_files[name], (name, luam.name, c_files[name])
+                shared += 1
+    assert shared >= 75
+
+
 # --- random sessions ----------------------------------------------------------
 
 TYPES = ["VRPI", "VRPO", "VRCI", "VRCO", "VRAI", "VRAO"]

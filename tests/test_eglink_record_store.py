@@ -2,7 +2,7 @@
 the same in the second pass (tshark -2) and in the GUI.
 
 Most packets keep a 12-byte record in a table by frame number
-(eglink_frame_store() in plugins/vrshark/eglink-analysis.c): the expected
+(eglink_frame_store() in plugins/vrshark/eglink-records.c): the expected
 serial is not stored but derived from the packet's serial when it was in
 sequence, and the layer of the EG-Link header sits in three bits. Packets
 after a gap, deeper than eight layers, or with findings keep the full
@@ -11,7 +11,7 @@ one pass against two, on every EG-Link capture and on a copy of the lost
 packets capture with the EG-Link header 14 layers deep.
 
 The Lua EG-Link keeps records of its own (a number a frame, a table for a
-frame with findings: lua/vrshark/eglink_analysis.luam); tools/test runs these
+frame with findings: lua/vrshark/eglink_records.luam); tools/test runs these
 tests with it too (VRSHARK_NO_C_PLUGIN=1), and they read back alike.
 """
 import pytest

@@ -5,6 +5,7 @@
  * in both directions (acknowledged with their delay, failed), VRPO bursts,
  * and the time each BU spent in each state. Fed by the "eglink" tap of
  * eglink-analysis.c. Only the public stats_tree API (epan/stats_tree.h).
+ * Its twin for the Lua EG-Link: lua/vrshark/eglink_stats.luam.
  *
  * How it reads in the GUI and in tshark alike:
  * - Wireshark's Statistics dialog (seen on 4.0; later versions have the
