@@ -2016,7 +2016,8 @@ local function dissect(tvb, pinfo, tree, view, via_front, consumed, src_port, ds
         return consumed
     end
     local decoded, infos, gaps = show_found(tvb, pinfo, tree, nf, view, quiet, is_request)
-    write_info(pinfo, infos, gaps)
+    -- (nothing to write on most frames of a connection not a BU's)
+    if info_np > 0 or gaps or infos ~= NONE then write_info(pinfo, infos, gaps) end
     if via_front and decoded then return n end
     return consumed
 end
