@@ -240,8 +240,9 @@ mcmb2.prefs.layouts = Pref.string("Layout table", "",
     .. "0x8003/0x8004=polled:4x24/4x2,a8 (a: ASCII modules) ; 0x8005/0x8006=eclink:/224 (see docs/profinet.md)")
 mcmb2.prefs.connect = Pref.bool("Learn layouts from the Connect", true,
     "Recognise MC-MB2-PN and EC-Link devices by the modules of a Connect request in the capture")
-mcmb2.prefs.heuristic = Pref.bool("Recognise polled uplink headers", true,
-    "Decode unknown cyclic frames that start (after the DAP IOPS) with a consistent polled MC-MB2-PN header")
+mcmb2.prefs.heuristic = Pref.bool("Recognise unknown cyclic frames", true,
+    "Decode unknown cyclic FrameIDs (0x8000-0xFBFF) that start (after the DAP IOPS) with a consistent polled "
+    .. "MC-MB2-PN header, or whose frames leave one duplex, simplex or EC-Link layout (docs/profinet.md)")
 mcmb2.prefs.uplink_timeout = Pref.uint("Uplink watchdog timeout (ms)", 1000,
     "Flag an uplink watchdog that keeps its value longer than this")
 mcmb2.prefs.downlink_timeout = Pref.uint("Downlink watchdog timeout (ms)", 2000,

@@ -15,9 +15,10 @@ transport, `front` (vrshark/transport.luam pnio()), is chosen once at load.
 With the C front ends of the C plugin (vrshark/frontends.luam), the C plugin
 is the protocol "vrshark_pnio": it runs PN-RT and DCE/RPC itself and calls
 the carrier only for the FrameIDs it was given (front.watch), for candidate
-FrameIDs while polled-header recognition is on ("candidate" and "pending"
-hooks) and for Connects ("connect" hook; while the "response" hook says no
-AR learned from a request is held, no response on the first pass, and no
+FrameIDs while mcmb2.heuristic is on (the "candidate" hook: a polled
+header, or a layout inferred from the cyclic frames; the "pending" flag)
+and for Connects ("connect" hook; while the "response" flag says no AR
+learned from a request is held, no response on the first pass, and no
 request whose expected submodules were refused before): front.hooks. The
 carrier then runs under the Proto of mcmb2 (the C plugin owns the name).
 Without the C plugin the transport is the protocol "vrshark_pnio": it takes
