@@ -1366,7 +1366,7 @@ end
 -- Sparse display: an invisible tree (the packet list, -Y, -z taps)
 ------------------------------------------------------------------------
 -- Wireshark throws away every item of an invisible tree that nobody
--- references: show_adu() given a sparse plan adds only the referenced EC-Link
+-- references: show_sparse() (a sparse plan) adds only the referenced EC-Link
 -- image fields (vrshark/eclink_image.luam, opts.only) and these facts of the
 -- ADU, flat under the caller's tree, in the occurrences of the full tree
 -- (tests/test_sparse_view.py), the expert info when it is looked at (flat,
