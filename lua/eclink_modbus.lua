@@ -1060,7 +1060,7 @@ local function parse_request_pdu(tvb, off, len, fc, into)
         end
     elseif fc == 15 or fc == 16 then
         if len < 6 then return nil end
-        local a1, a2, c1, c2, bc = tvb_raw(tvb, off + 1, 5):byte(1, 5)
+        local a1, a2, c1, c2, bc = sbyte(tvb_raw(tvb, off + 1, 5), 1, 5)
         r.start, r.count = a1 * 256 + a2, c1 * 256 + c2
         local need = (fc == 15) and math.ceil(r.count / 8) or 2 * r.count
         if len >= 6 + need and bc >= need then

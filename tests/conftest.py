@@ -438,17 +438,18 @@ def work_dir():
 def lua_probe(tshark, work_dir):
     """lua_probe(script) -> the lines a Lua script run inside tshark (-X
     lua_script, over one frame) wrote to the file named by %(out)r; %(lua)r
-    names lua/, for the script's package.path."""
-    def run(script):
+    names lua/, for the script's package.path. capture and args: another
+    capture, and tshark arguments instead of -q -c 1."""
+    def run(script, capture=None, args=("-q", "-c", "1")):
         out = work_dir / "probe.txt"
         out.touch()
         out.chmod(0o666)
         path = work_dir / "probe.lua"
         path.write_text(script % {"lua": str(ROOT / "lua"), "out": str(out)})
         path.chmod(0o644)
-        proc = subprocess.run([tshark.cmd, "-n", "-q", "-r", str(CAPTURES / "eclink_pnio_connect.pcap"), "-c", "1",
-                               "-X", "lua_script:%s" % path], env=tshark.env, capture_output=True, text=True,
-                              timeout=300)
+        proc = subprocess.run([tshark.cmd, "-n", "-r", str(capture or CAPTURES / "eclink_pnio_connect.pcap")]
+                              + list(args) + ["-X", "lua_script:%s" % path], env=tshark.env, capture_output=True,
+                              text=True, timeout=300)
         assert proc.returncode == 0, proc.stderr
         assert "Lua Error" not in proc.stdout + proc.stderr
         return out.read_text().splitlines()

@@ -1,5 +1,5 @@
 """What Wireshark's Modbus dissector offers a Lua plugin that wants to see only
-the register accesses an EC-Link BU makes (function codes 3, 4, 16, 23),
+the register accesses an EC-Link BU makes (function codes 3, 4, 6, 16, 23),
 instead of taking TCP port 502 (the Lua-only install's carrier, which makes
 every Modbus/TCP PDU enter Lua: docs/quality.md, "Foreign Modbus/TCP in the
 Lua plugins alone").
@@ -13,7 +13,6 @@ runs on: a version that hands those codes to the table fails here, and the
 carrier can then move there.
 """
 import struct
-import subprocess
 
 from tools.capgen.frames import TcpConnection
 from tools.capgen.pcap import Capture
@@ -60,25 +59,12 @@ def _capture(path):
     return frames
 
 
-def _probe(tshark, work_dir):
+def test_no_modbus_table_sees_only_register_accesses(tshark, work_dir, lua_probe):
     cap = work_dir / "modbus_codes.pcap"
     frames = _capture(cap)
-    out = work_dir / "probe.txt"
-    out.touch()
-    out.chmod(0o666)
-    script = work_dir / "probe.lua"
-    script.write_text(PROBE % {"out": str(out)})
-    script.chmod(0o644)
-    proc = subprocess.run([tshark.cmd, "-n", "-r", str(cap), "-V", "-X", "lua_script:%s" % script],
-                          env=tshark.env, capture_output=True, text=True, timeout=300)
-    assert proc.returncode == 0, proc.stderr
-    assert "Lua Error" not in proc.stdout + proc.stderr
-    return frames, out.read_text().splitlines(), proc.stdout
-
-
-def test_no_modbus_table_sees_only_register_accesses(tshark, work_dir):
-    frames, lines, text = _probe(tshark, work_dir)
-    # modbus decoded every request itself (the probe takes nothing)
+    lines = lua_probe(PROBE, capture=cap, args=())
+    text = tshark.verbose(cap)
+    # modbus decodes every request itself (the probe takes nothing)
     for name in ("Read Holding Registers", "Read Input Registers", "Write Single Register",
                  "Write Multiple Registers"):
         assert name in text
