@@ -347,57 +347,85 @@ for i = 0, 255 do
     HDLC_TABLE[i] = r
 end
 
--- Two bytes a step with a table of 65536 entries (the CRC of every 16-bit
--- value, made on the first packet), kept as its two 16-bit halves (T2H,
--- T2L), and the CRC as its two halves too: a step is then
---   hi, lo = bxor(lo, T2H[bxor(hi, word)]), T2L[bxor(hi, word)]
--- (the 32-bit shift is the move from lo to hi), and two steps, four bytes,
--- take three bit library calls instead of eight (a bit library call costs
--- more than the rest of the step; bxor takes three arguments). Every value
--- is 0..65535: no band, no sign. The bytes are read eight at a time.
-local T2H, T2L
-local function make_table16()
-    local th, tl = {}, {}
-    for hi = 0, 255 do
-        local t = MPEG2_TABLE[hi]
-        local shifted, top, row = lshift(t, 8), rshift(t, 24), hi * 256
-        for lo = 0, 255 do
-            local v = bxor(shifted, MPEG2_TABLE[bxor(top, lo)])
-            th[row + lo], tl[row + lo] = rshift(v, 16), band(v, 0xFFFF)
-        end
+-- Sixteen bytes a step (slicing by 16) with sixteen tables of 256 entries:
+-- Sk[b] is the CRC, from 0, of the byte b followed by k zero bytes
+-- (b * x^(32 + 8k) mod P; S0 is MPEG2_TABLE). Sixteen bytes move the CRC
+-- C to S15[x1] ~ S14[x2] ~ S13[x3] ~ S12[x4] ~ S11[b5] ~ ... ~ S0[b16],
+-- x1..x4 the bytes of C ~ (b1..b4 as a 32-bit word): one
+-- string.byte and two bxor calls a step (a bit library call costs more than
+-- the rest of the step; bxor takes any number of arguments), the bytes of x
+-- split by arithmetic. Four bytes a step the same way with S3..S0, and
+-- the last r < 4 bytes M as (C_top ~ M) * x^32 ~ C_low << 8r. The tables
+-- stay small: a big table costs every garbage collection cycle its walk.
+local SLICE = { [0] = MPEG2_TABLE }
+for k = 1, 15 do
+    local prev, cur = SLICE[k - 1], {}
+    for b = 0, 255 do
+        local v = prev[b]
+        cur[b] = bxor(lshift(v, 8), MPEG2_TABLE[rshift(v, 24)])
     end
-    return th, tl
+    SLICE[k] = cur
+end
+local S0, S1, S2, S3 = SLICE[0], SLICE[1], SLICE[2], SLICE[3]
+local S4, S5, S6, S7 = SLICE[4], SLICE[5], SLICE[6], SLICE[7]
+local S8, S9, S10, S11 = SLICE[8], SLICE[9], SLICE[10], SLICE[11]
+local S12, S13, S14, S15 = SLICE[12], SLICE[13], SLICE[14], SLICE[15]
+local TAIL_SHIFT = { 16777216, 65536, 256 }   -- 2^(32 - 8r): where r bytes go in a word
+
+-- The four bytes of a 32-bit word (a bit library result: signed), most
+-- significant first.
+local function word_bytes(x)
+    x = x % TWO32
+    local x4 = x % 256
+    x = (x - x4) / 256
+    local x3 = x % 256
+    x = (x - x3) / 256
+    local x2 = x % 256
+    return (x - x2) / 256, x2, x3, x4
 end
 
 local function crc_mpeg2(s, n)
-    local H, L = T2H, T2L
-    if not H then
-        H, L = make_table16()
-        T2H, T2L = H, L
-    end
-    local hi, lo = 0xFFFF, 0xFFFF
+    local crc = -1
     n = n or #s
     local i = 1
-    while i + 7 <= n do
-        local b1, b2, b3, b4, b5, b6, b7, b8 = byte(s, i, i + 7)
-        local x = bxor(hi, b1 * 256 + b2)
-        local y = bxor(lo, H[x], b3 * 256 + b4)
-        x = bxor(L[x], H[y], b5 * 256 + b6)
-        lo = L[y]
-        y = bxor(lo, H[x], b7 * 256 + b8)
-        hi, lo = bxor(L[x], H[y]), L[y]
-        i = i + 8
+    while i + 15 <= n do
+        local b1, b2, b3, b4, b5, b6, b7, b8, b9, b10, b11, b12, b13, b14, b15, b16 = byte(s, i, i + 15)
+        -- (word_bytes() inline: a Lua call a step costs 1 % of a packet)
+        local x = bxor(crc, b1 * 16777216 + b2 * 65536 + b3 * 256 + b4) % TWO32
+        local x4 = x % 256
+        x = (x - x4) / 256
+        local x3 = x % 256
+        x = (x - x3) / 256
+        local x2 = x % 256
+        crc = bxor(S15[(x - x2) / 256], S14[x2], S13[x3], S12[x4], S11[b5], S10[b6], S9[b7], S8[b8],
+            S7[b9], S6[b10], S5[b11], S4[b12], S3[b13], S2[b14], S1[b15], S0[b16])
+        i = i + 16
     end
-    while i + 1 <= n do
-        local b1, b2 = byte(s, i, i + 1)
-        local x = bxor(hi, b1 * 256 + b2)
-        hi, lo = bxor(lo, H[x]), L[x]
-        i = i + 2
+    while i + 3 <= n do
+        local b1, b2, b3, b4 = byte(s, i, i + 3)
+        local x1, x2, x3, x4 = word_bytes(bxor(crc, b1 * 16777216 + b2 * 65536 + b3 * 256 + b4))
+        crc = bxor(S3[x1], S2[x2], S1[x3], S0[x4])
+        i = i + 4
     end
-    local crc = hi * 65536 + lo
-    if i <= n then
-        local T = MPEG2_TABLE
-        crc = bxor(lshift(crc, 8), T[bxor(rshift(crc, 24), byte(s, i))])
+    local r = n - i + 1
+    if r > 0 then
+        local b1, b2, b3 = byte(s, i, n)
+        local m = r == 1 and b1 or r == 2 and b1 * 256 + b2 or (b1 * 256 + b2) * 256 + b3
+        local shift = TAIL_SHIFT[r]
+        local x = bxor(crc, m * shift) % TWO32
+        local low = x % shift
+        local top = (x - low) / shift
+        if r == 1 then
+            crc = bxor(S0[top], low * 256)
+        elseif r == 2 then
+            local t2 = top % 256
+            crc = bxor(S1[(top - t2) / 256], S0[t2], low * 65536)
+        else
+            local t3 = top % 256
+            top = (top - t3) / 256
+            local t2 = top % 256
+            crc = bxor(S2[(top - t2) / 256], S1[t2], S0[t3], low * 16777216)
+        end
     end
     return u32(crc)
 end

@@ -1,5 +1,7 @@
 """EG-Link CRC: CRC-32/MPEG-2 little-endian by default, the other variants and byte
 orders by preference, and a hint naming the variant that matches a failing CRC."""
+import random
+
 import pytest
 
 from eglink_testlib import expect_frames, gen, messages
@@ -33,6 +35,7 @@ def test_good_crc(tshark, capture_file, name):
 
 
 CORRUPTED = ": no CRC variant fits, the packet is corrupted: its payload values are not trusted, none is judged"
+VRPO_FRAGMENT_MAX = 488  # TS-0006: a VRPO carries at most 488 bytes of periodic data
 BAD_CRCS = ["0xdeadbeef", "0x00000000", "0x12345678", "0xffffffff", "0xcafef00d", "0x0badc0de"]
 
 
@@ -141,3 +144,33 @@ def test_corrupted_values_are_not_judged(tshark, work_dir):
         1: {"_ws.col.Info": "VRPI BU=Unknown (0x05) RU 0xbeef=Enabled J1=1001 [relays open] [bad CRC]",
             "eglink.bu_state": 5, "eglink.ru_battery": 101, "eglink.joystick1": 1001},
         2: {"_ws.col.Info": "VRPI BU=Unknown (0x05) RU 0xbeef=Enabled J1=1001 [relays open] [undefined]"}})
+
+
+def test_crc_over_every_length(tshark, work_dir):
+    """The CRC is computed eight bytes a step, then four, two and one: VRPOs
+    with every fragment length 0..488 (the CRC over 18..506 bytes: every
+    length modulo 8, with random bytes) check Good, and the same packets with
+    their CRC off by one bit check Bad with the CRC the spec's bitwise
+    algorithm gives (the capture generator's) in the message."""
+    rng = random.Random(20261202)
+    link = gen.Link()
+    bodies = {}
+    for length in range(0, VRPO_FRAGMENT_MAX + 1):
+        payload = gen.vrpo(length % 65536, bytes(rng.randrange(256) for _ in range(length)))
+        bad = length % 2 == 1
+        frame = link.ctrl(0.01 * length, "VRPO", payload,
+                          crc_value=None if not bad else gen.crc32_mpeg2(
+                              gen.packet("VRPO", payload, serial=link.ctrl_serial)[:-4]) ^ 1)
+        bodies[frame] = bad
+    cap = work_dir / "crc_lengths.pcap"
+    cap.write_bytes(link.cap.to_bytes())
+    cap.chmod(0o644)
+    got = tshark.frames(cap, ["eglink.crc.status", "udp.payload"])
+    assert sorted(got) == sorted(bodies)
+    wrong = [n for n, bad in bodies.items() if got[n]["eglink.crc.status"] != ("0" if bad else "1")]
+    assert not wrong, "frames with the wrong CRC status: %s" % wrong[:20]
+    shown = messages(tshark, cap)
+    for n, bad in bodies.items():
+        if bad:
+            body = bytes.fromhex(got[n]["udp.payload"])[:-4]
+            assert shown[n][0].startswith("Bad CRC [should be 0x%08x]" % gen.crc32_mpeg2(body)), (n, shown[n])
