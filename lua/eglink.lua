@@ -812,28 +812,41 @@ end
 
 -- Info of a VRPI names what each value is: "BU=Armed RU 0xbeef=Enabled
 -- J1=-1000", the unarmed RUs while the BU is Disarmed, then [relays open].
+local info_parts = {}   -- (one table for every VRPI's Info: its first n entries)
 local function vrpi_info(p, bu_state, relays_open)
     local have = p.cap
-    local parts = { " BU=" .. value_name(bu_state, BU_STATE) }
+    local parts, n = info_parts, 1
+    parts[1] = " BU=" .. value_name(bu_state, BU_STATE)
     if have >= 3 and bu_state == BU_STATE_DISARMED then
-        parts[#parts + 1] = " Unarmed RUs=" .. byte(p.raw, p.base + 3)
+        n = n + 1
+        parts[n] = " Unarmed RUs=" .. byte(p.raw, p.base + 3)
     end
     if have >= 8 then
         local armed_ru = le_uint(p.raw, p.base + 6, 2)
         local ru_state = have >= 9 and byte(p.raw, p.base + 9) or 0
         if armed_ru ~= 0 or ru_state ~= 0 then
-            parts[#parts + 1] = string.format(" RU 0x%04x", armed_ru)
-            if have >= 9 then parts[#parts + 1] = "=" .. value_name(ru_state, RU_STATE) end
+            n = n + 1
+            parts[n] = string.format(" RU 0x%04x", armed_ru)
+            if have >= 9 then
+                n = n + 1
+                parts[n] = "=" .. value_name(ru_state, RU_STATE)
+            end
         end
     end
     for i = 0, 3 do
         if have < 16 + 2 * i then break end
         local joystick = le_uint(p.raw, p.base + 14 + 2 * i, 2)
         if joystick >= 32768 then joystick = joystick - 65536 end
-        if joystick ~= 0 then parts[#parts + 1] = string.format(" J%d=%d", i + 1, joystick) end
+        if joystick ~= 0 then
+            n = n + 1
+            parts[n] = string.format(" J%d=%d", i + 1, joystick)
+        end
     end
-    if relays_open then parts[#parts + 1] = " [relays open]" end
-    col_append(p.cinfo, table.concat(parts))
+    if relays_open then
+        n = n + 1
+        parts[n] = " [relays open]"
+    end
+    col_append(p.cinfo, table.concat(parts, "", 1, n))
 end
 
 -- VRPI: BU status and the armed RU's controls.
@@ -977,8 +990,8 @@ local function dissect_command(p, info, with_data)
     if with_data then
         check_payload_spare(p, 2, 4)
         if add_bytes(p, pf.command_data, 6, 16) == 16 then
-            handoff.dissect(tvb_range(p.tvb, p.base + 6, 16):tvb(), p.pinfo, p.tree,
-                info.type == "VRCI" and "vrci" or "vrco", info.origin, 0)
+            handoff.dissect(p.tvb, p.pinfo, p.tree, info.type == "VRCI" and "vrci" or "vrco", info.origin, 0,
+                p.base + 6, 16)
         end
     end
 end
@@ -1084,6 +1097,7 @@ local function id_text(s)
     return t
 end
 
+local packet_info, payload_ctx = {}, {}
 local function dissect(tvb, pinfo, tree)
     local reported, captured = tvb_reported_len(tvb), tvb_len(tvb)
     local have = math.min(reported, captured)   -- bytes in the packet and in the capture
@@ -1092,11 +1106,12 @@ local function dissect(tvb, pinfo, tree)
     if sub(raw, 1, 2) ~= "VR" then return 0 end
     want = frame_want(tree, p_visited(pinfo))
 
-    local info = {
-        type = "UNKNOWN", revision = 0, origin = 0, serial = 0, has_serial = false, size = 0, size_ok = false,
-        crc_ok = false, cut = false, has_bu_state = false, bu_state = 0, has_command_id = false, command_id = 0,
-        has_packet_number = false, packet_number = 0, periodic_offset = 0, periodic_len = 0,
-    }
+    -- (one info table, every key set anew a packet: nobody keeps it)
+    local info = packet_info
+    info.type, info.revision, info.origin, info.serial, info.has_serial = "UNKNOWN", 0, 0, 0, false
+    info.size, info.size_ok, info.crc_ok, info.cut = 0, false, false, false
+    info.has_bu_state, info.bu_state, info.has_command_id, info.command_id = false, 0, false, 0
+    info.has_packet_number, info.packet_number, info.periodic_offset, info.periodic_len = false, 0, 0, 0
 
     local cols = pinfo.cols
     cols.protocol = "EG-Link"
@@ -1109,7 +1124,8 @@ local function dissect(tvb, pinfo, tree)
     local id4 = have >= 4 and sub(raw, 1, 4) or raw
     local id = id_text(id4)
     col_set(cinfo, id)
-    t_append(eglink_item, ", " .. id)
+    -- (the item's text only where it is seen: not on a sparse tree)
+    if not want then t_append(eglink_item, ", " .. id) end
     if have >= 4 then
         info.type = TYPE_OF_ID[id4] or "UNKNOWN"
     end
@@ -1148,7 +1164,7 @@ local function dissect(tvb, pinfo, tree)
     if value then
         info.serial = value
         info.has_serial = true
-        t_append(eglink_item, ", Serial " .. value)
+        if not want then t_append(eglink_item, ", Serial " .. value) end
     end
     local size_ti
     value, size_ti = add_header_uint(eglink_tree, tvb, raw, pf.size, 10, 2, have)
@@ -1187,8 +1203,9 @@ local function dissect(tvb, pinfo, tree)
     end
 
     -- Payload: everything between the header and the CRC at the end of the datagram.
-    local p = { tvb = tvb, raw = raw, pinfo = pinfo, cinfo = cinfo, base = HEADER_LEN, len = reported - MIN_LEN,
-                undefined = false }
+    local p = payload_ctx   -- (as info: every key set anew)
+    p.tvb, p.raw, p.pinfo, p.cinfo, p.base, p.len = tvb, raw, pinfo, cinfo, HEADER_LEN, reported - MIN_LEN
+    p.undefined, p.tree = false, nil
     p.cap = math.max(0, math.min(p.len, captured - HEADER_LEN))
     -- (checked before the payload: a corrupted packet's values are not judged)
     local crc = captured >= reported and crc_check(raw, reported - CRC_LEN) or nil
