@@ -409,22 +409,16 @@ local function crc_mpeg2(s, n)
     end
     local r = n - i + 1
     if r > 0 then
+        -- (the word's top r bytes are C_top ~ M, the others C_low)
         local b1, b2, b3 = byte(s, i, n)
         local m = r == 1 and b1 or r == 2 and b1 * 256 + b2 or (b1 * 256 + b2) * 256 + b3
-        local shift = TAIL_SHIFT[r]
-        local x = bxor(crc, m * shift) % TWO32
-        local low = x % shift
-        local top = (x - low) / shift
+        local x1, x2, x3, x4 = word_bytes(bxor(crc, m * TAIL_SHIFT[r]))
         if r == 1 then
-            crc = bxor(S0[top], low * 256)
+            crc = bxor(S0[x1], ((x2 * 256 + x3) * 256 + x4) * 256)
         elseif r == 2 then
-            local t2 = top % 256
-            crc = bxor(S1[(top - t2) / 256], S0[t2], low * 65536)
+            crc = bxor(S1[x1], S0[x2], (x3 * 256 + x4) * 65536)
         else
-            local t3 = top % 256
-            top = (top - t3) / 256
-            local t2 = top % 256
-            crc = bxor(S2[(top - t2) / 256], S1[t2], S0[t3], low * 16777216)
+            crc = bxor(S2[x1], S1[x2], S0[x3], x4 * 16777216)
         end
     end
     return u32(crc)

@@ -147,9 +147,9 @@ def test_corrupted_values_are_not_judged(tshark, work_dir):
 
 
 def test_crc_over_every_length(tshark, work_dir):
-    """The CRC is computed eight bytes a step, then four, two and one: VRPOs
-    with every fragment length 0..488 (the CRC over 18..506 bytes: every
-    length modulo 8, with random bytes) check Good, and the same packets with
+    """The CRC is computed sixteen bytes a step, then four, then the last one
+    to three: VRPOs with every fragment length 0..488 (the CRC over 18..506
+    bytes: every length modulo 16, with random bytes) check Good, and the same packets with
     their CRC off by one bit check Bad with the CRC the spec's bitwise
     algorithm gives (the capture generator's) in the message."""
     rng = random.Random(20261202)
