@@ -399,8 +399,9 @@ local function show_connect(rec, tvb, tree, text)
     item:add_proto_expert_info(eef.learned, "Cyclic data layout learned: " .. text)
 end
 
--- (its frames are shown through its own dissector: pnio_systems.through())
-eclp.dissector = systems.dissector
+-- (its frames are shown through its own dissector: pnio_systems.through(),
+-- or handed to it by the C front end, pnio_systems.set_entry())
+eclp.dissector = systems.dissector_of(eclp)
 local dec = { proto = eclp, short = eef.short, cut = eef.cut, inferred = eef.inferred,
                                  reopened = eef.reopened,
                                  pn_malformed = eef.pn_malformed,

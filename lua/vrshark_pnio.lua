@@ -128,7 +128,7 @@ local HEUR_TRIES = seam.PN_CANDIDATE_TRIES
 --             once         true in a one-pass tshark run (vrshark/passes.luam): no frame is shown again, so a
 --                          cyclic frame's record is not kept (with no finding, its table is the next frame's)
 -- preferences heuristic, learn   mcmb2.heuristic and mcmb2.connect (also read at load, for the hooks)
-local by_fid, noted_fid, pending_down, tries
+local by_fid, noted_fid, by_carrier, pending_down, tries
 local ars, not_ours, frags, cut_connect
 local runs, gone, addr_of, hint_recs, reopening, unsettled
 local frames, per_frame, last_rec, spare
@@ -136,7 +136,7 @@ local once = false
 local heuristic, learn
 
 local function new_capture()
-    by_fid, noted_fid, pending_down, tries = {}, {}, {}, {}
+    by_fid, noted_fid, by_carrier, pending_down, tries = {}, {}, {}, {}, {}
     ars, not_ours, frags, cut_connect = {}, {}, {}, nil
     runs, gone, addr_of, hint_recs, reopening, unsettled = infer.new(), {}, {}, {}, {}, nil
     -- (packed: vrshark/framemap.luam says why; the ages are rounded to the ms)
@@ -147,21 +147,46 @@ local function new_capture()
     heuristic, learn = prefs.heuristic, prefs.connect
 end
 
+-- A FrameID the C front end hands to the carrier's Proto on every pass:
+-- one the inference or a note needs, whatever its layouts (by_carrier).
+local function watch_carrier(fid)
+    by_carrier[fid] = true
+    front.watch(fid)
+end
+
+-- The Proto the C front end hands FrameID fid's frames to (its layouts t):
+-- the decoder's own when every layout is of one decoder with a Proto not
+-- the carrier's (eclink_pnio), so that its frames are dissected under it
+-- without a call through() each (pnio_systems.set_entry()); else the
+-- carrier's (nil).
+local function entry_proto(fid, t)
+    if by_carrier[fid] then return nil end
+    local as
+    for _, p in ipairs(t) do
+        local dec = systems.decoder(p.system)
+        local proto = dec and dec.proto
+        if not proto or proto == carrier or (as and as ~= proto) then return nil end
+        as = proto
+    end
+    return as
+end
+
 local function register(plan)
     if not plan or not plan.fid or plan.fid == 0xFFFF then return end
-    front.watch(plan.fid)
     local t = by_fid[plan.fid]
     if not t then
         t = {}
         by_fid[plan.fid] = t
     end
+    local at = #t + 1
     for i, p in ipairs(t) do
         if p.sender == plan.sender then -- Addresses compare by value; nil is "any sender"
-            t[i] = plan
-            return
+            at = i
+            break
         end
     end
-    t[#t + 1] = plan
+    t[at] = plan
+    front.watch(plan.fid, entry_proto(plan.fid, t))
 end
 
 -- The plan of FrameID `fid` sent by `src`: the one for that sender, else
@@ -506,7 +531,7 @@ end
 -- The C front end hands later passes only the FrameIDs it watches: fid
 -- is watched.
 local function down_note(w, fid)
-    front.watch(fid)
+    watch_carrier(fid)
     noted_fid[fid] = true
     if not w.note then
         local h = w.h
@@ -959,7 +984,7 @@ function inferred(fid, s, pinfo, n)
     if infer.alive(runs) ~= was then set_hooks() end
     if #runs.watch > 0 then
         -- the C front end hands later passes only the FrameIDs it watches
-        for _, f in ipairs(runs.watch) do front.watch(f) end
+        for _, f in ipairs(runs.watch) do watch_carrier(f) end
         runs.watch = {}
     end
     if #runs.unwatch > 0 then
@@ -1187,7 +1212,7 @@ end
 -- by nobody else; visited: pinfo.visited): its per-frame value put back,
 -- the tree and columns as the view says (none in a quiet one), then a
 -- fresh record without findings is the next frame's table.
-local function shown(rec, fresh, n, visited, tvb, pinfo, tree, view, thrown)
+local function shown(rec, fresh, n, visited, tvb, pinfo, tree, view, thrown, as)
     local plan = rec.plan
     -- (the decoder whose findings the record holds, as owner() says)
     local dec = systems.decoder(plan and plan.system or rec.system or "duplex")
@@ -1198,8 +1223,9 @@ local function shown(rec, fresh, n, visited, tvb, pinfo, tree, view, thrown)
         -- fields, front.view_for(): the C front end's, or made in Lua)
         local protos = not thrown and plan and (dec.lua_protos or dec.proto == mcmb2_proto and dec.proto)
         if protos then view = view_for(protos, tree, visited, view) end
-        -- (under the decoder's own Proto: pnio_systems.through() says why)
-        if dec.proto == carrier then
+        -- (under the decoder's own Proto: pnio_systems.through() says why;
+        -- as: the frame is dissected under it already)
+        if dec.proto == (as or carrier) then
             display(rec, tvb, pinfo, tree, view, thrown)
         else
             systems.through(dec, display, rec, tvb, pinfo, tree, view, thrown)
@@ -1214,10 +1240,11 @@ end
 -- looked at (vrshark/seam.luam view(): nil everything, quiet nothing, or
 -- sparse: the decoder's sparse() adds only that, or says it needs show());
 -- thrown: PN-RT (or PNIO below it) raised an exception on this frame; len:
--- the frame's length, or nil. Returns the record, or nil for a frame not
--- of ours. (Every frame of a foreign device in the Lua-only mode comes
+-- the frame's length, or nil; as: the decoder's Proto the C front end
+-- handed the frame to (register(): entry_proto()), nil for the carrier's.
+-- Returns the record, or nil for a frame not of ours. (Every frame of a foreign device in the Lua-only mode comes
 -- here: the first pass costs it the FrameID read and a table lookup.)
-local function cyclic(tvb, pinfo, tree, view, thrown, len)
+local function cyclic(tvb, pinfo, tree, view, thrown, len, as)
     -- (the note is an expert item: everything is shown)
     if thrown then view = nil end
     local visited = p_visited(pinfo)
@@ -1240,7 +1267,7 @@ local function cyclic(tvb, pinfo, tree, view, thrown, len)
             if not once then fset(frames, n, rec) end
         end
     end
-    if rec then shown(rec, fresh, n, visited, tvb, pinfo, tree, view, thrown) end
+    if rec then shown(rec, fresh, n, visited, tvb, pinfo, tree, view, thrown, as) end
     return rec
 end
 

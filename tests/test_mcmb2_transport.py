@@ -1,6 +1,7 @@
 """How frames reach the plugin: EtherType 0x8892 wrapped around PN-RT, the
 Connect through UDP 34964 and the controller's port; nothing else."""
 import os
+import re
 
 import pytest
 from scapy.utils import rdpcap
@@ -25,6 +26,27 @@ def test_cyclic_frames_go_through_the_carrier(tshark, capture_file):
                         display_filter="frame.number == 1 || frame.number == 3")
     assert [got[n]["frame.protocols"] for n in (1, 3)] == ["eth:ethertype:ip:udp:vrshark_pnio:dcerpc:eclink_pnio",
                                                            "eth:ethertype:vrshark_pnio:pn_rt:pn_io:eclink_pnio"]
+
+
+@pytest.mark.skipif(bool(os.environ.get("VRSHARK_NO_C_PLUGIN")), reason="the C front end's FrameID table")
+@pytest.mark.parametrize("two_pass", [False, True])
+def test_eclink_frameids_handed_to_eclink_pnio(tshark, capture_file, two_pass):
+    """With the C plugin a FrameID whose layouts are all EC-Link's is registered under eclink_pnio's
+    own Proto (vrshark_pnio.lua entry_proto()): its frames are dissected under it, so the protocol
+    list ends with it even when nothing of ours is looked at (`-q`: a call through() would be
+    skipped), and Lua is entered once a frame, not twice."""
+    cap = str(capture_file("eclink_pnio_connect.pcap"))
+    pass_args = ["-2"] if two_pass else []
+    rows = tshark.run(["-q", "-n", "-r", cap, "-T", "fields", "-e", "frame.protocols"] + pass_args).stdout.split()
+    assert len(rows) == 82
+    assert rows[:2] == ["eth:ethertype:ip:udp:vrshark_pnio:dcerpc:eclink_pnio"] * 2  # the Connect
+    assert set(rows[2:]) == {"eth:ethertype:vrshark_pnio:pn_rt:pn_io:eclink_pnio"}
+    # Protocol Hierarchy walks the tree: Wireshark's Lua wraps each Lua
+    # dissector's tree in an item "_ws.lua.fake", one per entry into Lua
+    # (two with the carrier's call through eclink_pnio's dissector)
+    phs = tshark.run(["-q", "-r", cap, "-z", "io,phs"] + pass_args).stdout
+    assert re.search(r"^  pn_rt +frames:80 .*\n    pn_io +frames:80 .*\n      _ws\.lua\.fake +frames:80 .*\n"
+                     r"        eclink_pnio +frames:80 ", phs, re.M), phs
 
 
 def test_vlan_tagged_frames_too(tshark, capture_file):

@@ -466,14 +466,21 @@ call_lua_decoder(dissector_handle_t h, tvbuff_t *tvb, packet_info *pinfo, proto_
     return ret;
 }
 
-/* The Lua decoder of FrameID fid (vrshark.pn.frame_id), the same way. */
+/* The Lua decoder h of FrameID fid (vrshark.pn.frame_id), the same way.
+ * The carrier (mcmb2's Proto, the first of pn_lua_protos) runs as a front
+ * end's hook, not a layer of its own; a decoder's own Proto (eclink_pnio,
+ * under which the carrier registers the FrameIDs only it decodes) is a
+ * layer, as its dissector called from Lua would be: frame.protocols and
+ * Statistics > Protocol Hierarchy end with it, and its findings are filed
+ * under it. */
 static void
-call_lua_frame_id(guint16 fid, tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree)
+call_lua_frame_id(dissector_handle_t h, guint16 fid, tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree)
 {
     packet_info *outer = vrshark_columns_enter(pinfo);
+    gboolean layer = dissector_handle_get_protocol_index(h) != lookup_proto(&view_pn.ids[0], view_pn.protos[0]);
 
     TRY {
-        dissector_try_uint_with_data(pn_frame_id_table, fid, tvb, pinfo, tree, FALSE, NULL);
+        dissector_try_uint_with_data(pn_frame_id_table, fid, tvb, pinfo, tree, layer, NULL);
     }
     FINALLY {
         vrshark_columns_leave(outer);
@@ -538,14 +545,16 @@ pn_cyclic(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
     guint16 fid;
     guint idx;
 
-    if (tvb_captured_length(tvb) >= 2 && dissector_get_uint_handle(pn_frame_id_table, tvb_get_ntohs(tvb, 0))) {
+    dissector_handle_t h;
+
+    if (tvb_captured_length(tvb) >= 2 && (h = dissector_get_uint_handle(pn_frame_id_table, tvb_get_ntohs(tvb, 0)))) {
         const char *saved = pinfo->match_string;
         gboolean thrown;
 
         fid = tvb_get_ntohs(tvb, 0);
         consumed = call_pn_rt_known(tvb, pinfo, tree, data, &thrown);
         pinfo->match_string = thrown ? VRSHARK_VIEW_MALFORMED : lua_view(&view_pn, pinfo, tree);
-        call_lua_frame_id(fid, tvb, pinfo, tree);
+        call_lua_frame_id(h, fid, tvb, pinfo, tree);
         pinfo->match_string = saved;
         return thrown ? (int)tvb_captured_length(tvb) : consumed;
     }
