@@ -972,13 +972,17 @@ do
     end
 
     -- The TCP segments that end a connection carry no payload, and TCP hands
-    -- none of those to a subdissector: a listener of the tcp tap sees them (no
-    -- filter: no tree forced). It costs a Lua call and a table of the TCP
-    -- header on every TCP frame (a fifth more CPU time on a BU's Modbus/TCP,
-    -- docs/quality.md), so it is made when the first connection is taken for a
-    -- BU's, and stays for the process. A FIN or RST on a BU's connection is
-    -- said on the next frame a plugin dissects (the tap runs after the frame's
-    -- own dissection), naming the frame that ended it.
+    -- none of those to a subdissector: a listener of the tcp tap sees them.
+    -- With the C plugin its listener (plugins/vrshark/vrshark-tcpends.c)
+    -- keeps those of the connections named to it, and the front ends hand
+    -- them over (transport.tcp_ends()) before their own work on the next
+    -- frame they see. Without it a Lua listener (no filter: no tree forced)
+    -- costs a Lua call and a table of the TCP header on every TCP frame (a
+    -- sixth of a BU's Modbus/TCP with -Y, docs/quality.md), so it is made
+    -- when the first connection is taken for a BU's, and stays for the
+    -- process. A FIN or RST on a BU's connection is said on the next frame a
+    -- plugin dissects (the tap runs after the frame's own dissection),
+    -- naming the frame that ended it.
     local FIN, RST = 1, 4
     -- tshark -2 runs the taps in its second pass only (Wireshark in the first)
     local taps_late = passes.tshark() and not passes.once()
@@ -997,13 +1001,11 @@ do
         return nil
     end
 
-    local function tcp_tap(pinfo, _, th)
-        local flags = th.th_flags
-        if not flags or bit.band(flags, FIN + RST) == 0 then return end
-        local c, from_client, key = find_conn(pinfo, th.th_sport, th.th_dport)
+    -- connection `key` (c) ended in frame `number` (time abs) by a segment
+    -- with TCP flags `flags` from the client or the BU
+    local function ended(c, key, from_client, number, flags, abs)
         -- (a tap runs on every pass: the first frame that ends the connection counts)
         if not c or c.ended or not (c.accepted or c.armed) then return end
-        local number = p_number(pinfo)
         c.ended = number
         local reset = bit.band(flags, RST) ~= 0
         local client, bu = key:match("^(.*)>(.*)$")
@@ -1022,15 +1024,29 @@ do
             deadlines.later(number, show, counted)
         else
             -- (due just before this frame's time: the next frame dissected fires it)
-            deadlines.arm("eclink_modbus end " .. key, p_abs_ts(pinfo) - 1e-6, function()
+            deadlines.arm("eclink_modbus end " .. key, abs - 1e-6, function()
                 counted()
                 return show
             end)
         end
     end
+
+    local function tcp_tap(pinfo, _, th)
+        local flags = th.th_flags
+        if not flags or bit.band(flags, FIN + RST) == 0 then return end
+        local c, from_client, key = find_conn(pinfo, th.th_sport, th.th_dport)
+        if c then ended(c, key, from_client, p_number(pinfo), flags, p_abs_ts(pinfo)) end
+    end
+    -- (from the C plugin's listener: the connection by its key)
+    transport.tcp_ends(function(key, from_client, number, flags, abs)
+        ended(conns[key], key, from_client, number, flags, abs)
+    end)
     local tapping = false
-    function tap_tcp()
+    -- connection `key` taken for a BU's on this frame (its client on
+    -- client_port): named to the C plugin's listener, else the Lua one
+    function tap_tcp(key, client_port)
         if tapping then return end
+        if transport.tcp_end_watch(key, client_port) then return end
         tapping = true
         Listener.new("tcp", nil, false).packet = tcp_tap
     end
@@ -1257,10 +1273,10 @@ end
 -- read (its PCI), the output image written where the mode has periodic
 -- output (Standard, given or guessed from writes past the 20 bytes of
 -- Input + Commands mode: TS-0007 2.1, 8.4)
-local function arm_streams(c, unit, number, pinfo, reads, wrote_pco)
+local function arm_streams(c, unit, number, pinfo, reads, wrote_pco, key, client_port)
     if not c.armed then
         c.armed = true
-        tap_tcp()
+        tap_tcp(key, client_port)
     end
     if reads then
         stream_frame(c, "input", unit, number, p_abs_ts(pinfo), opt.pci_timeout, pinfo)
@@ -1275,7 +1291,8 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb, 
     local fc = fcb % 128
     local tname = FC_TABLE[fc]
     if not tname then return NOT_DECODED end
-    local c = get_conn(conn_key(pinfo, is_request, src_port, dst_port))
+    local key = conn_key(pinfo, is_request, src_port, dst_port)
+    local c = get_conn(key)
     if c.pinned == nil then pin(c, pinfo, is_request) end
     -- a connection the heuristic gave up on stays Modbus's: nothing more to work out
     if c.tries >= CANDIDATE_TRIES and not c.accepted and not c.pinned and opt.detection == DETECT_HEURISTIC then
@@ -1309,7 +1326,9 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb, 
     local reads = is_request and r and reads_pci(fc, r)
     if reads then poll(c, rec, t, number) end
     local touched_in, touched_out, wrote_pco = store_accesses(c, accesses, tvb, off, is_request)
-    if c.accepted or det == DETECT_ALWAYS then arm_streams(c, unit, number, pinfo, reads, wrote_pco) end
+    if c.accepted or det == DETECT_ALWAYS then
+        arm_streams(c, unit, number, pinfo, reads, wrote_pco, key, is_request and src_port or dst_port)
+    end
     analyse(c, rec, t, number, touched_in, touched_out)
     health.modbus(c, rec, is_request and pinfo.dst or pinfo.src, is_request and dst_port or src_port, unit, is_request,
         reads, is_request and touched_out, touched_in, det ~= DETECT_HEURISTIC or c.accepted, t, number)

@@ -76,6 +76,12 @@ vrshark_columns_enter(packet_info *pinfo)
     return outer;
 }
 
+packet_info *
+vrshark_columns_pinfo(void)
+{
+    return cols_pinfo;
+}
+
 void
 vrshark_columns_leave(packet_info *outer)
 {

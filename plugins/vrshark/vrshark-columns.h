@@ -14,6 +14,8 @@
  * with the two (nested calls restore the outer frame). */
 packet_info *vrshark_columns_enter(packet_info *pinfo);
 void vrshark_columns_leave(packet_info *outer);
+/* That frame, or NULL outside a decoder call. */
+packet_info *vrshark_columns_pinfo(void);
 
 /* Tells the Lua side where this plugin is (environment variable
  * VRSHARK_FRONTENDS_LIB, its path), so that lua/vrshark/frontends.luam can

@@ -101,6 +101,7 @@
 #include "vrshark-columns.h"
 #include "vrshark-flags.h"
 #include "vrshark-frontends.h"
+#include "vrshark-tcpends.h"
 #include "vrshark-output.h"
 
 #define ETHERTYPE_PNRT          0x8892
@@ -538,6 +539,28 @@ clock_tick(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree)
     pinfo->match_string = saved;
 }
 
+/* The TCP segments that ended a connection the Modbus decoder named, kept
+ * since the last frame (vrshark-tcpends.c), handed to it before a front
+ * end's own work on this frame: it arms their findings for this frame's
+ * tick, as its own TCP listener would. */
+static void
+tcp_ends_deliver(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree)
+{
+    dissector_handle_t h;
+    const char *saved;
+
+    if (!vrshark_tcp_ends_pending)
+        return;
+    if (!(h = dissector_get_string_handle(mb_hook_table, VRSHARK_MB_HOOK_TCP_END))) {
+        vrshark_tcp_ends_reset();
+        return;
+    }
+    saved = pinfo->match_string;
+    pinfo->match_string = VRSHARK_MB_HOOK_TCP_END;
+    call_lua_decoder(h, tvb, pinfo, tree);
+    pinfo->match_string = saved;
+}
+
 static int
 pn_cyclic(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
 {
@@ -576,8 +599,10 @@ pn_cyclic(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
 static int
 dissect_pn_cyclic(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
 {
-    int consumed = pn_cyclic(tvb, pinfo, tree, data);
+    int consumed;
 
+    tcp_ends_deliver(tvb, pinfo, tree);
+    consumed = pn_cyclic(tvb, pinfo, tree, data);
     clock_tick(tvb, pinfo, tree);
     return consumed;
 }
@@ -815,8 +840,10 @@ pn_cm(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
 static int
 dissect_pn_cm(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
 {
-    int consumed = pn_cm(tvb, pinfo, tree, data);
+    int consumed;
 
+    tcp_ends_deliver(tvb, pinfo, tree);
+    consumed = pn_cm(tvb, pinfo, tree, data);
     clock_tick(tvb, pinfo, tree);
     return consumed;
 }
@@ -1238,8 +1265,10 @@ mbtcp_front(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
 static int
 dissect_mbtcp_front(tvbuff_t *tvb, packet_info *pinfo, proto_tree *tree, void *data)
 {
-    int consumed = mbtcp_front(tvb, pinfo, tree, data);
+    int consumed;
 
+    tcp_ends_deliver(tvb, pinfo, tree);
+    consumed = mbtcp_front(tvb, pinfo, tree, data);
     clock_tick(tvb, pinfo, tree);
     return consumed;
 }
@@ -1320,6 +1349,7 @@ frontends_init(void)
 
     memset(pn_tries, 0, sizeof pn_tries);
     vrshark_clock_reset();
+    vrshark_tcp_ends_reset();
     forget_lua_side();
     mb_state = wmem_map_new(wmem_file_scope(), mb_conn_hash, mb_conn_equal);
     pn_foreign_subs = wmem_map_new(wmem_file_scope(), pn_subs_hash, pn_subs_equal);

@@ -50,7 +50,11 @@
  *   server     called: the frames of the servers listed through
  *              VRSHARK_FN_SERVERS, present while any is listed;
  *   port_hint  called: a request on a port nobody reads as Modbus/TCP that
- *              asks for a BU's evidence.
+ *              asks for a BU's evidence;
+ *   tcp_end    called: before a front end's own work on a frame, when the
+ *              TCP listener of vrshark-tcpends.c kept a segment that ended
+ *              a connection the decoder named (it takes them through
+ *              VRSHARK_FN_TCP_ENDS).
  * A listed server is VRSHARK_MB_SERVER_PREFIX "ADDR:PORT", or "ADDR" for
  * every port (a name VRSHARK_FN_SERVERS takes, not a table key). */
 #define VRSHARK_MB_HOOK_HEURISTIC   "heuristic"
@@ -58,6 +62,7 @@
 #define VRSHARK_MB_HOOK_SERVER      "server"
 #define VRSHARK_MB_SERVER_PREFIX    "server "
 #define VRSHARK_MB_HOOK_PORT_HINT   "port_hint"
+#define VRSHARK_MB_HOOK_TCP_END     "tcp_end"
 
 /* Flags: state of the Lua side that the front ends read on every frame,
  * kept in C (vrshark-flags.c) and set by the Lua side through
@@ -107,6 +112,11 @@
 #define VRSHARK_FN_FLAG             "vrshark_lua_flag"
 #define VRSHARK_FN_SERVERS          "vrshark_lua_servers"
 #define VRSHARK_FN_MB_HOOKS_CHANGED "vrshark_lua_mb_hooks_changed"
+
+/* The TCP segments that end a named connection (vrshark-tcpends.c): a
+ * connection named, the segments kept since the last call. */
+#define VRSHARK_FN_TCP_END_WATCH    "vrshark_lua_tcp_end_watch"
+#define VRSHARK_FN_TCP_ENDS         "vrshark_lua_tcp_ends"
 
 /* Heuristic tries: cyclic frames per FrameID, frames per TCP connection
  * (the Lua decoders bound their own tries by the same numbers).
