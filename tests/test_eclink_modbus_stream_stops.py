@@ -247,3 +247,24 @@ def test_the_stops_capture(tshark, capture_file, two_pass):
                         "last written in frame 267"]
     tshark.expect(cap, 275, {"eclink_modbus.closed_in": 271}, two_pass=two_pass)
     assert "[connection to BU reset]" in got[275]["_ws.col.Info"]
+
+
+@pytest.mark.parametrize("two_pass", [False, True])
+def test_who_listens_for_the_ends(lua_probe, capture_file, two_pass):
+    """The FIN and RST of a BU's connection come from a listener of the tcp tap, which runs on
+    every TCP frame: with the C plugin its own, in C (plugins/vrshark/vrshark-tcpends.c), so no
+    Lua listener is made; without it one Lua listener, made when the first connection is taken
+    for a BU's. The findings are the same in both (test_the_stops_capture)."""
+    script = """
+local f = io.open("%(out)s", "w")
+local new = Listener.new
+Listener.new = function(tap, ...)
+    f:write("listener " .. tostring(tap) .. "\\n")
+    f:flush()
+    return new(tap, ...)
+end
+"""
+    lines = lua_probe(script, capture_file("eclink_modbus_stops.pcap"),
+                      ["-Y", "eclink_modbus.connection_closed || eclink_modbus.connection_reset"]
+                      + (["-2"] if two_pass else []))
+    assert lines == (["listener tcp"] if os.environ.get("VRSHARK_NO_C_PLUGIN") else [])
