@@ -1330,7 +1330,7 @@ local function first_pass(tvb, pinfo, off, adu_len, is_request, tid, unit, fcb, 
         arm_streams(c, unit, number, pinfo, reads, wrote_pco, key, is_request and src_port or dst_port)
     end
     analyse(c, rec, t, number, touched_in, touched_out)
-    health.modbus(c, rec, is_request and pinfo.dst or pinfo.src, is_request and dst_port or src_port, unit, is_request,
+    health.modbus(c, rec, pinfo, is_request and dst_port or src_port, unit, is_request,
         reads, is_request and touched_out, touched_in, det ~= DETECT_HEURISTIC or c.accepted, t, number)
     if opt.assembled then
         rec.snap_in = snapshot(c, "input")

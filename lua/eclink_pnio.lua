@@ -39,6 +39,7 @@ local byte = string.byte
 -- (methods called as functions on the per-frame paths: vrshark/api.luam says why)
 local api = require("vrshark.api")
 local add, range, set_generated = api.add, api.range, api.set_generated
+local p_number = api.pinfo.number
 
 local eclp = Proto("eclink_pnio", "EC-Link over PROFINET IO")
 eclp.prefs.cai_timeout = Pref.uint("CAI timeout (ms)", 2000,
@@ -323,7 +324,7 @@ local SPARSE = { adders = ADDERS, experts = {}, prefixes = { "eclink_pnio", "ecl
 -- image's options, refilled per frame (nobody keeps them).
 local ctx, image_opts = {}, {}
 local function sparse(rec, tvb, pinfo, tree, view)
-    if rec.periodic or periodic_in[pinfo.number] then return false end
+    if rec.periodic or periodic_in[p_number(pinfo)] then return false end
     local plan = rec.plan
     local p = fe.plan(view, SPARSE)
     -- machine data can add findings and Info tags of its own
